@@ -180,7 +180,11 @@ def _valid_id(value: str) -> bool:
 
 
 def parse_metadata(raw: Mapping[str, Any]) -> FlightMetadata:
-    """Validate raw string metadata into :class:`FlightMetadata` or raise :class:`FlightLogError`."""
+    """Validate raw string metadata into :class:`FlightMetadata`.
+
+    Raises :class:`FlightLogError` with ``unknown_format``, ``missing_metadata`` or
+    ``bad_metadata`` issues.
+    """
     issues: list[Issue] = []
     fmt = raw.get("format")
     if fmt is None:
@@ -262,7 +266,8 @@ def write_parquet(log: FlightLog) -> bytes:
     if unknown:
         raise ValueError(f"channels outside format v1: {sorted(unknown)}")
     arrays = [
-        pa.array(np.ascontiguousarray(log.channels[n], dtype=np.float64 if n == "t" else np.float32))
+        pa.array(np.ascontiguousarray(log.channels[n],
+                                      dtype=np.float64 if n == "t" else np.float32))
         for n in names
     ]
     meta = {k.encode(): v.encode() for k, v in log.metadata.to_strings().items()}
@@ -450,7 +455,8 @@ def check_coherence(
     n = log.n_samples
     bad_len = sorted(k for k, v in ch.items() if v.ndim != 1 or v.shape[0] != n)
     if bad_len:
-        issues.append(Issue("unreadable", "Channels have different lengths.", {"channels": bad_len}))
+        issues.append(Issue("unreadable", "Channels have different lengths.",
+                            {"channels": bad_len}))
         return issues
 
     non_finite = sorted(k for k, v in ch.items() if not np.isfinite(v).all())

@@ -1,0 +1,78 @@
+"""Dependencies shared by the routers: settings, a DB session, the caller's key and role."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Annotated
+
+from fastapi import Depends, Request
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from sqlalchemy.orm import Session
+
+from server.auth import ALLOWED, authenticate, may
+from server.blobstore import BlobStore
+from server.config import Settings
+from server.errors import Forbidden, Unauthorized
+from server.models import ApiKey
+
+__all__ = ["SessionDep", "SettingsDep", "BlobsDep", "Reader", "Uploader", "Operator", "Admin",
+           "CurrentKey"]
+
+_bearer = HTTPBearer(auto_error=False, description="API key: `Authorization: Bearer hmsm_...`")
+
+
+def get_settings(request: Request) -> Settings:
+    return request.app.state.settings
+
+
+def get_blobs(request: Request) -> BlobStore:
+    return request.app.state.blobs
+
+
+def get_session(request: Request) -> Iterator[Session]:
+    session = request.app.state.session_factory()
+    try:
+        yield session
+    finally:
+        session.rollback()
+        session.close()
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+BlobsDep = Annotated[BlobStore, Depends(get_blobs)]
+SessionDep = Annotated[Session, Depends(get_session)]
+
+
+def current_key(
+    request: Request,
+    session: SessionDep,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+) -> ApiKey:
+    token = credentials.credentials if credentials else request.cookies.get("hmsm_session")
+    if not token:
+        raise Unauthorized("An API key is required (Authorization: Bearer ...).",
+                           headers={"WWW-Authenticate": "Bearer"})
+    key = authenticate(session=session, plaintext=token)
+    if key is None:
+        raise Unauthorized("The API key is unknown or revoked.",
+                           headers={"WWW-Authenticate": "Bearer"})
+    return key
+
+
+CurrentKey = Annotated[ApiKey, Depends(current_key)]
+
+
+def _require(action: str):  # type: ignore[no-untyped-def]
+    def dependency(key: CurrentKey) -> ApiKey:
+        if not may(key.role, action):
+            raise Forbidden(f"Role '{key.role}' may not do this; it needs one of: "
+                            + ", ".join(sorted(ALLOWED[action])) + ".")
+        return key
+
+    return dependency
+
+
+Reader = Annotated[ApiKey, Depends(_require("read"))]
+Uploader = Annotated[ApiKey, Depends(_require("upload"))]
+Operator = Annotated[ApiKey, Depends(_require("operate"))]
+Admin = Annotated[ApiKey, Depends(_require("admin"))]

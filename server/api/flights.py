@@ -1,0 +1,169 @@
+"""Flight-log upload, listing, status and decimated signals.
+
+``POST /flights`` takes either a multipart form (field ``file`` plus metadata fields, needed for
+CSV and MAT) or a raw body of type ``application/vnd.apache.parquet``. The body is streamed to
+disk with a running size check, never held whole in memory beyond the configured limit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import JSONResponse
+from sqlalchemy import select
+from starlette.datastructures import UploadFile
+
+from server.api.deps import BlobsDep, Reader, SessionDep, SettingsDep, Uploader
+from server.api.presenters import flight_read
+from server.blobstore import BlobTooLarge
+from server.errors import BadRequest, PayloadTooLarge, UnsupportedMediaType, error_body
+from server.models import ApiKey
+from server.schemas import FlightAccepted, FlightRead, Page, SignalsRead
+from server.services import flights as service
+
+router = APIRouter(prefix="/flights", tags=["flights"])
+
+PARQUET_TYPES = {"application/vnd.apache.parquet", "application/x-parquet"}
+_METADATA_FIELDS = ("format", "aircraft", "flight", "started_at", "block_hours",
+                    "sample_rate_hz", "actuator_serials", "source")
+_UPLOAD_DOC = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/vnd.apache.parquet": {"schema": {"type": "string", "format": "binary"}},
+            "multipart/form-data": {"schema": {
+                "type": "object", "required": ["file"],
+                "properties": {"file": {"type": "string", "format": "binary"},
+                               **{k: {"type": "string"} for k in _METADATA_FIELDS}}}},
+        },
+    },
+    "responses": {
+        "200": {"description": "The same bytes were uploaded before (idempotent)."},
+        "409": {"description": "Another file exists for this (aircraft, flight)."},
+        "413": {"description": "Body over the size limit."},
+        "415": {"description": "Unsupported content type or file kind."},
+        "422": {"description": "Failed coherence checks; stored as rejected with reasons."},
+    },
+}
+
+
+def _kind_of_file(upload: UploadFile) -> str:
+    name = (upload.filename or "").lower()
+    if name.endswith(".parquet"):
+        return "parquet"
+    if name.endswith((".csv", ".csv.gz")):
+        return "csv"
+    if name.endswith(".mat"):
+        return "mat"
+    ctype = (upload.content_type or "").split(";")[0].strip().lower()
+    if ctype in PARQUET_TYPES:
+        return "parquet"
+    if ctype in ("text/csv", "application/gzip"):
+        return "csv"
+    raise UnsupportedMediaType("The file must be .parquet, .csv, .csv.gz or .mat.",
+                               details={"filename": upload.filename, "content_type": ctype})
+
+
+async def _chunks_of(upload: UploadFile) -> AsyncIterator[bytes]:
+    while chunk := await upload.read(1 << 20):
+        yield chunk
+
+
+@router.post("", status_code=202, response_model=FlightAccepted, openapi_extra=_UPLOAD_DOC,
+             summary="Upload a flight log (uploader)")
+async def upload(request: Request, session: SessionDep, blobs: BlobsDep, settings: SettingsDep,
+                 key: Uploader) -> Any:
+    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    form_metadata: dict[str, str] = {}
+    try:
+        if ctype in PARQUET_TYPES:
+            kind = "parquet"
+            spooled = await blobs.spool(request.stream(), max_bytes=settings.max_upload_bytes)
+        elif ctype == "multipart/form-data":
+            form = await request.form(max_files=1, max_fields=len(_METADATA_FIELDS) + 1)
+            file = form.get("file")
+            if not isinstance(file, UploadFile):
+                raise BadRequest("The multipart form needs a file field named 'file'.",
+                                 code="missing_file")
+            kind = _kind_of_file(file)
+            form_metadata = {k: str(v) for k, v in form.items()
+                             if k in _METADATA_FIELDS and isinstance(v, str)}
+            spooled = await blobs.spool(_chunks_of(file), max_bytes=settings.max_upload_bytes)
+            await form.close()
+        else:
+            raise UnsupportedMediaType(
+                "Send application/vnd.apache.parquet or multipart/form-data.",
+                details={"content_type": ctype or None})
+    except BlobTooLarge:
+        raise PayloadTooLarge(f"The upload exceeds {settings.max_upload_bytes} bytes.",
+                              details={"limit_bytes": settings.max_upload_bytes}) from None
+
+    flight, duplicate = await run_in_threadpool(_ingest, session, blobs, spooled, kind,
+                                                form_metadata, key)
+    body = FlightAccepted(id=flight.id, status=flight.status,
+                          status_url=f"/api/v1/flights/{flight.id}", duplicate=duplicate)
+    if flight.status == "rejected":
+        return JSONResponse(error_body("incoherent_flight", "The flight log failed coherence "
+                                       "checks and was stored as rejected.",
+                                       {**body.model_dump(), "reasons": flight.reasons}),
+                            status_code=422, headers={"Location": body.status_url})
+    return JSONResponse(body.model_dump(), status_code=200 if duplicate else 202,
+                        headers={"Location": body.status_url})
+
+
+def _ingest(session, blobs, spooled, kind, form_metadata, key):  # type: ignore[no-untyped-def]
+    try:
+        flight, duplicate = service.ingest_flight(session=session, blobs=blobs, upload=spooled,
+                                                  kind=kind, form_metadata=form_metadata,
+                                                  uploader=key)
+        session.commit()
+        return flight, duplicate
+    finally:
+        spooled.discard()
+
+
+@router.get("", response_model=Page[FlightRead], summary="List flights")
+def list_(session: SessionDep, _: Reader,
+          aircraft: str | None = None,
+          status: Annotated[str | None, Query(pattern="^(received|queued|analyzing|analyzed|"
+                                              "rejected)$")] = None,
+          limit: Annotated[int, Query(ge=1, le=500)] = 50,
+          offset: Annotated[int, Query(ge=0)] = 0) -> Page[FlightRead]:
+    rows, total = service.list_flights(session=session, tail=aircraft, status=status,
+                                       limit=limit, offset=offset)
+    keys = _uploaders(session, {r.uploader_key_id for r in rows})
+    return Page(items=[flight_read(r, keys.get(r.uploader_key_id)) for r in rows], total=total,
+                limit=limit, offset=offset)
+
+
+def _uploaders(session: SessionDep, ids: set[int | None]) -> dict[int, ApiKey]:
+    wanted = {i for i in ids if i is not None}
+    if not wanted:
+        return {}
+    return {k.id: k for k in session.scalars(select(ApiKey).where(ApiKey.id.in_(wanted)))}
+
+
+@router.get("/{flight_id}", response_model=FlightRead, summary="One flight: status and reasons")
+def get(flight_id: int, session: SessionDep, _: Reader) -> FlightRead:
+    row = service.get_flight(session=session, flight_id=flight_id)
+    return flight_read(row, _uploaders(session, {row.uploader_key_id}).get(row.uploader_key_id))
+
+
+@router.get("/{flight_id}/signals", response_model=SignalsRead,
+            summary="Signals of a flight, decimated for plotting")
+def signals(flight_id: int, session: SessionDep, blobs: BlobsDep, settings: SettingsDep,
+            _: Reader,
+            channels: Annotated[str | None, Query(description="Comma-separated channel names; "
+                                                  "default all.", max_length=2000)] = None,
+            max_points: Annotated[int | None, Query(ge=10)] = None) -> SignalsRead:
+    row = service.get_flight(session=session, flight_id=flight_id)
+    log = service.decode_flight(blobs=blobs, flight=row)
+    wanted = [c.strip() for c in channels.split(",") if c.strip()] if channels else None
+    points = min(max_points or settings.signals_max_points, settings.signals_max_points)
+    step, data = service.decimated_signals(log, wanted, points)
+    t = data.pop("t")
+    return SignalsRead(flight_id=row.id, decimation=step, t=t.tolist(),
+                       channels={k: v.astype(float).tolist() for k, v in data.items()})

@@ -1,0 +1,33 @@
+"""API key administration (admin only). Keys can also be made with `hmsm keys create`."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from sqlalchemy import select
+
+from server.api.deps import Admin, SessionDep
+from server.api.presenters import key_read
+from server.auth import create_key, revoke_key
+from server.models import ApiKey
+from server.schemas import KeyCreate, KeyCreated, KeyRead
+
+router = APIRouter(prefix="/keys", tags=["keys"])
+
+
+@router.get("", response_model=list[KeyRead], summary="List keys (admin)")
+def list_(session: SessionDep, _: Admin) -> list[KeyRead]:
+    return [key_read(r) for r in session.scalars(select(ApiKey).order_by(ApiKey.id))]
+
+
+@router.post("", status_code=201, response_model=KeyCreated, summary="Create a key (admin)")
+def create(body: KeyCreate, session: SessionDep, _: Admin) -> KeyCreated:
+    row, plaintext = create_key(session=session, name=body.name, role=body.role)
+    session.commit()
+    return KeyCreated(**key_read(row).model_dump(), key=plaintext)
+
+
+@router.post("/{key_id}/revoke", response_model=KeyRead, summary="Revoke a key (admin)")
+def revoke(key_id: int, session: SessionDep, _: Admin) -> KeyRead:
+    row = revoke_key(session=session, key_id=key_id)
+    session.commit()
+    return key_read(row)

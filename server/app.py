@@ -1,0 +1,121 @@
+"""Application factory: ``create_app(settings)`` builds everything; nothing happens at import."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import FastAPI
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from server.api import actuators, aircraft, flights, health, keys
+from server.blobstore import BlobStore
+from server.config import Settings
+from server.db import make_engine, make_session_factory
+from server.errors import PayloadTooLarge, install_error_handlers
+from server.migrate import ensure_schema
+
+__all__ = ["create_app"]
+
+API_PREFIX = "/api/v1"
+# Multipart framing and metadata fields on top of the file itself.
+_MULTIPART_OVERHEAD_BYTES = 64 * 1024
+
+
+class BodyLimitMiddleware:
+    """Refuse request bodies over the limit: early by Content-Length, else while streaming."""
+
+    def __init__(self, app: ASGIApp, max_bytes: int):
+        self.app = app
+        self.max_bytes = max_bytes + _MULTIPART_OVERHEAD_BYTES
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        headers = dict(scope.get("headers") or [])
+        declared = headers.get(b"content-length")
+        if declared is not None and declared.isdigit() and int(declared) > self.max_bytes:
+            from fastapi.responses import JSONResponse
+
+            from server.errors import error_body
+
+            response = JSONResponse(error_body("payload_too_large", "The request body exceeds "
+                                               f"{self.max_bytes} bytes.",
+                                               {"limit_bytes": self.max_bytes}), status_code=413,
+                                    headers={"Connection": "close"})
+            await response(scope, receive, send)
+            return
+        seen = 0
+
+        async def limited_receive() -> Message:
+            nonlocal seen
+            message = await receive()
+            if message["type"] == "http.request":
+                seen += len(message.get("body", b""))
+                if seen > self.max_bytes:
+                    raise PayloadTooLarge(f"The request body exceeds {self.max_bytes} bytes.",
+                                          details={"limit_bytes": self.max_bytes})
+            return message
+
+        await self.app(scope, limited_receive, send)
+
+
+class SecurityHeadersMiddleware:
+    """Conservative headers on every response; the dashboard's CSP allows only our own origin."""
+
+    HEADERS = [
+        (b"x-content-type-options", b"nosniff"),
+        (b"x-frame-options", b"DENY"),
+        (b"referrer-policy", b"no-referrer"),
+        (b"content-security-policy",
+         b"default-src 'self'; img-src 'self' data:; style-src 'self' 'unsafe-inline'; "
+         b"script-src 'self'; frame-ancestors 'none'"),
+    ]
+
+    def __init__(self, app: ASGIApp):
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        path = scope.get("path", "")
+
+        async def send_with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                present = {k.lower() for k, _ in message.get("headers", [])}
+                extra = [(k, v) for k, v in self.HEADERS if k not in present
+                         and not (k == b"content-security-policy" and path.startswith("/docs"))]
+                message["headers"] = list(message.get("headers", [])) + extra
+            await send(message)
+
+        await self.app(scope, receive, send_with_headers)
+
+
+def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastAPI:
+    """Build the HMSM app. The embedded SQLite default migrates itself; others must be current."""
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    engine = make_engine(settings.effective_database_url)
+    ensure_schema(engine, settings.effective_database_url,
+                  auto_upgrade=settings.is_sqlite if auto_upgrade is None else auto_upgrade)
+    blobs = BlobStore(settings.blob_dir, settings.tmp_dir)
+    blobs.ensure_dirs()
+
+    app = FastAPI(title="EMA Health Management System (HMSM)", version="1",
+                  description="Flight-log ingest, fault detection, classification and RUL "
+                  "prognosis for electromechanical flight-control actuators.")
+    app.state.settings = settings
+    app.state.engine = engine
+    app.state.session_factory = make_session_factory(engine)
+    app.state.blobs = blobs
+    install_error_handlers(app)
+    for module in (health, aircraft, actuators, flights, keys):
+        app.include_router(module.router, prefix=API_PREFIX)
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
+    app.add_middleware(SecurityHeadersMiddleware)
+
+    @app.get("/", include_in_schema=False)
+    def root() -> dict[str, Any]:
+        return {"service": "hmsm", "api": API_PREFIX, "docs": "/docs"}
+
+    return app

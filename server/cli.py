@@ -1,0 +1,156 @@
+"""The ``hmsm`` command: database, keys, the API server and the demo."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from server.config import Settings, load_settings
+
+__all__ = ["main"]
+
+
+def _session(settings: Settings):  # type: ignore[no-untyped-def]
+    from server.db import make_engine, make_session_factory
+    from server.migrate import ensure_schema
+
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    engine = make_engine(settings.effective_database_url)
+    ensure_schema(engine, settings.effective_database_url, auto_upgrade=settings.is_sqlite)
+    return make_session_factory(engine)
+
+
+def cmd_db(args: argparse.Namespace, settings: Settings) -> int:
+    from server import migrate
+
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    url = settings.effective_database_url
+    if args.action == "upgrade":
+        migrate.upgrade(url, args.revision or "head")
+    elif args.action == "downgrade":
+        migrate.downgrade(url, args.revision or "base")
+    from server.db import make_engine
+
+    engine = make_engine(url)
+    print(f"schema revision: {migrate.current_revision(engine) or 'none'} "
+          f"(code head: {migrate.head_revision()})")
+    engine.dispose()
+    return 0
+
+
+def cmd_keys(args: argparse.Namespace, settings: Settings) -> int:
+    from sqlalchemy import select
+
+    from server.auth import create_key, revoke_key
+    from server.db import session_scope
+    from server.models import ApiKey
+
+    factory = _session(settings)
+    with session_scope(factory) as session:
+        if args.action == "create":
+            row, plaintext = create_key(session=session, name=args.name, role=args.role)
+            print(f"created key {row.id} ({row.role}, {row.name}); it is shown only once:")
+            print(plaintext)
+        elif args.action == "revoke":
+            row = revoke_key(session=session, key_id=args.id)
+            print(f"revoked key {row.id} ({row.name})")
+        else:
+            for row in session.scalars(select(ApiKey).order_by(ApiKey.id)):
+                state = "revoked" if row.revoked_at else "active"
+                print(f"{row.id:4d}  {row.role:8s}  {state:7s}  {row.prefix}...  {row.name}")
+    return 0
+
+
+def cmd_serve(args: argparse.Namespace, settings: Settings) -> int:
+    import uvicorn
+
+    from server.app import create_app
+
+    app = create_app(settings)
+    host = args.host or settings.host
+    port = args.port if args.port is not None else settings.port
+    uvicorn.run(app, host=host, port=port, log_level=args.log_level)
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace, settings: Settings) -> int:
+    import uvicorn
+
+    from server.app import create_app
+    from server.auth import create_key
+    from server.db import session_scope
+
+    app = create_app(settings)
+    keys = {}
+    with session_scope(app.state.session_factory) as session:
+        for role in ("admin", "uploader", "operator", "viewer"):
+            keys[role] = create_key(session=session, name=f"demo-{role}", role=role)[1]
+    host = args.host or settings.host
+    port = args.port if args.port is not None else settings.port
+    print("\nHMSM demo")
+    print(f"  API:      http://{host}:{port}/api/v1   (OpenAPI: http://{host}:{port}/docs)")
+    print(f"  data dir: {settings.data_dir}")
+    for role, key in keys.items():
+        print(f"  {role:8s} key: {key}")
+    print("  try: curl -H 'Authorization: Bearer <viewer key>' "
+          f"http://{host}:{port}/api/v1/aircraft\n", flush=True)
+    uvicorn.run(app, host=host, port=port, log_level=args.log_level)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hmsm", description="EMA health management service.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    db = sub.add_parser("db", help="database schema (Alembic)")
+    db.add_argument("action", choices=["upgrade", "downgrade", "current"])
+    db.add_argument("revision", nargs="?", help="target revision (default head / base)")
+    db.set_defaults(func=cmd_db)
+
+    keys = sub.add_parser("keys", help="API keys")
+    kact = keys.add_subparsers(dest="action", required=True)
+    kc = kact.add_parser("create", help="create a key and print it once")
+    kc.add_argument("--role", required=True, choices=["viewer", "uploader", "operator", "admin"])
+    kc.add_argument("--name", required=True)
+    kr = kact.add_parser("revoke", help="revoke a key")
+    kr.add_argument("id", type=int)
+    kact.add_parser("list", help="list keys")
+    keys.set_defaults(func=cmd_keys)
+
+    for name, func, text in (("serve", cmd_serve, "run the API server"),
+                             ("demo", cmd_demo, "run the demo on the embedded database")):
+        p = sub.add_parser(name, help=text)
+        p.add_argument("--host", default=None, help="bind address (default HMSM_HOST, 127.0.0.1)")
+        p.add_argument("--port", type=int, default=None, help="port (default HMSM_PORT, 8000)")
+        p.add_argument("--log-level", default="info")
+        p.set_defaults(func=func)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from sqlalchemy.exc import OperationalError
+
+    from server.migrate import SchemaBehindError
+
+    args = build_parser().parse_args(argv)
+    try:
+        settings = load_settings()
+    except Exception as exc:  # pydantic ValidationError: show it plainly
+        print(f"hmsm: bad configuration: {exc}", file=sys.stderr)
+        return 2
+    try:
+        return int(args.func(args, settings) or 0)
+    except SchemaBehindError as exc:
+        print(f"hmsm: {exc}", file=sys.stderr)
+        return 2
+    except OperationalError as exc:
+        print(f"hmsm: cannot reach the database: {exc.orig}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        print(f"hmsm: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,132 @@
+"""Request and response schemas of the REST API (pydantic); never the ORM rows themselves."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Generic, Literal, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+__all__ = [
+    "Position",
+    "Role",
+    "AircraftCreate",
+    "AircraftRead",
+    "ActuatorRead",
+    "ActuatorReplace",
+    "FlightRead",
+    "FlightAccepted",
+    "SignalsRead",
+    "KeyCreate",
+    "KeyRead",
+    "KeyCreated",
+    "Page",
+]
+
+Position = Literal["WL1", "WL2", "WT"]
+Role = Literal["viewer", "uploader", "operator", "admin"]
+_ID = r"^[A-Za-z0-9._-]{1,64}$"
+
+T = TypeVar("T")
+
+
+class Page(BaseModel, Generic[T]):
+    items: list[T]
+    total: int
+    limit: int
+    offset: int
+
+
+class ActuatorSerials(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    WL1: str = Field(pattern=_ID)
+    WL2: str = Field(pattern=_ID)
+    WT: str = Field(pattern=_ID)
+
+
+class AircraftCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    tail: str = Field(pattern=_ID, description="Tail id, unique in the fleet.")
+    base: str = Field(min_length=1, max_length=64, description="Home base, e.g. Turin.")
+    actuators: ActuatorSerials
+
+    @field_validator("actuators")
+    @classmethod
+    def _distinct(cls, value: ActuatorSerials) -> ActuatorSerials:
+        if len({value.WL1, value.WL2, value.WT}) != 3:
+            raise ValueError("the three actuator serials must differ")
+        return value
+
+
+class ActuatorRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    aircraft_tail: str
+    position: Position
+    serial: str
+    installed_at: datetime
+    removed_at: datetime | None
+    removal_note: str | None
+
+
+class AircraftRead(BaseModel):
+    tail: str
+    base: str
+    created_at: datetime
+    actuators: dict[str, ActuatorRead] = Field(description="Installed actuators by position.")
+
+
+class ActuatorReplace(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    new_serial: str = Field(pattern=_ID)
+    note: str | None = Field(None, max_length=2000)
+
+
+class FlightRead(BaseModel):
+    id: int
+    aircraft: str | None
+    flight: str | None
+    status: str
+    reasons: list[dict[str, Any]]
+    sha256: str
+    size_bytes: int
+    content_kind: str
+    started_at: datetime | None
+    block_hours: float | None
+    received_at: datetime
+    uploader: str | None
+    status_url: str
+
+
+class FlightAccepted(BaseModel):
+    id: int
+    status: str
+    status_url: str
+    duplicate: bool = Field(description="True when the same bytes had been uploaded before.")
+
+
+class SignalsRead(BaseModel):
+    flight_id: int
+    decimation: int = Field(description="Every n-th 800 Hz sample is returned.")
+    t: list[float]
+    channels: dict[str, list[float]]
+
+
+class KeyCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(min_length=1, max_length=128)
+    role: Role
+
+
+class KeyRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    name: str
+    role: str
+    prefix: str
+    created_at: datetime
+    revoked_at: datetime | None
+
+
+class KeyCreated(KeyRead):
+    key: str = Field(description="The key itself; shown only now.")

@@ -1,0 +1,257 @@
+"""Flight upload: formats, every rejection reason, idempotency, conflicts, limits, read-back."""
+
+from __future__ import annotations
+
+import gzip
+import io
+import json
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+import scipy.io
+from fastapi.testclient import TestClient
+
+from server.flightlog import FlightLog
+from tests.api.conftest import auth
+from tests.flightlog_factory import make_log, make_parquet
+
+PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
+
+
+def raw_parquet(log: FlightLog, *, channels: dict[str, np.ndarray] | None = None,
+                meta: dict[str, str] | None = None) -> bytes:
+    """Parquet written without the writer's guards, to build broken files on purpose."""
+    cols = channels if channels is not None else log.channels
+    table = pa.table({k: pa.array(v) for k, v in cols.items()})
+    m = meta if meta is not None else log.metadata.to_strings()
+    table = table.replace_schema_metadata({k.encode(): v.encode() for k, v in m.items()})
+    sink = io.BytesIO()
+    pq.write_table(table, sink)
+    return sink.getvalue()
+
+
+def post_parquet(client: TestClient, key: str, data: bytes):  # type: ignore[no-untyped-def]
+    return client.post("/api/v1/flights", content=data, headers={**PARQUET, **auth(key)})
+
+
+def test_parquet_upload_accepted_listed_and_signals(client: TestClient, keys: dict[str, str],
+                                                    aircraft: str) -> None:
+    r = post_parquet(client, keys["uploader"], make_parquet(aircraft, "F0001"))
+    assert r.status_code == 202, r.text
+    body = r.json()
+    assert body["status"] == "queued" and body["duplicate"] is False
+    status = client.get(body["status_url"], headers=auth(keys["viewer"])).json()
+    assert status["aircraft"] == aircraft and status["flight"] == "F0001"
+    assert status["reasons"] == [] and status["uploader"] == "test-uploader"
+
+    listing = client.get(f"/api/v1/flights?aircraft={aircraft}", headers=auth(keys["viewer"]))
+    assert listing.json()["total"] == 1
+
+    sig = client.get(f"/api/v1/flights/{body['id']}/signals?channels=WL1.ia,WT.x&max_points=100",
+                     headers=auth(keys["viewer"])).json()
+    assert set(sig["channels"]) == {"WL1.ia", "WT.x"}
+    assert len(sig["t"]) <= 100 and sig["decimation"] == 96  # 9600 samples / 100
+    unknown = client.get(f"/api/v1/flights/{body['id']}/signals?channels=WL1.nope",
+                         headers=auth(keys["viewer"]))
+    assert unknown.status_code == 404 and unknown.json()["error"]["code"] == "unknown_channel"
+
+
+def test_same_bytes_idempotent_other_bytes_conflict(client: TestClient, keys: dict[str, str],
+                                                    aircraft: str) -> None:
+    data = make_parquet(aircraft, "F0002")
+    first = post_parquet(client, keys["uploader"], data)
+    second = post_parquet(client, keys["uploader"], data)
+    assert first.status_code == 202 and second.status_code == 200
+    assert second.json()["id"] == first.json()["id"] and second.json()["duplicate"] is True
+    other = post_parquet(client, keys["uploader"], make_parquet(aircraft, "F0002", seed=9))
+    assert other.status_code == 409 and other.json()["error"]["code"] == "flight_exists"
+    assert client.get("/api/v1/flights", headers=auth(keys["viewer"])).json()["total"] == 1
+
+
+def test_multipart_csv_gzip_and_mat(client: TestClient, keys: dict[str, str], aircraft: str
+                                    ) -> None:
+    for i, kind in enumerate(("csv", "csv.gz", "mat")):
+        log = make_log(aircraft, f"M{i}")
+        names = list(log.channels)
+        if kind == "mat":
+            buf = io.BytesIO()
+            scipy.io.savemat(buf, {n.replace(".", "_"): log.channels[n] for n in names})
+            data = buf.getvalue()
+        else:
+            matrix = np.column_stack([log.channels[n] for n in names])
+            text = io.StringIO()
+            np.savetxt(text, matrix, delimiter=",", header=",".join(names), comments="",
+                       fmt="%.9g")
+            data = text.getvalue().encode()
+            if kind == "csv.gz":
+                data = gzip.compress(data)
+        r = client.post("/api/v1/flights", headers=auth(keys["uploader"]),
+                        files={"file": (f"flight.{kind}", data)},
+                        data=log.metadata.to_strings())
+        assert r.status_code == 202, (kind, r.text)
+        got = client.get(f"/api/v1/flights/{r.json()['id']}/signals?channels=WL2.x",
+                         headers=auth(keys["viewer"])).json()
+        step = got["decimation"]
+        assert np.allclose(got["channels"]["WL2.x"][:5], log.channels["WL2.x"][::step][:5],
+                           atol=1e-7)
+
+
+def _with(log: FlightLog, **changes: np.ndarray) -> dict[str, np.ndarray]:
+    ch = dict(log.channels)
+    ch.update(changes)
+    return ch
+
+
+def _rejections(aircraft: str) -> list[tuple[str, bytes]]:
+    log = make_log(aircraft, "R1", seed=1)
+    n = log.n_samples
+    t = log.channels["t"]
+    meta = log.metadata.to_strings()
+    cases: list[tuple[str, bytes]] = []
+    full = make_parquet(aircraft, "R0")
+    cases.append(("unreadable", full[: len(full) // 2]))
+    cases.append(("unknown_format", raw_parquet(log, meta={**meta, "format": "ema-flightlog/9"})))
+    cases.append(("missing_metadata", raw_parquet(log, meta={k: v for k, v in meta.items()
+                                                              if k != "started_at"})))
+    cases.append(("bad_metadata", raw_parquet(log, meta={**meta, "block_hours": "lots"})))
+    cases.append(("missing_channels", raw_parquet(log, channels={
+        k: v for k, v in log.channels.items() if k != "WL1.ia"})))
+    cases.append(("extra_channels", raw_parquet(log, channels=_with(log, **{
+        "WL1.extra": np.zeros(n, np.float32)}))))
+    cases.append(("wrong_dtype", raw_parquet(log, channels=_with(log, **{
+        "WL1.ia": log.channels["WL1.ia"].astype(np.float64)}))))
+    nan = log.channels["WL2.va"].copy()
+    nan[100] = np.nan
+    cases.append(("non_finite", make_parquet_from(log, **{"WL2.va": nan})))
+    back = t.copy()
+    back[500] = back[498]
+    cases.append(("time_not_monotonic", make_parquet_from(log, t=back)))
+    gap = t.copy()
+    gap[4000:] += 0.01
+    cases.append(("time_gap", make_parquet_from(log, t=gap)))
+    cases.append(("sample_rate_off", make_parquet_from(log, t=t * 1.05)))
+    big = log.channels["WT.ib"].copy()
+    big[10] = 80.0
+    cases.append(("current_out_of_range", make_parquet_from(log, **{"WT.ib": big})))
+    far = log.channels["WL1.x"].copy()
+    far[10] = 0.2
+    cases.append(("position_out_of_range", make_parquet_from(log, **{"WL1.x": far})))
+    cases.append(("stuck_sensor", make_parquet_from(log, **{"WL2.theta": np.full(n, 1.5)})))
+    short = make_log(aircraft, "R2", duration_s=3.0)
+    cases.append(("too_short", make_parquet_from(short)))
+    cases.append(("unknown_aircraft", make_parquet("GHOST", "R3")))
+    cases.append(("serial_mismatch", make_parquet(aircraft, "R4", serials={
+        "WL1": "SN-OTHER", "WL2": f"SN-WL2-{aircraft}", "WT": f"SN-WT-{aircraft}"})))
+    return cases
+
+
+def make_parquet_from(log: FlightLog, **changes: np.ndarray) -> bytes:
+    from server.flightlog import write_parquet
+
+    return write_parquet(FlightLog(log.metadata, _with(log, **changes)))
+
+
+REASONS = ["unreadable", "unknown_format", "missing_metadata", "bad_metadata", "missing_channels",
+           "extra_channels", "wrong_dtype", "non_finite", "time_not_monotonic", "time_gap",
+           "sample_rate_off", "current_out_of_range", "position_out_of_range", "stuck_sensor",
+           "too_short", "unknown_aircraft", "serial_mismatch"]
+
+
+def test_every_rejection_reason(client: TestClient, keys: dict[str, str], aircraft: str) -> None:
+    cases = _rejections(aircraft)
+    assert [c for c, _ in cases] == REASONS
+    for code, data in cases:
+        r = post_parquet(client, keys["uploader"], data)
+        assert r.status_code == 422, (code, r.text)
+        err = r.json()["error"]
+        assert err["code"] == "incoherent_flight"
+        codes = [reason["code"] for reason in err["details"]["reasons"]]
+        assert code in codes, (code, codes)
+        assert all(reason["message"] for reason in err["details"]["reasons"])
+        stored = client.get(f"/api/v1/flights/{err['details']['id']}",
+                            headers=auth(keys["viewer"])).json()
+        assert stored["status"] == "rejected" and code in [x["code"] for x in stored["reasons"]]
+    rejected = client.get("/api/v1/flights?status=rejected&limit=5", headers=auth(keys["viewer"]))
+    assert rejected.json()["total"] == len(REASONS) and len(rejected.json()["items"]) == 5
+    assert client.get("/api/v1/flights?status=queued",
+                      headers=auth(keys["viewer"])).json()["total"] == 0
+    # the service still answers, and a corrected file for a rejected flight is accepted
+    ok = post_parquet(client, keys["uploader"], make_parquet(aircraft, "R1", seed=2))
+    assert ok.status_code == 202
+
+
+def test_rejected_bytes_are_kept(client: TestClient, keys: dict[str, str], aircraft: str,
+                                 app) -> None:  # type: ignore[no-untyped-def]
+    data = make_parquet("GHOST", "X1")
+    r = post_parquet(client, keys["uploader"], data)
+    assert r.status_code == 422
+    stored = client.get(f"/api/v1/flights/{r.json()['error']['details']['id']}",
+                        headers=auth(keys["viewer"])).json()
+    assert app.state.blobs.path_of(stored["sha256"]).read_bytes() == data
+    again = post_parquet(client, keys["uploader"], data)
+    assert again.status_code == 422 and again.json()["error"]["details"]["duplicate"] is True
+
+
+def test_upload_errors_and_roles(client: TestClient, keys: dict[str, str], aircraft: str,
+                                 settings) -> None:  # type: ignore[no-untyped-def]
+    data = make_parquet(aircraft, "E1")
+    assert client.post("/api/v1/flights", content=data, headers=PARQUET).status_code == 401
+    for role in ("viewer", "operator"):
+        assert post_parquet(client, keys[role], data).status_code == 403
+    assert post_parquet(client, keys["admin"], data).status_code == 202
+    wrong_type = client.post("/api/v1/flights", content=b"{}", headers={
+        "Content-Type": "application/json", **auth(keys["uploader"])})
+    assert wrong_type.status_code == 415
+    assert wrong_type.json()["error"]["code"] == "unsupported_media_type"
+    wrong_ext = client.post("/api/v1/flights", headers=auth(keys["uploader"]),
+                            files={"file": ("flight.xlsx", b"PK..")})
+    assert wrong_ext.status_code == 415
+    no_file = client.post("/api/v1/flights", headers=auth(keys["uploader"]),
+                          data={"aircraft": aircraft}, files={"other": ("a.csv", b"x")})
+    assert no_file.status_code == 400
+    assert client.get("/api/v1/flights/424242", headers=auth(keys["viewer"])).status_code == 404
+
+
+@pytest.fixture
+def small_limit_client(settings):  # type: ignore[no-untyped-def]
+    from server.app import create_app
+
+    app = create_app(settings.model_copy(update={"max_upload_bytes": 200_000}))
+    with TestClient(app, raise_server_exceptions=False) as c:
+        yield c, app
+    app.state.engine.dispose()
+
+
+def test_size_limit_413_streamed_and_declared(small_limit_client, keys) -> None:  # type: ignore[no-untyped-def]
+    client, app = small_limit_client
+    from server.auth import create_key
+    from server.db import session_scope
+
+    with session_scope(app.state.session_factory) as s:
+        key = create_key(session=s, name="u", role="uploader")[1]
+    big = b"\0" * 600_000
+    declared = client.post("/api/v1/flights", content=big, headers={**PARQUET, **auth(key)})
+    assert declared.status_code == 413
+    assert declared.json()["error"]["code"] == "payload_too_large"
+
+    def chunked():  # type: ignore[no-untyped-def]
+        for _ in range(6):
+            yield b"\0" * 100_000
+
+    streamed = client.post("/api/v1/flights", content=chunked(), headers={**PARQUET, **auth(key)})
+    assert streamed.status_code == 413
+    # just over the file limit but within multipart overhead: refused by the spooler
+    over = client.post("/api/v1/flights", content=b"\0" * 210_000,
+                       headers={**PARQUET, **auth(key)})
+    assert over.status_code == 413
+    assert not any(app.state.settings.tmp_dir.iterdir())
+    assert client.get("/api/v1/flights", headers=auth(key)).json()["total"] == 0
+
+
+def test_openapi_documents_upload(client: TestClient) -> None:
+    spec = client.get("/openapi.json").json()
+    content = spec["paths"]["/api/v1/flights"]["post"]["requestBody"]["content"]
+    assert {"application/vnd.apache.parquet", "multipart/form-data"} <= set(content)
+    assert json.dumps(spec)  # serialisable

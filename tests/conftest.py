@@ -1,0 +1,65 @@
+"""Shared fixtures: a fresh database per test on SQLite, and on PostgreSQL when
+``HMSM_TEST_POSTGRES_URL`` is set (each session creates and drops its own database there)."""
+
+from __future__ import annotations
+
+import os
+import uuid
+from collections.abc import Iterator
+
+import pytest
+from sqlalchemy import create_engine, text
+
+from server.config import Settings
+
+PG_URL = os.environ.get("HMSM_TEST_POSTGRES_URL")
+BACKENDS = ["sqlite", pytest.param("postgres", marks=[
+    pytest.mark.postgres,
+    pytest.mark.skipif(not PG_URL, reason="HMSM_TEST_POSTGRES_URL not set"),
+])]
+
+
+def _pg(url: str) -> str:
+    return url.replace("postgresql://", "postgresql+psycopg://", 1) if url.startswith(
+        "postgresql://") else url
+
+
+@pytest.fixture(scope="session")
+def pg_database() -> Iterator[str]:
+    """A new PostgreSQL database for this test session, migrated to head, dropped after."""
+    assert PG_URL
+    admin = create_engine(_pg(PG_URL), isolation_level="AUTOCOMMIT")
+    name = f"hmsm_test_{uuid.uuid4().hex[:12]}"
+    with admin.connect() as conn:
+        conn.execute(text(f'CREATE DATABASE "{name}"'))
+    base, _, _ = _pg(PG_URL).rpartition("/")
+    url = f"{base}/{name}"
+    from server.migrate import upgrade
+
+    upgrade(url)
+    yield url
+    with admin.connect() as conn:
+        conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+    admin.dispose()
+
+
+def truncate_all(url: str) -> None:
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(text("TRUNCATE jobs, flights, actuators, aircraft, api_keys "
+                          "RESTART IDENTITY CASCADE"))
+    engine.dispose()
+
+
+@pytest.fixture(params=BACKENDS)
+def backend(request: pytest.FixtureRequest) -> str:
+    return request.param
+
+
+@pytest.fixture
+def settings(backend: str, tmp_path, request: pytest.FixtureRequest) -> Settings:
+    if backend == "postgres":
+        url = request.getfixturevalue("pg_database")
+        truncate_all(url)
+        return Settings(data_dir=tmp_path / "data", database_url=url)
+    return Settings(data_dir=tmp_path / "data")
