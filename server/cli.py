@@ -99,6 +99,35 @@ def cmd_demo(args: argparse.Namespace, settings: Settings) -> int:
     return 0
 
 
+def cmd_worker(args: argparse.Namespace, settings: Settings) -> int:
+    import logging
+    import multiprocessing
+    import signal
+
+    from server.jobs.worker import run_worker_process
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    if args.concurrency == 1:
+        run_worker_process(settings, args.lease, args.exit_when_idle)
+        return 0
+    ctx = multiprocessing.get_context("spawn")
+    procs = [ctx.Process(target=run_worker_process, name=f"hmsm-worker-{i}",
+                         args=(settings, args.lease, args.exit_when_idle))
+             for i in range(args.concurrency)]
+    for p in procs:
+        p.start()
+
+    def _forward(*_: object) -> None:
+        for p in procs:
+            p.terminate()
+
+    signal.signal(signal.SIGTERM, _forward)
+    signal.signal(signal.SIGINT, _forward)
+    for p in procs:
+        p.join()
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="hmsm", description="EMA health management service.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -117,6 +146,13 @@ def build_parser() -> argparse.ArgumentParser:
     kr.add_argument("id", type=int)
     kact.add_parser("list", help="list keys")
     keys.set_defaults(func=cmd_keys)
+
+    worker = sub.add_parser("worker", help="run analysis workers")
+    worker.add_argument("--concurrency", type=int, default=1, help="worker processes")
+    worker.add_argument("--lease", type=float, default=120.0, help="job lease [s]")
+    worker.add_argument("--exit-when-idle", action="store_true",
+                        help="stop when the queue is empty (batch use)")
+    worker.set_defaults(func=cmd_worker)
 
     for name, func, text in (("serve", cmd_serve, "run the API server"),
                              ("demo", cmd_demo, "run the demo on the embedded database")):

@@ -1,0 +1,127 @@
+"""The job queue, kept in the ``jobs`` table (DESIGN section 6).
+
+Claiming is one atomic ``UPDATE ... WHERE id = (SELECT ... LIMIT 1) RETURNING``: on PostgreSQL the
+inner select takes ``FOR UPDATE SKIP LOCKED`` so concurrent workers never wait on each other; on
+SQLite the single statement runs under the database's write lock (a stale snapshot makes it fail,
+and the claim is simply tried again). A job is eligible when it is queued and due, or running
+with an expired lease (its worker died), and no earlier job with the same ``lock_key`` is still
+queued or running: one aircraft's flights are analysed in order, one at a time.
+
+Failures are retried with exponential backoff; after ``max_attempts`` the job is ``dead`` and
+keeps its last error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+
+from sqlalchemy import and_, exists, or_, select, update
+from sqlalchemy.exc import OperationalError
+from sqlalchemy.orm import Session, aliased, sessionmaker
+
+from server.models import Job, utcnow
+
+__all__ = ["RetryPolicy", "claim_next", "complete", "fail", "renew_lease", "ClaimedJob"]
+
+
+@dataclass(frozen=True)
+class RetryPolicy:
+    """Exponential backoff: ``base_s * 2**(attempt-1)``, capped at ``max_s``."""
+
+    base_s: float = 2.0
+    max_s: float = 300.0
+
+    def delay(self, attempt: int) -> timedelta:
+        return timedelta(seconds=min(self.max_s, self.base_s * 2 ** max(0, attempt - 1)))
+
+
+@dataclass(frozen=True)
+class ClaimedJob:
+    id: int
+    kind: str
+    flight_id: int | None
+    lock_key: str
+    attempts: int
+    max_attempts: int
+    payload: dict
+
+
+def _eligible(now: datetime, postgres: bool):  # type: ignore[no-untyped-def]
+    cand, earlier = aliased(Job, name="cand"), aliased(Job, name="earlier")
+    query = (
+        select(cand.id)
+        .where(or_(and_(cand.status == "queued", cand.run_after <= now),
+                   and_(cand.status == "running", cand.lease_until < now)))
+        .where(~exists().where(earlier.lock_key == cand.lock_key, earlier.id < cand.id,
+                               earlier.status.in_(("queued", "running"))))
+        .order_by(cand.id)
+        .limit(1)
+    )
+    if postgres:
+        query = query.with_for_update(skip_locked=True)
+    return query.scalar_subquery()
+
+
+def claim_next(factory: sessionmaker[Session], *, worker_id: str, lease_s: float,
+               attempts: int = 20) -> ClaimedJob | None:
+    """Atomically take the next eligible job, or return None when there is none."""
+    for _ in range(attempts):
+        session = factory()
+        try:
+            postgres = session.get_bind().dialect.name == "postgresql"
+            now = utcnow()
+            stmt = (
+                update(Job)
+                .where(Job.id == _eligible(now, postgres))
+                .values(status="running", attempts=Job.attempts + 1, locked_by=worker_id,
+                        lease_until=now + timedelta(seconds=lease_s), updated_at=now)
+                .returning(Job.id, Job.kind, Job.flight_id, Job.lock_key, Job.attempts,
+                           Job.max_attempts, Job.payload)
+            )
+            row = session.execute(stmt).first()
+            session.commit()
+            return None if row is None else ClaimedJob(*row)
+        except OperationalError as exc:
+            session.rollback()
+            if "locked" not in str(exc).lower() and "snapshot" not in str(exc).lower():
+                raise
+        finally:
+            session.close()
+    return None
+
+
+def renew_lease(session: Session, *, job_id: int, worker_id: str, lease_s: float) -> bool:
+    """Extend a lease we still hold; False when the job was taken from us."""
+    now = utcnow()
+    result = session.execute(update(Job).where(Job.id == job_id, Job.locked_by == worker_id,
+                                               Job.status == "running")
+                             .values(lease_until=now + timedelta(seconds=lease_s),
+                                     updated_at=now))
+    return bool(result.rowcount)
+
+
+def complete(session: Session, *, job_id: int, worker_id: str) -> bool:
+    """Mark our job done; False when the lease was lost and another worker owns it now."""
+    now = utcnow()
+    result = session.execute(update(Job).where(Job.id == job_id, Job.locked_by == worker_id,
+                                               Job.status == "running")
+                             .values(status="done", finished_at=now, updated_at=now,
+                                     lease_until=None, last_error=None))
+    return bool(result.rowcount)
+
+
+def fail(session: Session, *, job: ClaimedJob, worker_id: str, error: str,
+         policy: RetryPolicy = RetryPolicy()) -> str:
+    """Record a failure: back to ``queued`` after a backoff, or ``dead`` after the last try."""
+    now = utcnow()
+    dead = job.attempts >= job.max_attempts
+    values = {"last_error": error[-4000:], "updated_at": now, "lease_until": None,
+              "locked_by": None}
+    if dead:
+        values.update(status="dead", finished_at=now)
+    else:
+        values.update(status="queued", run_after=now + policy.delay(job.attempts))
+    session.execute(update(Job).where(Job.id == job.id, Job.locked_by == worker_id)
+                    .values(**values))
+    return "dead" if dead else "queued"

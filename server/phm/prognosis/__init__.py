@@ -1,0 +1,40 @@
+"""Failure prognosis: particle filter on fault severity, RLS-tuned degradation, RUL prediction.
+
+Conventions: severity normalised so that the failure threshold is 1.0; time in flights (flight
+hours kept alongside when given); every random draw from a generator whose state lives in the
+filter state; everything persists as versioned JSON (npz optional), never pickle.
+See docs/PROGNOSIS.md for the model choices and sources.
+"""
+
+from .config import RATE_BASES, PrognoserConfig, RateBasis
+from .degradation import growth_rate, regressor, rls_update
+from .filter import (
+    ParticleFilterPrognoser,
+    PrognoserState,
+    effective_sample_size,
+    systematic_resample,
+)
+from .generic import estimate_noise_std, predict_rul, track_rul
+from .measurement import MeasurementModel
+from .predictor import RulDistribution, propagate_to_threshold, summarise_rul, weighted_quantiles
+
+__all__ = [
+    "RATE_BASES",
+    "MeasurementModel",
+    "ParticleFilterPrognoser",
+    "PrognoserConfig",
+    "PrognoserState",
+    "RateBasis",
+    "RulDistribution",
+    "effective_sample_size",
+    "estimate_noise_std",
+    "growth_rate",
+    "predict_rul",
+    "propagate_to_threshold",
+    "regressor",
+    "rls_update",
+    "summarise_rul",
+    "systematic_resample",
+    "track_rul",
+    "weighted_quantiles",
+]

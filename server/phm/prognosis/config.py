@@ -1,0 +1,205 @@
+"""Configuration of the particle-filter prognoser.
+
+Conventions
+-----------
+- Severity ``h`` is normalised so that the failure threshold is ``1.0`` (dimensionless); a healthy
+  component has ``h = 0``.
+- Time is counted in flights (``k``, integer flight index); all rates are per flight and all
+  standard deviations of random walks are per square root of a flight.
+- The config is a frozen dataclass validated in ``__post_init__``: a bad value raises
+  ``ValueError``, never an ``assert``. It round-trips through JSON (``to_json``/``from_json``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any, Literal
+
+__all__ = ["RATE_BASES", "PrognoserConfig", "RateBasis"]
+
+RateBasis = Literal["constant", "affine", "quadratic"]
+
+#: number of RLS parameters of each growth-rate basis ``dh/dk = theta . phi(h)``
+RATE_BASES: dict[str, int] = {"constant": 1, "affine": 2, "quadratic": 3}
+
+_CONFIG_VERSION = 1
+
+
+@dataclass(frozen=True)
+class PrognoserConfig:
+    """Hyper-parameters of :class:`~server.phm.prognosis.ParticleFilterPrognoser`.
+
+    Attributes
+    ----------
+    n_particles:
+        Number of particles N [-]. Default 200 (paper, section 5.1).
+    process_noise_std:
+        Standard deviation of the severity random walk added at each flight [1/sqrt(flight)];
+        explicit and strictly positive (a zero process noise collapses the particle cloud).
+    rate_basis:
+        Growth-rate model ``dh/dk = theta . phi(h)`` [1/flight]: ``"constant"`` phi = [1]
+        (linear wear, Archard at constant load), ``"affine"`` phi = [1, h] (linear + exponential
+        growth), ``"quadratic"`` phi = [1, h, h^2] (accelerating).
+    initial_theta:
+        First-trial RLS parameters, one per basis term; ``None`` -> a constant rate of
+        ``initial_rate`` per flight and zeros for the other terms.
+    initial_rate:
+        First-trial growth rate [1/flight] used when ``initial_theta`` is None
+        (1/250: the middle of the 150-400 flight fault-to-failure span of the campaigns).
+    rls_forgetting:
+        RLS forgetting factor lambda in (0, 1] [-]; memory about 1/(1 - lambda) flights.
+    rls_initial_cov:
+        Diagonal of the initial RLS covariance matrix P0 [-] (large -> trust data quickly).
+    rls_max_trace:
+        Upper bound of trace(P) [-]; guards against covariance wind-up when the regressor is not
+        exciting (forgetting with a constant regressor makes P grow without bound).
+    min_rate:
+        Floor of the growth rate [1/flight] (progressive faults never heal); keeps every
+        prediction finite up to ``max_horizon_flights``.
+    resample_threshold:
+        Systematic resampling happens when ESS < resample_threshold * N [-]. Default 0.5.
+    initial_severity_max:
+        Prior before any measurement: severity uniform on [0, initial_severity_max] [-]. The first
+        measurement re-initialises the cloud around the inverted measurement.
+    max_horizon_flights:
+        Long-term prediction stops here [flight]; particles that have not failed by then are
+        reported as "beyond horizon" (RUL = inf).
+    prediction_steps:
+        Target number of Euler steps of one long-term prediction [-]; the step (an integer number
+        of flights, >= 1) is chosen from the expected time to failure, and doubles every
+        ``prediction_steps`` steps so that the cost stays bounded.
+    monotone_rate:
+        If True, the per-particle parameter draws of the long-term prediction keep the
+        severity-dependent terms >= 0 (theta_j >= 0 for j >= 1): the growth rate does not fall as
+        severity grows, as for every progressive fault mode here (Arrhenius insulation damage,
+        Archard wear, grease aging). Without it, draws with a negative slope stall below the
+        threshold and put mass "beyond the horizon".
+    param_uncertainty_scale:
+        Multiplier of the RLS parameter covariance used to draw one parameter vector per particle
+        in the long-term prediction [-]; 0 disables parameter uncertainty.
+    quantile_levels:
+        RUL quantile levels reported [-], each in (0, 1).
+    pof_horizons_flights:
+        Horizons [flight] for the probability of failure within k flights.
+    histogram_bins:
+        Number of bins of the RUL histogram [-].
+    """
+
+    n_particles: int = 200
+    process_noise_std: float = 0.004
+    rate_basis: RateBasis = "affine"
+    initial_theta: tuple[float, ...] | None = None
+    initial_rate: float = 1.0 / 250.0
+    rls_forgetting: float = 0.97
+    rls_initial_cov: float = 1.0
+    rls_max_trace: float = 10.0
+    min_rate: float = 1e-5
+    resample_threshold: float = 0.5
+    initial_severity_max: float = 0.5
+    max_horizon_flights: int = 2000
+    prediction_steps: int = 50
+    param_uncertainty_scale: float = 1.0
+    monotone_rate: bool = True
+    quantile_levels: tuple[float, ...] = (0.05, 0.25, 0.5, 0.75, 0.95)
+    pof_horizons_flights: tuple[int, ...] = (10, 25, 50)
+    histogram_bins: int = 30
+    _version: int = field(default=_CONFIG_VERSION, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.n_particles, bool) or not isinstance(self.n_particles, int):
+            raise ValueError("n_particles must be an int")
+        if self.n_particles < 2:
+            raise ValueError(f"n_particles must be >= 2, got {self.n_particles}")
+        _positive("process_noise_std", self.process_noise_std)
+        if self.rate_basis not in RATE_BASES:
+            raise ValueError(
+                f"rate_basis must be one of {sorted(RATE_BASES)}, got {self.rate_basis!r}"
+            )
+        if self.initial_theta is not None:
+            theta = tuple(float(v) for v in self.initial_theta)
+            if len(theta) != RATE_BASES[self.rate_basis]:
+                raise ValueError(
+                    f"initial_theta needs {RATE_BASES[self.rate_basis]} values for basis "
+                    f"{self.rate_basis!r}, got {len(theta)}"
+                )
+            if not all(math.isfinite(v) for v in theta):
+                raise ValueError("initial_theta must be finite")
+            object.__setattr__(self, "initial_theta", theta)
+        _positive("initial_rate", self.initial_rate)
+        if not (0.0 < self.rls_forgetting <= 1.0):
+            raise ValueError(f"rls_forgetting must be in (0, 1], got {self.rls_forgetting}")
+        _positive("rls_initial_cov", self.rls_initial_cov)
+        _positive("rls_max_trace", self.rls_max_trace)
+        _positive("min_rate", self.min_rate)
+        if not (0.0 < self.resample_threshold <= 1.0):
+            raise ValueError(f"resample_threshold must be in (0, 1], got {self.resample_threshold}")
+        if not (0.0 <= self.initial_severity_max < 1.0):
+            raise ValueError("initial_severity_max must be in [0, 1)")
+        for name in ("max_horizon_flights", "prediction_steps", "histogram_bins"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be a positive int, got {value!r}")
+        if not isinstance(self.monotone_rate, bool):
+            raise ValueError("monotone_rate must be a bool")
+        if not (math.isfinite(self.param_uncertainty_scale) and self.param_uncertainty_scale >= 0):
+            raise ValueError("param_uncertainty_scale must be finite and >= 0")
+        levels = tuple(float(q) for q in self.quantile_levels)
+        if not levels or any(not (0.0 < q < 1.0) for q in levels) or list(levels) != sorted(levels):
+            raise ValueError("quantile_levels must be increasing values in (0, 1)")
+        object.__setattr__(self, "quantile_levels", levels)
+        horizons = tuple(self.pof_horizons_flights)
+        if any(isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in horizons):
+            raise ValueError("pof_horizons_flights must be positive ints")
+        object.__setattr__(self, "pof_horizons_flights", horizons)
+        if self._version != _CONFIG_VERSION:
+            raise ValueError(f"unsupported config version {self._version}")
+
+    @property
+    def n_params(self) -> int:
+        """Number of RLS parameters of the growth-rate basis."""
+        return RATE_BASES[self.rate_basis]
+
+    @property
+    def theta0(self) -> tuple[float, ...]:
+        """First-trial RLS parameter vector."""
+        if self.initial_theta is not None:
+            return self.initial_theta
+        return (self.initial_rate,) + (0.0,) * (self.n_params - 1)
+
+    def to_dict(self) -> dict[str, Any]:
+        data = asdict(self)
+        data.pop("_version")
+        data["initial_theta"] = None if self.initial_theta is None else list(self.initial_theta)
+        data["quantile_levels"] = list(self.quantile_levels)
+        data["pof_horizons_flights"] = list(self.pof_horizons_flights)
+        return {"version": _CONFIG_VERSION, "kind": "pf_prognoser_config", **data}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PrognoserConfig:
+        data = dict(data)
+        version = data.pop("version", None)
+        if version != _CONFIG_VERSION:
+            raise ValueError(f"unsupported config version {version!r}")
+        data.pop("kind", None)
+        known = {f for f in cls.__dataclass_fields__ if not f.startswith("_")}
+        unknown = set(data) - known
+        if unknown:
+            raise ValueError(f"unknown config fields {sorted(unknown)}")
+        for key in ("initial_theta", "quantile_levels", "pof_horizons_flights"):
+            if data.get(key) is not None:
+                data[key] = tuple(data[key])
+        return cls(**data)
+
+    @classmethod
+    def from_json(cls, text: str) -> PrognoserConfig:
+        return cls.from_dict(json.loads(text))
+
+
+def _positive(name: str, value: float) -> None:
+    if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be finite and > 0, got {value!r}")

@@ -1,0 +1,428 @@
+"""Particle filter on fault severity with an RLS-tuned degradation model.
+
+Roles (after progpy): the *degradation model* (:mod:`.degradation`) moves severity forward, the
+*measurement model* (:class:`.MeasurementModel`) scores a feature value, the *filter*
+(:meth:`ParticleFilterPrognoser.update`) fuses one flight's feature, and the *predictor*
+(:meth:`ParticleFilterPrognoser.predict`, :mod:`.predictor`) rolls every particle to the threshold.
+
+One update at flight k (dk = k - k_prev flights since the previous update)::
+
+    1. propagate   h_i <- max(h_i + dk g(h_i; theta) + q sqrt(dk) w_i, 0)
+    2. weight      log w_i <- log w_i - (z - h(h_i))^2 / (2 sigma_v^2), max subtracted, normalised
+    3. resample    systematic, only when ESS = 1 / sum w_i^2 < resample_threshold * N
+    4. tune        RLS on y = (h_hat[k] - h_hat[k_prev]) / dk against phi(h_hat[k_prev])
+
+The first measurement initialises the cloud around the inverted measurement,
+h_i = h^-1(z) + sigma_v / |h'| w_i, instead of weighting the prior.
+
+The state (:class:`PrognoserState`) is immutable: ``update`` returns a new one. It holds
+everything that changes between flights, including the random generator state, so that storing
+it as JSON between flights and restoring it gives bit-identical subsequent outputs. ``predict``
+does not advance the state's generator: it draws from an independent stream jumped from it, so
+predicting is repeatable and does not perturb the next update.
+
+Units: severity normalised (failure threshold 1.0), time in flights, flight hours optional.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .config import PrognoserConfig
+from .degradation import growth_rate, regressor, rls_update
+from .measurement import MeasurementModel
+from .predictor import RulDistribution, propagate_to_threshold, summarise_rul
+
+__all__ = [
+    "ParticleFilterPrognoser",
+    "PrognoserState",
+    "effective_sample_size",
+    "systematic_resample",
+]
+
+_STATE_VERSION = 1
+
+
+def effective_sample_size(weights: NDArray[np.float64]) -> float:
+    """ESS = 1 / sum(w_i^2) for normalised weights, in [1, N]."""
+    return float(1.0 / np.dot(weights, weights))
+
+
+def systematic_resample(weights: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.intp]:
+    """Systematic resampling: one uniform draw u ~ U[0, 1/N), positions u + j/N (Kitagawa 1996).
+
+    Returns the indices of the selected particles, shape (N,), sorted.
+    """
+    n = weights.size
+    positions = (rng.random() + np.arange(n)) / n
+    cdf = np.cumsum(weights)
+    cdf[-1] = 1.0  # guard against round-off
+    return np.searchsorted(cdf, positions, side="right")
+
+
+def _digest(config: PrognoserConfig, model: MeasurementModel) -> str:
+    text = config.to_json() + model.to_json()
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class PrognoserState:
+    """Everything the filter carries from one flight to the next.
+
+    Attributes
+    ----------
+    severity:
+        Particle severities [-], shape (N,).
+    log_weights:
+        Normalised log-weights [-], shape (N,) (logsumexp = 0).
+    theta, cov, resid_var:
+        RLS parameters (p,), normalised covariance (p, p), residual variance [1/flight^2].
+    rng_state:
+        ``Generator.bit_generator.state`` (a dict) of the filter's generator.
+    flight_index:
+        Flight of the last update (None before the first).
+    last_estimate:
+        Weighted mean severity after the last update (None before the first) [-].
+    n_updates, n_resamples:
+        Counters [-].
+    last_ess:
+        Effective sample size after weighting at the last update, before any resampling [-].
+    resampled:
+        Whether the last update resampled.
+    hours_total, hours_flights:
+        Sum of the flight hours given and the number of flights that had them.
+    config_digest:
+        Short hash of the config and measurement model the state belongs to.
+    """
+
+    severity: NDArray[np.float64]
+    log_weights: NDArray[np.float64]
+    theta: NDArray[np.float64]
+    cov: NDArray[np.float64]
+    resid_var: float
+    rng_state: dict[str, Any]
+    config_digest: str
+    flight_index: int | None = None
+    last_estimate: float | None = None
+    n_updates: int = 0
+    n_resamples: int = 0
+    last_ess: float = math.nan
+    resampled: bool = False
+    hours_total: float = 0.0
+    hours_flights: int = 0
+    version: int = field(default=_STATE_VERSION)
+
+    @property
+    def weights(self) -> NDArray[np.float64]:
+        """Normalised particle weights, shape (N,)."""
+        w = np.exp(self.log_weights)
+        return w / w.sum()
+
+    @property
+    def severity_mean(self) -> float:
+        return float(np.dot(self.weights, self.severity))
+
+    @property
+    def hours_per_flight(self) -> float | None:
+        return self.hours_total / self.hours_flights if self.hours_flights else None
+
+    # -- persistence ------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "version": _STATE_VERSION,
+            "kind": "pf_prognoser_state",
+            "config_digest": self.config_digest,
+            "severity": self.severity.tolist(),
+            "log_weights": self.log_weights.tolist(),
+            "theta": self.theta.tolist(),
+            "cov": self.cov.tolist(),
+            "resid_var": self.resid_var,
+            "rng_state": _encode_ints(self.rng_state),
+            "flight_index": self.flight_index,
+            "last_estimate": self.last_estimate,
+            "n_updates": self.n_updates,
+            "n_resamples": self.n_resamples,
+            "last_ess": None if math.isnan(self.last_ess) else self.last_ess,
+            "resampled": self.resampled,
+            "hours_total": self.hours_total,
+            "hours_flights": self.hours_flights,
+        }
+
+    def to_json(self) -> str:
+        """JSON text; floats are written with repr, so ``from_json`` restores them bit-exactly."""
+        return json.dumps(self.to_dict(), allow_nan=False)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PrognoserState:
+        if data.get("version") != _STATE_VERSION or data.get("kind") != "pf_prognoser_state":
+            raise ValueError(
+                f"unsupported prognoser state {data.get('kind')!r} v{data.get('version')!r}"
+            )
+        severity = np.asarray(data["severity"], dtype=float)
+        log_weights = np.asarray(data["log_weights"], dtype=float)
+        if severity.ndim != 1 or severity.shape != log_weights.shape:
+            raise ValueError("severity and log_weights must be 1-D of equal length")
+        return cls(
+            severity=severity,
+            log_weights=log_weights,
+            theta=np.asarray(data["theta"], dtype=float),
+            cov=np.asarray(data["cov"], dtype=float),
+            resid_var=float(data["resid_var"]),
+            rng_state=_decode_ints(data["rng_state"]),
+            config_digest=str(data["config_digest"]),
+            flight_index=data["flight_index"],
+            last_estimate=data["last_estimate"],
+            n_updates=int(data["n_updates"]),
+            n_resamples=int(data["n_resamples"]),
+            last_ess=math.nan if data["last_ess"] is None else float(data["last_ess"]),
+            resampled=bool(data["resampled"]),
+            hours_total=float(data["hours_total"]),
+            hours_flights=int(data["hours_flights"]),
+        )
+
+    @classmethod
+    def from_json(cls, text: str) -> PrognoserState:
+        return cls.from_dict(json.loads(text))
+
+    def to_npz(self, path: str) -> None:
+        """Write arrays natively and the rest as JSON text inside one ``.npz`` (no pickle)."""
+        meta = self.to_dict()
+        arrays = {
+            k: np.asarray(meta.pop(k), dtype=float)
+            for k in ("severity", "log_weights", "theta", "cov")
+        }
+        np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
+
+    @classmethod
+    def from_npz(cls, path: str) -> PrognoserState:
+        with np.load(path, allow_pickle=False) as npz:
+            meta = json.loads(str(npz["meta"]))
+            for k in ("severity", "log_weights", "theta", "cov"):
+                meta[k] = npz[k]
+        return cls.from_dict(meta)
+
+
+def _encode_ints(obj: Any) -> Any:
+    """Big ints (PCG64 state is 128-bit) as tagged decimal strings, safe for any JSON reader."""
+    if isinstance(obj, dict):
+        return {k: _encode_ints(v) for k, v in obj.items()}
+    if isinstance(obj, bool):
+        return obj
+    if isinstance(obj, int):
+        return {"int": str(obj)}
+    return obj
+
+
+def _decode_ints(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        if set(obj) == {"int"}:
+            return int(obj["int"])
+        return {k: _decode_ints(v) for k, v in obj.items()}
+    return obj
+
+
+def _generator(rng_state: dict[str, Any]) -> np.random.Generator:
+    bit_gen_cls = getattr(np.random, rng_state["bit_generator"])
+    bit_gen = bit_gen_cls()
+    bit_gen.state = rng_state
+    return np.random.Generator(bit_gen)
+
+
+class ParticleFilterPrognoser:
+    """Particle-filter prognoser for one fault mode of one actuator.
+
+    The object holds only the (immutable) config and measurement model; all per-flight data live
+    in :class:`PrognoserState`, so one prognoser serves every actuator with that fault mode.
+
+    Examples
+    --------
+    >>> pf = ParticleFilterPrognoser(config, model)              # doctest: +SKIP
+    >>> state = pf.initial_state(config, model, rng_seed=7)      # doctest: +SKIP
+    >>> state = pf.update(state, feature_value, flight_index=42) # doctest: +SKIP
+    >>> dist = pf.predict(state)                                 # doctest: +SKIP
+    """
+
+    def __init__(self, config: PrognoserConfig, measurement_model: MeasurementModel) -> None:
+        if not isinstance(config, PrognoserConfig):
+            raise ValueError("config must be a PrognoserConfig")
+        if not isinstance(measurement_model, MeasurementModel):
+            raise ValueError("measurement_model must be a MeasurementModel")
+        self.config = config
+        self.measurement_model = measurement_model
+        self.digest = _digest(config, measurement_model)
+
+    @classmethod
+    def initial_state(
+        cls,
+        config: PrognoserConfig,
+        measurement_model: MeasurementModel,
+        rng_seed: int | np.random.SeedSequence,
+    ) -> PrognoserState:
+        """Prior state: severity uniform on [0, initial_severity_max], first-trial RLS params."""
+        if isinstance(rng_seed, bool) or not isinstance(rng_seed, int | np.random.SeedSequence):
+            raise ValueError("rng_seed must be an int or a SeedSequence")
+        rng = np.random.Generator(np.random.PCG64(rng_seed))
+        n = config.n_particles
+        severity = rng.uniform(0.0, config.initial_severity_max, n)
+        return PrognoserState(
+            severity=severity,
+            log_weights=np.full(n, -math.log(n)),
+            theta=np.asarray(config.theta0, dtype=float),
+            cov=np.eye(config.n_params) * config.rls_initial_cov,
+            resid_var=config.process_noise_std**2,
+            rng_state=rng.bit_generator.state,
+            config_digest=_digest(config, measurement_model),
+        )
+
+    def _check(self, state: PrognoserState) -> None:
+        if state.config_digest != self.digest:
+            raise ValueError("state belongs to another config or measurement model")
+        if state.severity.size != self.config.n_particles:
+            raise ValueError("state has the wrong number of particles")
+
+    def update(
+        self,
+        state: PrognoserState,
+        feature_value: float,
+        flight_index: int,
+        *,
+        flight_hours: float | None = None,
+    ) -> PrognoserState:
+        """Fuse the feature of flight ``flight_index`` and return the new state.
+
+        ``flight_index`` must increase strictly between updates; gaps (skipped flights) are
+        propagated with dk > 1. ``flight_hours`` is the duration of this flight [h].
+        """
+        self._check(state)
+        z = float(feature_value)
+        if not math.isfinite(z):
+            raise ValueError("feature_value must be finite")
+        k = int(flight_index)
+        if state.flight_index is not None and k <= state.flight_index:
+            raise ValueError(f"flight_index must increase: {k} after {state.flight_index}")
+        cfg = self.config
+        mm = self.measurement_model
+        rng = _generator(state.rng_state)
+        n = cfg.n_particles
+        hours_total, hours_flights = state.hours_total, state.hours_flights
+        if flight_hours is not None:
+            if not (math.isfinite(flight_hours) and flight_hours >= 0):
+                raise ValueError("flight_hours must be finite and >= 0")
+            hours_total += float(flight_hours)
+            hours_flights += 1
+
+        if state.flight_index is None:
+            # first measurement: initialise around the inverted measurement
+            s0 = float(mm.invert(z))
+            spread = mm.noise_std / max(abs(float(mm.derivative(s0))), 1e-12)
+            h = np.maximum(s0 + spread * rng.standard_normal(n), 0.0)
+            log_w = np.full(n, -math.log(n))
+            estimate = float(h.mean())
+            return replace(
+                state,
+                severity=h,
+                log_weights=log_w,
+                rng_state=rng.bit_generator.state,
+                flight_index=k,
+                last_estimate=estimate,
+                n_updates=state.n_updates + 1,
+                last_ess=float(n),
+                resampled=False,
+                hours_total=hours_total,
+                hours_flights=hours_flights,
+            )
+
+        dk = float(k - state.flight_index)
+        # 1. propagate
+        h = state.severity + dk * growth_rate(state.severity, state.theta, cfg.min_rate)
+        h += (cfg.process_noise_std * math.sqrt(dk)) * rng.standard_normal(n)
+        np.maximum(h, 0.0, out=h)
+        # 2. weight (log domain, max subtracted before exponentiating)
+        log_w = state.log_weights + mm.log_likelihood(z, h)
+        log_w -= log_w.max()
+        w = np.exp(log_w)
+        total = w.sum()
+        w /= total
+        log_w -= math.log(total)
+        ess = effective_sample_size(w)
+        estimate = float(np.dot(w, h))
+        # 3. resample only when ESS < threshold * N
+        resampled = ess < cfg.resample_threshold * n
+        if resampled:
+            idx = systematic_resample(w, rng)
+            h = h[idx]
+            log_w = np.full(n, -math.log(n))
+        # 4. tune the degradation model
+        phi = regressor(state.last_estimate, cfg.n_params)
+        y = (estimate - state.last_estimate) / dk
+        theta, cov, resid_var = rls_update(
+            state.theta, state.cov, state.resid_var, phi, y, cfg.rls_forgetting, cfg.rls_max_trace
+        )
+        return PrognoserState(
+            severity=h,
+            log_weights=log_w,
+            theta=theta,
+            cov=cov,
+            resid_var=resid_var,
+            rng_state=rng.bit_generator.state,
+            config_digest=state.config_digest,
+            flight_index=k,
+            last_estimate=estimate,
+            n_updates=state.n_updates + 1,
+            n_resamples=state.n_resamples + int(resampled),
+            last_ess=ess,
+            resampled=bool(resampled),
+            hours_total=hours_total,
+            hours_flights=hours_flights,
+        )
+
+    def parameter_samples(
+        self, state: PrognoserState, rng: np.random.Generator
+    ) -> NDArray[np.float64]:
+        """One degradation-parameter vector per particle, theta_i ~ N(theta, c s2 P), (N, p).
+
+        With ``config.monotone_rate`` the severity-dependent terms are clipped at 0 and the
+        constant term compensates, so that the rate at the current severity is unchanged.
+        """
+        cfg = self.config
+        n = cfg.n_particles
+        scale = cfg.param_uncertainty_scale * state.resid_var
+        if scale <= 0:
+            return np.broadcast_to(state.theta, (n, cfg.n_params))
+        cov = scale * state.cov
+        jitter = 1e-15 * max(float(np.trace(cov)), 1e-30)
+        chol = np.linalg.cholesky(cov + jitter * np.eye(cfg.n_params))
+        theta = state.theta + rng.standard_normal((n, cfg.n_params)) @ chol.T
+        if cfg.monotone_rate and cfg.n_params > 1:
+            # clip the slope terms at 0 and move the constant so that each particle keeps its
+            # rate at the current severity estimate (the rate there is what the data pin down)
+            h_ref = state.severity_mean
+            clipped = np.maximum(theta[:, 1:], 0.0)
+            powers = h_ref ** np.arange(1, cfg.n_params)
+            theta[:, 0] += (theta[:, 1:] - clipped) @ powers
+            theta[:, 1:] = clipped
+        return theta
+
+    def predict(self, state: PrognoserState, *, threshold: float = 1.0) -> RulDistribution:
+        """Long-term prediction: RUL distribution from the state (does not modify it)."""
+        self._check(state)
+        bit_gen = getattr(np.random, state.rng_state["bit_generator"])()
+        bit_gen.state = state.rng_state
+        rng = np.random.Generator(bit_gen.jumped())
+        theta = self.parameter_samples(state, rng)
+        rul = propagate_to_threshold(state.severity, theta, self.config, rng, threshold=threshold)
+        return summarise_rul(
+            rul,
+            state.weights,
+            state.severity,
+            self.config,
+            flight_index=state.flight_index,
+            hours_per_flight=state.hours_per_flight,
+        )

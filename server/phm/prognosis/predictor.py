@@ -1,0 +1,272 @@
+"""Long-term prediction: propagate every particle to the failure threshold -> RUL distribution.
+
+Conventions
+-----------
+- RUL is in flights, counted from the flight of the last update (``flight_index``); fractional
+  values come from linear interpolation of the threshold crossing inside a prediction step.
+- A particle that has not crossed the threshold within ``max_horizon_flights`` has RUL = +inf
+  ("beyond horizon"); quantiles falling among those are +inf (serialised as ``null``).
+- Flight hours: when the mean flight duration is known, ``rul_hours`` = RUL [flight] * mean hours
+  per flight.
+- The propagation is vectorised over particles: a Python loop over future prediction steps with
+  numpy arrays of shape (N,). The step is a whole number of flights chosen so that about
+  ``prediction_steps`` steps reach the expected failure time; it doubles every
+  ``prediction_steps`` steps so that slow or stalled particles cost a bounded number of steps.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .config import PrognoserConfig
+from .degradation import growth_rate
+
+__all__ = ["RulDistribution", "propagate_to_threshold", "summarise_rul", "weighted_quantiles"]
+
+_VERSION = 1
+_any = np.logical_or.reduce
+
+
+@dataclass(frozen=True)
+class RulDistribution:
+    """RUL distribution at one prediction time.
+
+    Attributes
+    ----------
+    flight_index:
+        Flight of the last measurement used [flight] (None before any update).
+    quantiles:
+        {level: RUL [flight]} for the configured levels (default 5, 25, 50, 75, 95 %).
+    mean:
+        Weighted mean of the finite RULs [flight] (nan if none is finite).
+    p_fail_within:
+        {horizon [flight]: probability of failure within that many flights} [-].
+    p_beyond_horizon:
+        Probability mass that did not fail within ``max_horizon_flights`` [-].
+    histogram_edges, histogram_mass:
+        Histogram of the finite RULs: edges [flight] (bins + 1,), probability mass per bin (bins,).
+    severity_mean, severity_std:
+        Weighted mean and standard deviation of the current severity [-].
+    hours_per_flight:
+        Mean flight duration [h] when known, else None.
+    samples, weights:
+        Particle RULs [flight] and their normalised weights (kept in memory; optional in JSON).
+    """
+
+    flight_index: int | None
+    quantiles: dict[float, float]
+    mean: float
+    p_fail_within: dict[int, float]
+    p_beyond_horizon: float
+    histogram_edges: NDArray[np.float64]
+    histogram_mass: NDArray[np.float64]
+    severity_mean: float
+    severity_std: float
+    hours_per_flight: float | None = None
+    samples: NDArray[np.float64] = field(default_factory=lambda: np.empty(0), repr=False)
+    weights: NDArray[np.float64] = field(default_factory=lambda: np.empty(0), repr=False)
+
+    @property
+    def median(self) -> float:
+        """Median RUL [flight] (the 0.5 quantile, computed even if not configured)."""
+        if 0.5 in self.quantiles:
+            return self.quantiles[0.5]
+        return float(weighted_quantiles(self.samples, self.weights, (0.5,))[0])
+
+    @property
+    def failure_flight_median(self) -> float:
+        """Median predicted failure flight [flight] = flight_index + median RUL."""
+        return float((self.flight_index or 0) + self.median)
+
+    def quantiles_hours(self) -> dict[float, float] | None:
+        """Quantiles in flight hours, or None when the flight duration is unknown."""
+        if self.hours_per_flight is None:
+            return None
+        return {q: v * self.hours_per_flight for q, v in self.quantiles.items()}
+
+    def to_dict(self, *, include_samples: bool = False) -> dict[str, Any]:
+        data: dict[str, Any] = {
+            "version": _VERSION,
+            "kind": "rul_distribution",
+            "flight_index": self.flight_index,
+            "quantiles": [[q, _finite_or_none(v)] for q, v in self.quantiles.items()],
+            "mean": _finite_or_none(self.mean),
+            "p_fail_within": [[h, p] for h, p in self.p_fail_within.items()],
+            "p_beyond_horizon": self.p_beyond_horizon,
+            "histogram_edges": self.histogram_edges.tolist(),
+            "histogram_mass": self.histogram_mass.tolist(),
+            "severity_mean": self.severity_mean,
+            "severity_std": self.severity_std,
+            "hours_per_flight": self.hours_per_flight,
+        }
+        if include_samples:
+            data["samples"] = [_finite_or_none(v) for v in self.samples.tolist()]
+            data["weights"] = self.weights.tolist()
+        return data
+
+    def to_json(self, *, include_samples: bool = False) -> str:
+        return json.dumps(self.to_dict(include_samples=include_samples), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RulDistribution:
+        if data.get("version") != _VERSION or data.get("kind") != "rul_distribution":
+            raise ValueError("not a version-1 rul_distribution")
+        samples = data.get("samples")
+        return cls(
+            flight_index=data["flight_index"],
+            quantiles={float(q): _none_to_inf(v) for q, v in data["quantiles"]},
+            mean=math.nan if data["mean"] is None else float(data["mean"]),
+            p_fail_within={int(h): float(p) for h, p in data["p_fail_within"]},
+            p_beyond_horizon=float(data["p_beyond_horizon"]),
+            histogram_edges=np.asarray(data["histogram_edges"], dtype=float),
+            histogram_mass=np.asarray(data["histogram_mass"], dtype=float),
+            severity_mean=float(data["severity_mean"]),
+            severity_std=float(data["severity_std"]),
+            hours_per_flight=data.get("hours_per_flight"),
+            samples=np.empty(0)
+            if samples is None
+            else np.array([_none_to_inf(v) for v in samples]),
+            weights=np.asarray(data.get("weights") or [], dtype=float),
+        )
+
+    @classmethod
+    def from_json(cls, text: str) -> RulDistribution:
+        return cls.from_dict(json.loads(text))
+
+
+def _finite_or_none(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
+def _none_to_inf(v: float | None) -> float:
+    return math.inf if v is None else float(v)
+
+
+def weighted_quantiles(
+    values: NDArray[np.float64], weights: NDArray[np.float64], levels: tuple[float, ...]
+) -> NDArray[np.float64]:
+    """Inverted-CDF weighted quantiles (no interpolation, so +inf values are handled exactly)."""
+    order = np.argsort(values, kind="stable")
+    cdf = np.cumsum(weights[order])
+    idx = np.searchsorted(cdf, np.asarray(levels) * cdf[-1], side="left")
+    return values[order][np.minimum(idx, values.size - 1)]
+
+
+def propagate_to_threshold(
+    severity: NDArray[np.float64],
+    theta: NDArray[np.float64],
+    config: PrognoserConfig,
+    rng: np.random.Generator,
+    *,
+    threshold: float = 1.0,
+) -> NDArray[np.float64]:
+    """Time to threshold [flight] of every particle (shape (N,)), +inf beyond the horizon.
+
+    ``theta`` has shape (p,) or (N, p) (one parameter vector per particle). Euler steps of
+    ``step`` flights with process noise ``q sqrt(step)``; crossing time interpolated linearly.
+    """
+    h = severity.astype(float, copy=True)
+    n = h.size
+    rul = np.full(n, np.inf)
+    failed = h >= threshold
+    rul[failed] = 0.0
+    n_done = int(failed.sum())
+    if n_done == n:
+        return rul
+    cap = 4.0 * threshold + 1.0  # failed particles are parked here: h < threshold never again
+    h[failed] = cap
+    # step size from the expected time to failure of the mean particle at its current rate
+    h_ref = float(np.mean(h[~failed]))
+    theta_ref = theta if theta.ndim == 1 else theta.mean(axis=0)
+    rate_ref = float(growth_rate(np.array([h_ref]), theta_ref, config.min_rate)[0])
+    t_expected = min((threshold - h_ref) / rate_ref, float(config.max_horizon_flights))
+    step = max(1, int(math.ceil(t_expected / config.prediction_steps)))
+    # contiguous parameter columns, one per basis term (shape (N,) or scalars)
+    cols = [np.ascontiguousarray(theta[..., j]) for j in range(theta.shape[-1])]
+    q = config.process_noise_std
+    min_rate = config.min_rate
+    horizon = float(config.max_horizon_flights)
+    block = config.prediction_steps
+    noise = q * rng.standard_normal((block, n))
+    t = 0.0
+    i = 0
+    while t < horizon:
+        if i == block:  # next block of steps: coarser step, fresh noise
+            i = 0
+            step *= 2
+            noise = q * rng.standard_normal((block, n))
+        dt = min(float(step), horizon - t)
+        rate = cols[-1] * h if len(cols) > 1 else np.full(n, cols[0], dtype=float)
+        for c in cols[-2:0:-1]:
+            rate += c
+            rate *= h
+        if len(cols) > 1:
+            rate += cols[0]
+        np.maximum(rate, min_rate, out=rate)
+        rate *= dt
+        rate += h
+        h_new = rate
+        h_new += math.sqrt(dt) * noise[i]
+        crossed = np.greater_equal(h_new, threshold)
+        crossed &= np.less(h, threshold)
+        if _any(crossed):
+            h_old = h[crossed]
+            rul[crossed] = t + dt * (threshold - h_old) / (h_new[crossed] - h_old)
+            h_new[crossed] = cap
+            n_done += int(np.count_nonzero(crossed))
+            if n_done >= n:
+                break
+        np.maximum(h_new, 0.0, out=h_new)
+        np.minimum(h_new, cap, out=h_new)
+        h = h_new
+        t += dt
+        i += 1
+    return rul
+
+
+def summarise_rul(
+    rul: NDArray[np.float64],
+    weights: NDArray[np.float64],
+    severity: NDArray[np.float64],
+    config: PrognoserConfig,
+    *,
+    flight_index: int | None,
+    hours_per_flight: float | None,
+) -> RulDistribution:
+    """Quantiles, histogram and probabilities of failure from particle RULs and weights."""
+    w = weights / weights.sum()
+    finite = np.isfinite(rul)
+    levels = config.quantile_levels
+    qs = weighted_quantiles(rul, w, levels)
+    mass_finite = float(w[finite].sum())
+    mean = float(np.dot(w[finite], rul[finite]) / mass_finite) if mass_finite > 0 else math.nan
+    p_fail = {hz: float(w[rul <= hz].sum()) for hz in config.pof_horizons_flights}
+    if finite.any():
+        top = float(rul[finite].max())
+        edges = np.linspace(0.0, max(top, 1.0), config.histogram_bins + 1)
+        mass, _ = np.histogram(rul[finite], bins=edges, weights=w[finite])
+    else:
+        edges = np.linspace(0.0, float(config.max_horizon_flights), config.histogram_bins + 1)
+        mass = np.zeros(config.histogram_bins)
+    sev_mean = float(np.dot(w, severity))
+    sev_std = float(np.sqrt(max(np.dot(w, (severity - sev_mean) ** 2), 0.0)))
+    return RulDistribution(
+        flight_index=flight_index,
+        quantiles={lvl: float(v) for lvl, v in zip(levels, qs, strict=True)},
+        mean=mean,
+        p_fail_within=p_fail,
+        p_beyond_horizon=float(1.0 - mass_finite),
+        histogram_edges=edges,
+        histogram_mass=mass.astype(float),
+        severity_mean=sev_mean,
+        severity_std=sev_std,
+        hours_per_flight=hours_per_flight,
+        samples=rul,
+        weights=w,
+    )

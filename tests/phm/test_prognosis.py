@@ -1,0 +1,229 @@
+"""Particle-filter prognoser (server.phm.prognosis): seeded, with tolerances."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from server.phm.prognosis import (
+    MeasurementModel,
+    ParticleFilterPrognoser,
+    PrognoserConfig,
+    PrognoserState,
+    RulDistribution,
+    effective_sample_size,
+    predict_rul,
+    systematic_resample,
+    track_rul,
+)
+
+MODEL = MeasurementModel((0.2, 2.0, 0.5), 0.03)  # feature = 0.2 + 2 h + 0.5 h^2 + N(0, 0.03^2)
+
+
+def _truth(law: str, life: int, h0: float = 0.1) -> np.ndarray:
+    """True severity per flight 0..life, reaching exactly 1.0 at flight ``life``."""
+    k = np.arange(life + 1, dtype=float)
+    if law == "exp":
+        return h0 * np.exp(np.log(1.0 / h0) * k / life)
+    if law == "lin":
+        return h0 + (1.0 - h0) * k / life
+    if law == "pow":
+        return h0 + (1.0 - h0) * (k / life) ** 2
+    raise ValueError(law)
+
+
+@pytest.mark.parametrize(
+    ("law", "life", "seed"), [("exp", 200, 1), ("lin", 250, 2), ("pow", 180, 3)]
+)
+def test_rul_converges_to_truth(law: str, life: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    h = _truth(law, life)
+    z = MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
+    cfg = PrognoserConfig()
+    pf = ParticleFilterPrognoser(cfg, MODEL)
+    state = pf.initial_state(cfg, MODEL, seed)
+    rel_err, covered = [], []
+    for k in range(life):
+        state = pf.update(state, z[k], k)
+        # last half of life, leaving out the final 5 flights (RUL of a few flights)
+        if life // 2 <= k < life - 5 and k % 2 == 0:
+            dist = pf.predict(state)
+            true_rul = life - k
+            rel_err.append((dist.median - true_rul) / true_rul)
+            covered.append(dist.quantiles[0.05] <= true_rul <= dist.quantiles[0.95])
+    rel_err_a = np.abs(np.array(rel_err))
+    assert np.mean(rel_err_a <= 0.2) >= 0.7, rel_err
+    assert np.median(rel_err_a) <= 0.15
+    assert np.mean(covered) >= 0.8
+
+
+def test_resampling_only_when_ess_below_half() -> None:
+    rng = np.random.default_rng(5)
+    h = _truth("exp", 120)
+    z = MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
+    cfg = PrognoserConfig(n_particles=200)
+    pf = ParticleFilterPrognoser(cfg, MODEL)
+    state = pf.initial_state(cfg, MODEL, 11)
+    seen = {True: 0, False: 0}
+    for k in range(120):
+        prev = state
+        state = pf.update(state, z[k], k)
+        if k == 0:
+            continue
+        assert state.resampled == (state.last_ess < 0.5 * cfg.n_particles)
+        seen[state.resampled] += 1
+        if state.resampled:
+            np.testing.assert_allclose(state.weights, 1.0 / cfg.n_particles)
+        else:
+            assert state.n_resamples == prev.n_resamples
+    assert seen[True] > 0 and seen[False] > 0
+
+
+def test_systematic_resample_counts() -> None:
+    rng = np.random.default_rng(0)
+    w = rng.random(50)
+    w /= w.sum()
+    idx = systematic_resample(w, rng)
+    counts = np.bincount(idx, minlength=50)
+    # systematic resampling keeps each count within floor/ceil of N w_i (+-1)
+    assert np.all(np.abs(counts - 50 * w) < 1.0 + 1e-9)
+    one_hot = np.zeros(10)
+    one_hot[3] = 1.0
+    assert np.all(systematic_resample(one_hot, rng) == 3)
+    assert effective_sample_size(np.full(8, 1 / 8)) == pytest.approx(8.0)
+    assert effective_sample_size(one_hot) == pytest.approx(1.0)
+
+
+def _run(
+    pf: ParticleFilterPrognoser, state: PrognoserState, z: np.ndarray, k0: int, k1: int
+) -> PrognoserState:
+    for k in range(k0, k1):
+        state = pf.update(state, z[k], k, flight_hours=1.5)
+    return state
+
+
+def test_serialise_restore_gives_identical_outputs(tmp_path: Path) -> None:
+    rng = np.random.default_rng(9)
+    h = _truth("lin", 100)
+    z = MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
+    cfg = PrognoserConfig()
+    pf = ParticleFilterPrognoser(cfg, MODEL)
+    state = _run(pf, pf.initial_state(cfg, MODEL, 4), z, 0, 40)
+    text = state.to_json()
+    json.loads(text)  # plain JSON, no NaN/Infinity
+    restored = PrognoserState.from_json(text)
+    state.to_npz(str(tmp_path / "state.npz"))
+    from_npz = PrognoserState.from_npz(str(tmp_path / "state.npz"))
+    # also the config and the measurement model travel as JSON
+    pf2 = ParticleFilterPrognoser(
+        PrognoserConfig.from_json(cfg.to_json()), MeasurementModel.from_json(MODEL.to_json())
+    )
+    a = _run(pf, state, z, 40, 70)
+    b = _run(pf2, restored, z, 40, 70)
+    c = _run(pf, from_npz, z, 40, 70)
+    for other in (b, c):
+        assert np.array_equal(a.severity, other.severity)
+        assert np.array_equal(a.log_weights, other.log_weights)
+        assert np.array_equal(a.theta, other.theta) and np.array_equal(a.cov, other.cov)
+        assert a.rng_state == other.rng_state
+    da, db = pf.predict(a), pf2.predict(b)
+    assert da.quantiles == db.quantiles
+    assert np.array_equal(da.samples, db.samples)
+    # the RUL distribution itself round-trips through JSON
+    back = RulDistribution.from_json(da.to_json(include_samples=True))
+    assert back.quantiles == da.quantiles and np.array_equal(back.samples, da.samples)
+
+
+def test_predict_is_pure_and_repeatable() -> None:
+    cfg = PrognoserConfig(n_particles=100)
+    pf = ParticleFilterPrognoser(cfg, MODEL)
+    state = pf.initial_state(cfg, MODEL, 1)
+    for k, s in enumerate(np.linspace(0.2, 0.4, 20)):
+        state = pf.update(state, float(MODEL.predict(s)), k, flight_hours=2.0)
+    before = state.to_json()
+    d1, d2 = pf.predict(state), pf.predict(state)
+    assert state.to_json() == before
+    assert d1.quantiles == d2.quantiles
+    assert d1.hours_per_flight == pytest.approx(2.0)
+    assert d1.quantiles_hours()[0.5] == pytest.approx(2.0 * d1.median)
+    levels = list(d1.quantiles)
+    assert levels == [0.05, 0.25, 0.5, 0.75, 0.95]
+    qs = [d1.quantiles[q] for q in levels]
+    assert qs == sorted(qs)
+    p = [d1.p_fail_within[h] for h in (10, 25, 50)]
+    assert p == sorted(p) and 0.0 <= p[0] and p[-1] <= 1.0
+    assert d1.histogram_mass.sum() + d1.p_beyond_horizon == pytest.approx(1.0)
+
+
+def test_config_validation() -> None:
+    bad = [
+        {"n_particles": 1},
+        {"n_particles": 2.5},
+        {"process_noise_std": 0.0},
+        {"rate_basis": "cubic"},
+        {"initial_theta": (0.1,)},  # affine needs 2
+        {"rls_forgetting": 1.5},
+        {"resample_threshold": 0.0},
+        {"quantile_levels": (0.5, 0.05)},
+        {"pof_horizons_flights": (0,)},
+        {"max_horizon_flights": 0},
+    ]
+    for kwargs in bad:
+        with pytest.raises(ValueError):
+            PrognoserConfig(**kwargs)
+    cfg = PrognoserConfig(rate_basis="quadratic", initial_theta=(0.004, 0.0, 0.001))
+    assert PrognoserConfig.from_json(cfg.to_json()) == cfg
+    with pytest.raises(ValueError):
+        PrognoserConfig.from_dict({**cfg.to_dict(), "version": 2})
+    with pytest.raises(ValueError):
+        MeasurementModel((0.0, 1.0), 0.0)
+    with pytest.raises(ValueError):
+        MeasurementModel((0.0, 1.0, -1.0), 0.1)  # slope changes sign at s = 0.5
+
+
+def test_prognoser_rejects_foreign_state_and_time_going_back() -> None:
+    cfg = PrognoserConfig(n_particles=50)
+    pf = ParticleFilterPrognoser(cfg, MODEL)
+    other = ParticleFilterPrognoser(cfg, MeasurementModel((0.0, 1.0), 0.05))
+    state = pf.update(pf.initial_state(cfg, MODEL, 0), 0.5, 3)
+    with pytest.raises(ValueError):
+        other.update(state, 0.5, 4)
+    with pytest.raises(ValueError):
+        pf.update(state, 0.5, 3)
+    with pytest.raises(ValueError):
+        pf.update(state, float("nan"), 4)
+
+
+def test_measurement_model_fit_and_json() -> None:
+    rng = np.random.default_rng(2)
+    s = rng.uniform(0.0, 1.2, 400)
+    f = 0.1 + 2.0 * s + 0.5 * s**2 + 0.02 * rng.standard_normal(s.size)
+    mm = MeasurementModel.fit(s, f, degree=2)
+    np.testing.assert_allclose(mm.coefficients, (0.1, 2.0, 0.5), atol=0.03)
+    assert mm.noise_std == pytest.approx(0.02, rel=0.15)
+    assert MeasurementModel.from_json(mm.to_json()) == mm
+    grid = np.linspace(-0.2, 2.0, 23)  # includes the linear continuation outside the range
+    np.testing.assert_allclose(mm.invert(mm.predict(grid)), grid, atol=2e-3)
+    # a decreasing feature works as well
+    dec = MeasurementModel.fit(s, 1.0 - 0.8 * s + 0.01 * rng.standard_normal(s.size), degree=3)
+    assert np.all(np.diff(dec.predict(np.linspace(0, 1.5, 50))) < 0)
+
+
+def test_generic_interface_on_decreasing_indicator() -> None:
+    # a capacity-like indicator: 100 -> 70 (threshold) linearly over 150 flights, noise 0.5
+    rng = np.random.default_rng(8)
+    life = 150
+    k = np.arange(120)
+    x = 100.0 - 30.0 * k / life + 0.5 * rng.standard_normal(k.size)
+    dist = predict_rul(x, threshold=70.0, baseline=100.0, flight_hours=np.full(k.size, 1.2), rng=3)
+    true_rul = life - k[-1]
+    assert abs(dist.median - true_rul) <= 0.25 * true_rul
+    assert dist.quantiles[0.05] <= true_rul <= dist.quantiles[0.95]
+    assert dist.hours_per_flight == pytest.approx(1.2)
+    dists, state = track_rul(x, 70.0, baseline=100.0, predict_at=[60, 119], rng=3)
+    assert len(dists) == 2 and state.flight_index == 119
+    with pytest.raises(ValueError):
+        predict_rul(x, threshold=100.0, baseline=100.0)
