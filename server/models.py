@@ -37,6 +37,15 @@ __all__ = [
     "JOB_STATUSES",
     "ROLES",
     "utcnow",
+    "ModelVersion",
+    "HealthRecord",
+    "ActuatorState",
+    "Alarm",
+    "Prognosis",
+    "Injection",
+    "GroundTruth",
+    "ALARM_STATUSES",
+    "FAULT_MODES",
 ]
 
 FLIGHT_STATUSES = ("received", "queued", "analyzing", "analyzed", "rejected")
@@ -198,3 +207,143 @@ class ApiKey(Base):
     prefix: Mapped[str] = mapped_column(String(16))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     revoked_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+# ---------------------------------------------------------------------------------------------
+# PHM results and the test station
+# ---------------------------------------------------------------------------------------------
+
+ALARM_STATUSES = ("open", "acknowledged", "closed")
+FAULT_MODES = ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR", "REWEAR")
+
+
+class ModelVersion(Base):
+    """A trained PHM model (baselines, thresholds, classifier, measurement models) as JSON."""
+
+    __tablename__ = "model_versions"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(128))
+    status: Mapped[str] = mapped_column(String(16), default="training")  # training|ready|failed
+    active: Mapped[bool] = mapped_column(default=False)
+    payload: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    training: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    metrics: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    error: Mapped[str | None] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class HealthRecord(Base):
+    """What one flight said about one actuator: features, detection, class probabilities."""
+
+    __tablename__ = "health_records"
+    __table_args__ = (UniqueConstraint("actuator_id", "flight_id",
+                                       name="uq_health_records_actuator_flight"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    actuator_id: Mapped[int] = mapped_column(ForeignKey("actuators.id"), index=True)
+    flight_id: Mapped[int] = mapped_column(ForeignKey("flights.id"), index=True)
+    model_version_id: Mapped[int | None] = mapped_column(ForeignKey("model_versions.id"))
+    flight_index: Mapped[int] = mapped_column(Integer)
+    started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    features: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    scores: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    confidence: Mapped[float] = mapped_column(Float, default=0.0)
+    alarm: Mapped[bool] = mapped_column(default=False)
+    class_probabilities: Mapped[dict[str, float] | None] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class ActuatorState(Base):
+    """Detection and prognosis state carried from flight to flight (JSON), one row per actuator."""
+
+    __tablename__ = "actuator_states"
+
+    actuator_id: Mapped[int] = mapped_column(ForeignKey("actuators.id"), primary_key=True)
+    last_flight_id: Mapped[int | None] = mapped_column(ForeignKey("flights.id"))
+    flights_seen: Mapped[int] = mapped_column(Integer, default=0)
+    detection: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    fault_mode: Mapped[str | None] = mapped_column(String(16))
+    prognosis: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)
+
+
+class Alarm(Base):
+    """A detected fault on an actuator: open -> acknowledged -> closed, with who, when, note."""
+
+    __tablename__ = "alarms"
+    __table_args__ = (UniqueConstraint("actuator_id", "flight_id",
+                                       name="uq_alarms_actuator_flight"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    actuator_id: Mapped[int] = mapped_column(ForeignKey("actuators.id"), index=True)
+    flight_id: Mapped[int] = mapped_column(ForeignKey("flights.id"))
+    status: Mapped[str] = mapped_column(String(16), default="open", index=True)
+    confidence: Mapped[float] = mapped_column(Float)
+    fault_mode: Mapped[str | None] = mapped_column(String(16))
+    class_probability: Mapped[float | None] = mapped_column(Float)
+    features: Mapped[list[str]] = mapped_column(JSON, default=list)
+    rul_median_flights: Mapped[float | None] = mapped_column(Float)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    acknowledged_by: Mapped[str | None] = mapped_column(String(128))
+    acknowledged_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    closed_by: Mapped[str | None] = mapped_column(String(128))
+    closed_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    note: Mapped[str | None] = mapped_column(Text)
+
+
+class Prognosis(Base):
+    """One RUL prediction for an actuator after a flight (the points of the RUL cone)."""
+
+    __tablename__ = "prognoses"
+    __table_args__ = (UniqueConstraint("actuator_id", "flight_id",
+                                       name="uq_prognoses_actuator_flight"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    actuator_id: Mapped[int] = mapped_column(ForeignKey("actuators.id"), index=True)
+    flight_id: Mapped[int] = mapped_column(ForeignKey("flights.id"))
+    flight_index: Mapped[int] = mapped_column(Integer)
+    fault_mode: Mapped[str] = mapped_column(String(16))
+    severity_mean: Mapped[float] = mapped_column(Float)
+    severity_std: Mapped[float] = mapped_column(Float)
+    rul_quantiles: Mapped[dict[str, float]] = mapped_column(JSON)
+    p_fail_within: Mapped[dict[str, float]] = mapped_column(JSON)
+    histogram: Mapped[dict[str, Any]] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class Injection(Base):
+    """A fault injected by a test-station operator into a simulated aircraft's actuator."""
+
+    __tablename__ = "injections"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)
+    position: Mapped[str] = mapped_column(String(8))
+    fault_mode: Mapped[str] = mapped_column(String(16))
+    onset_flight: Mapped[int] = mapped_column(Integer)
+    time_to_failure_flights: Mapped[int | None] = mapped_column(Integer)
+    severity: Mapped[float | None] = mapped_column(Float)
+    status: Mapped[str] = mapped_column(String(16), default="pending")
+    created_by: Mapped[str] = mapped_column(String(128))
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    cancelled_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    failure_flight: Mapped[int | None] = mapped_column(Integer)
+
+
+class GroundTruth(Base):
+    """True fault state of a simulated flight, reported by the sim worker (never in the log)."""
+
+    __tablename__ = "ground_truth"
+    __table_args__ = (UniqueConstraint("injection_id", "flight_code",
+                                       name="uq_ground_truth_injection_flight"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    injection_id: Mapped[int] = mapped_column(ForeignKey("injections.id"), index=True)
+    flight_code: Mapped[str] = mapped_column(String(64))
+    flight_number: Mapped[int] = mapped_column(Integer)
+    severity: Mapped[float] = mapped_column(Float)
+    severity_norm: Mapped[float] = mapped_column(Float)
+    true_rul_flights: Mapped[int | None] = mapped_column(Integer)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)

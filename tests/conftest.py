@@ -11,6 +11,7 @@ import pytest
 from sqlalchemy import create_engine, text
 
 from server.config import Settings
+from server.models import Base
 
 PG_URL = os.environ.get("HMSM_TEST_POSTGRES_URL")
 BACKENDS = ["sqlite", pytest.param("postgres", marks=[
@@ -46,8 +47,8 @@ def pg_database() -> Iterator[str]:
 def truncate_all(url: str) -> None:
     engine = create_engine(url)
     with engine.begin() as conn:
-        conn.execute(text("TRUNCATE jobs, flights, actuators, aircraft, api_keys "
-                          "RESTART IDENTITY CASCADE"))
+        tables = ", ".join(t.name for t in reversed(Base.metadata.sorted_tables))
+        conn.execute(text(f"TRUNCATE {tables} RESTART IDENTITY CASCADE"))
     engine.dispose()
 
 
