@@ -7,7 +7,16 @@ from typing import Any
 from fastapi import FastAPI
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from server.api import actuators, aircraft, flights, health, jobs, keys
+from server.api import (
+    actuators,
+    aircraft,
+    flights,
+    health,
+    health_records,
+    jobs,
+    keys,
+    test_station,
+)
 from server.blobstore import BlobStore
 from server.config import Settings
 from server.db import make_engine, make_session_factory
@@ -109,7 +118,8 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     app.state.session_factory = make_session_factory(engine)
     app.state.blobs = blobs
     install_error_handlers(app)
-    for module in (health, aircraft, actuators, flights, jobs, keys):
+    for module in (health, aircraft, actuators, health_records, flights, jobs, keys,
+                   test_station):
         app.include_router(module.router, prefix=API_PREFIX)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
     app.add_middleware(SecurityHeadersMiddleware)

@@ -9,6 +9,7 @@ from sqlalchemy.orm import Session, selectinload
 from server.errors import Conflict, NotFound
 from server.flightlog import POSITIONS
 from server.models import Actuator, Aircraft, utcnow
+from server.services.health import close_alarms_of
 
 __all__ = ["create_aircraft", "get_aircraft", "list_aircraft", "installed_serials",
            "get_actuator", "list_actuators", "replace_actuator"]
@@ -93,8 +94,9 @@ def replace_actuator(*, session: Session, actuator_id: int, new_serial: str,
                      note: str | None) -> Actuator:
     """Remove an installed actuator and install a new one at its position.
 
-    The new actuator is a new row, so its health history (features, alarms, filter state, all
-    keyed by actuator id) starts empty; the old row and its history are kept.
+    The old actuator's alarms are closed. The new actuator is a new row, so its health history
+    (features, detection and filter state, alarms, all keyed by actuator id) starts empty; the
+    old row and its history are kept.
     """
     old = get_actuator(session=session, actuator_id=actuator_id)
     if old.removed_at is not None:
@@ -104,6 +106,8 @@ def replace_actuator(*, session: Session, actuator_id: int, new_serial: str,
         raise Conflict(f"Serial '{new_serial}' is installed elsewhere.", code="serial_in_use")
     old.removed_at = utcnow()
     old.removal_note = note
+    close_alarms_of(session=session, actuator_id=old.id, by="maintenance",
+                    note=f"Actuator replaced by {new_serial}." + (f" {note}" if note else ""))
     session.flush()
     new = Actuator(aircraft_id=old.aircraft_id, position=old.position, serial=new_serial)
     session.add(new)

@@ -1,0 +1,151 @@
+"""Actuator health: feature/detection history, prognoses (RUL cone), fleet grid, alarms."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query
+from pydantic import BaseModel, ConfigDict, Field
+
+from server.api.deps import Admin, Reader, SessionDep
+from server.schemas import Page
+from server.services import health as service
+
+router = APIRouter(tags=["health"])
+
+
+class HealthRecordRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    flight_id: int
+    flight_index: int
+    started_at: datetime | None
+    features: dict[str, Any]
+    scores: dict[str, Any]
+    confidence: float
+    alarm: bool
+    class_probabilities: dict[str, float] | None
+
+
+class PrognosisRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    flight_id: int
+    flight_index: int
+    fault_mode: str
+    severity_mean: float
+    severity_std: float
+    rul_quantiles: dict[str, float]
+    p_fail_within: dict[str, float]
+    histogram: dict[str, Any]
+    created_at: datetime
+
+
+class AlarmRead(BaseModel):
+    id: int
+    aircraft: str
+    position: str
+    actuator_id: int
+    flight_id: int
+    status: str
+    priority: float
+    confidence: float
+    fault_mode: str | None
+    class_probability: float | None
+    features: list[str]
+    rul_median_flights: float | None
+    created_at: datetime
+    acknowledged_by: str | None
+    acknowledged_at: datetime | None
+    closed_by: str | None
+    closed_at: datetime | None
+    note: str | None
+
+
+class AlarmAction(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    note: str | None = Field(None, max_length=2000)
+
+
+class GridCellRead(BaseModel):
+    tail: str
+    base: str
+    position: str
+    actuator_id: int
+    serial: str
+    status: str
+    confidence: float
+    fault_mode: str | None
+    rul_median: float | None
+    open_alarm_id: int | None
+    flights_seen: int
+
+
+def alarm_read(alarm, actuator, tail: str) -> AlarmRead:  # type: ignore[no-untyped-def]
+    return AlarmRead(id=alarm.id, aircraft=tail, position=actuator.position,
+                     actuator_id=actuator.id, flight_id=alarm.flight_id, status=alarm.status,
+                     priority=service.alarm_priority(alarm.confidence, alarm.fault_mode,
+                                                     alarm.rul_median_flights),
+                     confidence=alarm.confidence, fault_mode=alarm.fault_mode,
+                     class_probability=alarm.class_probability, features=alarm.features,
+                     rul_median_flights=alarm.rul_median_flights, created_at=alarm.created_at,
+                     acknowledged_by=alarm.acknowledged_by,
+                     acknowledged_at=alarm.acknowledged_at, closed_by=alarm.closed_by,
+                     closed_at=alarm.closed_at, note=alarm.note)
+
+
+@router.get("/actuators/{actuator_id}/health", response_model=list[HealthRecordRead],
+            summary="Feature values, detection confidence and class probabilities per flight")
+def health(actuator_id: int, session: SessionDep, _: Reader,
+           limit: Annotated[int, Query(ge=1, le=5000)] = 500) -> list[HealthRecordRead]:
+    return [HealthRecordRead.model_validate(r) for r in
+            service.health_records(session=session, actuator_id=actuator_id, limit=limit)]
+
+
+@router.get("/actuators/{actuator_id}/prognoses", response_model=list[PrognosisRead],
+            summary="RUL predictions after each flight (the RUL cone)")
+def prognoses(actuator_id: int, session: SessionDep, _: Reader,
+              limit: Annotated[int, Query(ge=1, le=5000)] = 500) -> list[PrognosisRead]:
+    return [PrognosisRead.model_validate(r) for r in
+            service.prognoses(session=session, actuator_id=actuator_id, limit=limit)]
+
+
+@router.get("/fleet/health", response_model=list[GridCellRead],
+            summary="Fleet grid: every installed actuator green / amber / red with median RUL")
+def fleet(session: SessionDep, _: Reader, base: str | None = None) -> list[GridCellRead]:
+    return [GridCellRead(**c.__dict__) for c in service.fleet_grid(session=session, base=base)]
+
+
+@router.get("/alarms", response_model=Page[AlarmRead],
+            summary="Alarm inbox, open first, by priority (confidence x mode x RUL urgency)")
+def alarms(session: SessionDep, _: Reader,
+           status: Annotated[str | None, Query(pattern="^(open|acknowledged|closed)$")] = None,
+           aircraft: str | None = None,
+           limit: Annotated[int, Query(ge=1, le=500)] = 100,
+           offset: Annotated[int, Query(ge=0)] = 0) -> Page[AlarmRead]:
+    rows, total = service.list_alarms(session=session, status=status, tail=aircraft,
+                                      limit=limit, offset=offset)
+    return Page(items=[alarm_read(*r) for r in rows], total=total, limit=limit, offset=offset)
+
+
+def _one(session: SessionDep, alarm_id: int) -> AlarmRead:
+    from server.models import Actuator, Aircraft, Alarm
+
+    alarm = session.get(Alarm, alarm_id)
+    actuator = session.get(Actuator, alarm.actuator_id)  # type: ignore[union-attr]
+    return alarm_read(alarm, actuator, session.get(Aircraft, actuator.aircraft_id).tail)  # type: ignore[union-attr]
+
+
+@router.post("/alarms/{alarm_id}/acknowledge", response_model=AlarmRead,
+             summary="Acknowledge an open alarm with a note (admin)")
+def acknowledge(alarm_id: int, body: AlarmAction, session: SessionDep, key: Admin) -> AlarmRead:
+    service.acknowledge_alarm(session=session, alarm_id=alarm_id, by=key.name, note=body.note)
+    session.commit()
+    return _one(session, alarm_id)
+
+
+@router.post("/alarms/{alarm_id}/close", response_model=AlarmRead,
+             summary="Close an alarm with a note (admin)")
+def close(alarm_id: int, body: AlarmAction, session: SessionDep, key: Admin) -> AlarmRead:
+    service.close_alarm(session=session, alarm_id=alarm_id, by=key.name, note=body.note)
+    session.commit()
+    return _one(session, alarm_id)

@@ -1,0 +1,161 @@
+"""Test station: operators inject faults into the simulated half-wing and follow ground truth."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated
+
+from fastapi import APIRouter, Query
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from server.api.deps import Operator, Reader, SessionDep
+from server.models import Injection
+from server.schemas import Page, Position
+from server.services import test_station as service
+
+router = APIRouter(prefix="/test-station", tags=["test station"])
+
+FaultMode = Annotated[str, Field(pattern="^(TTS|DMD|SE|BDO|MTEL|MTWEAR|REWEAR)$")]
+
+
+class InjectionCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    aircraft: str = Field(pattern=r"^[A-Za-z0-9._-]{1,64}$")
+    position: Position
+    fault_mode: FaultMode
+    onset_flight: int = Field(0, ge=0, le=100_000,
+                              description="Aircraft flight number at which the fault appears; "
+                              "0 = the next flight.")
+    time_to_failure_flights: int | None = Field(None, ge=10, le=5000, description=(
+        "Progressive modes: flights from onset to failure (sets the progression rate); "
+        "default: drawn by the simulator's law."))
+    severity: float | None = Field(None, gt=0, le=1.0, description=(
+        "SE/BDO: imposed severity as a fraction of the failure threshold (default 1.0)."))
+
+    @model_validator(mode="after")
+    def _severity_only_a_priori(self) -> InjectionCreate:
+        if self.severity is not None and self.fault_mode not in ("SE", "BDO"):
+            raise ValueError("severity is imposed only for SE and BDO; progressive faults "
+                             "start at onset and grow")
+        return self
+
+
+class InjectionRead(BaseModel):
+    id: int
+    aircraft: str
+    position: str
+    fault_mode: str
+    onset_flight: int
+    time_to_failure_flights: int | None
+    severity: float | None
+    status: str
+    created_by: str
+    created_at: datetime
+    cancelled_at: datetime | None
+    failure_flight: int | None
+
+
+class InjectionStatus(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    status: Annotated[str, Field(pattern="^(active|failed)$")]
+    failure_flight: int | None = Field(None, ge=0)
+
+
+class GroundTruthIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    flight: str = Field(pattern=r"^[A-Za-z0-9._-]{1,64}$")
+    flight_number: int = Field(ge=0)
+    severity: float = Field(ge=0)
+    severity_norm: float = Field(ge=0)
+    true_rul_flights: int | None = Field(None, ge=0)
+
+
+class GroundTruthRead(GroundTruthIn):
+    model_config = ConfigDict(extra="ignore")
+    injection_id: int
+
+
+def _read(row: Injection, tail: str) -> InjectionRead:
+    return InjectionRead(id=row.id, aircraft=tail, position=row.position,
+                         fault_mode=row.fault_mode, onset_flight=row.onset_flight,
+                         time_to_failure_flights=row.time_to_failure_flights,
+                         severity=row.severity, status=row.status, created_by=row.created_by,
+                         created_at=row.created_at, cancelled_at=row.cancelled_at,
+                         failure_flight=row.failure_flight)
+
+
+def _tail(session: SessionDep, row: Injection) -> str:
+    from server.models import Aircraft
+
+    return session.get(Aircraft, row.aircraft_id).tail  # type: ignore[union-attr]
+
+
+@router.post("/injections", status_code=201, response_model=InjectionRead,
+             summary="Inject a fault (operator)")
+def create(body: InjectionCreate, session: SessionDep, key: Operator) -> InjectionRead:
+    row = service.create_injection(session=session, tail=body.aircraft, position=body.position,
+                                   fault_mode=body.fault_mode, onset_flight=body.onset_flight,
+                                   time_to_failure_flights=body.time_to_failure_flights,
+                                   severity=body.severity, created_by=key.name)
+    session.commit()
+    return _read(row, body.aircraft)
+
+
+@router.get("/injections", response_model=Page[InjectionRead], summary="List injections")
+def list_(session: SessionDep, _: Reader, aircraft: str | None = None,
+          status: Annotated[str | None, Query(pattern="^(pending|active|cancelled|failed)$")
+                            ] = None,
+          limit: Annotated[int, Query(ge=1, le=500)] = 100,
+          offset: Annotated[int, Query(ge=0)] = 0) -> Page[InjectionRead]:
+    rows, total = service.list_injections(session=session, tail=aircraft, status=status,
+                                          limit=limit, offset=offset)
+    return Page(items=[_read(r, t) for r, t in rows], total=total, limit=limit, offset=offset)
+
+
+@router.get("/injections/{injection_id}", response_model=InjectionRead,
+            summary="One injection")
+def get(injection_id: int, session: SessionDep, _: Reader) -> InjectionRead:
+    row = service.get_injection(session=session, injection_id=injection_id)
+    return _read(row, _tail(session, row))
+
+
+@router.post("/injections/{injection_id}/cancel", response_model=InjectionRead,
+             summary="Cancel a pending or active injection (operator)")
+def cancel(injection_id: int, session: SessionDep, _: Operator) -> InjectionRead:
+    row = service.cancel_injection(session=session, injection_id=injection_id)
+    session.commit()
+    return _read(row, _tail(session, row))
+
+
+@router.post("/injections/{injection_id}/status", response_model=InjectionRead,
+             summary="Sim worker: the fault started or reached failure (operator)")
+def set_status(injection_id: int, body: InjectionStatus, session: SessionDep, _: Operator
+               ) -> InjectionRead:
+    row = service.update_injection_status(session=session, injection_id=injection_id,
+                                          status=body.status, failure_flight=body.failure_flight)
+    session.commit()
+    return _read(row, _tail(session, row))
+
+
+@router.put("/injections/{injection_id}/ground-truth", response_model=GroundTruthRead,
+            summary="Sim worker: true severity of one flight (operator; idempotent)")
+def report(injection_id: int, body: GroundTruthIn, session: SessionDep, _: Operator
+           ) -> GroundTruthRead:
+    row = service.report_ground_truth(session=session, injection_id=injection_id,
+                                      flight_code=body.flight, flight_number=body.flight_number,
+                                      severity=body.severity, severity_norm=body.severity_norm,
+                                      true_rul_flights=body.true_rul_flights)
+    session.commit()
+    return GroundTruthRead(injection_id=injection_id, flight=row.flight_code,
+                           flight_number=row.flight_number, severity=row.severity,
+                           severity_norm=row.severity_norm,
+                           true_rul_flights=row.true_rul_flights)
+
+
+@router.get("/injections/{injection_id}/ground-truth", response_model=list[GroundTruthRead],
+            summary="Ground truth of an injection, flight by flight")
+def ground_truth(injection_id: int, session: SessionDep, _: Reader) -> list[GroundTruthRead]:
+    return [GroundTruthRead(injection_id=injection_id, flight=r.flight_code,
+                            flight_number=r.flight_number, severity=r.severity,
+                            severity_norm=r.severity_norm, true_rul_flights=r.true_rul_flights)
+            for r in service.list_ground_truth(session=session, injection_id=injection_id)]

@@ -1,0 +1,244 @@
+"""Healthy baselines of the features, normalised for operating conditions.
+
+Time base: one sample per flight (the per-flight feature value of :mod:`server.phm.features`).
+
+For each of the 19 aircraft features a linear model of the healthy flight value on the
+operating conditions of its actuator (ground and mean ambient temperature [degC], rms expected
+aerodynamic load [N], rms motor speed [rad/s], and for selected features the winding
+temperature estimated from the still-hold resistance [degC]) is fitted on the healthy flights of
+a design campaign (ridge regression on standardised covariates, then one refit without gross
+outliers). The residual scale is a robust standard deviation (1.4826 x MAD). A flight's
+*standardised residual* ``z = (value - expected(conditions)) / scale`` is what detection uses,
+so that hot and cold aircraft, heavy and light flights share one healthy distribution.
+
+Scikit-learn manner: ``__init__`` stores hyper-parameters, ``fit`` returns ``self``, learned
+attributes end in ``_``. Persisted as JSON (``to_dict`` / ``from_dict``), never pickle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from .features import AIRCRAFT_FEATURES, CONDITION_NAMES, FlightFeatures
+
+__all__ = [
+    "BASELINE_FORMAT",
+    "DEFAULT_COVARIATES",
+    "LinearBaseline",
+    "FleetBaseline",
+    "feature_position",
+]
+
+BASELINE_FORMAT = "ema-baseline/1"
+DEFAULT_COVARIATES: tuple[str, ...] = ("temp_ground_c", "temp_mean_c", "load_rms_n",
+                                       "speed_rms_rad_s")
+#: features whose physics depends on the magnet/winding temperature itself
+_WINDING_TEMP_FEATURES = ("F_DMD", "F_MTEL")
+
+
+def feature_position(name: str) -> str:
+    """Position key of an aircraft feature name (``"WL1.F_TTS"`` -> ``"WL1"``)."""
+    return name.split(".", 1)[0]
+
+
+def _robust_scale(r: np.ndarray) -> float:
+    r = r[np.isfinite(r)]
+    if r.size < 2:
+        return float("nan")
+    mad = float(np.median(np.abs(r - np.median(r))))
+    s = 1.4826 * mad
+    if s <= 0:
+        s = float(np.std(r))
+    return s
+
+
+class LinearBaseline:
+    """Healthy value of one feature as a linear function of the operating conditions.
+
+    Parameters
+    ----------
+    covariates : names of the condition columns, in the order of ``C``.
+    ridge : L2 penalty on the standardised coefficients (number of flights' worth).
+    outlier_k : residuals beyond ``outlier_k`` robust scales are dropped before the refit.
+    """
+
+    def __init__(self, covariates: Sequence[str] = DEFAULT_COVARIATES, *, ridge: float = 1.0,
+                 outlier_k: float = 6.0) -> None:
+        self.covariates = tuple(covariates)
+        self.ridge = ridge
+        self.outlier_k = outlier_k
+
+    # -- fitting ------------------------------------------------------------------------------
+    def _prep(self, C: np.ndarray) -> np.ndarray:
+        C = np.asarray(C, dtype=np.float64).reshape(-1, len(self.covariates))
+        C = np.where(np.isfinite(C), C, self.cov_mean_[np.newaxis, :])
+        return (C - self.cov_mean_) / self.cov_scale_
+
+    def fit(self, C: np.ndarray, y: np.ndarray) -> LinearBaseline:
+        """Fit on healthy flights: ``C`` (n_flights, n_covariates), ``y`` (n_flights,)."""
+        C = np.asarray(C, dtype=np.float64).reshape(-1, len(self.covariates))
+        y = np.asarray(y, dtype=np.float64)
+        keep = np.isfinite(y)
+        C, y = C[keep], y[keep]
+        if y.size < 3:
+            raise ValueError("need at least three healthy flights with a finite value")
+        with np.errstate(invalid="ignore"):
+            mean = np.nanmean(np.where(np.isfinite(C), C, np.nan), axis=0)
+            scale = np.nanstd(np.where(np.isfinite(C), C, np.nan), axis=0)
+        mean = np.where(np.isfinite(mean), mean, 0.0)
+        scale = np.where(np.isfinite(scale) & (scale > 1e-12), scale, 1.0)
+        self.cov_mean_, self.cov_scale_ = mean, scale
+        X = self._prep(C)
+        w = np.ones(y.size, dtype=bool)
+        for _ in range(2):
+            self._solve(X[w], y[w])
+            r = y - self._raw_predict(X)
+            s = _robust_scale(r[w])
+            if not np.isfinite(s) or s <= 0:
+                break
+            w_new = np.abs(r - np.median(r[w])) <= self.outlier_k * s
+            if w_new.sum() < 3 or (w_new == w).all():
+                break
+            w = w_new
+        r = y - self._raw_predict(X)
+        self.scale_ = max(_robust_scale(r[w]), 1e-12 * max(1.0, float(np.abs(y).max())))
+        self.residual_std_ = float(np.std(r[w]))
+        self.n_samples_ = int(y.size)
+        return self
+
+    def _solve(self, X: np.ndarray, y: np.ndarray) -> None:
+        n, k = X.shape
+        xm, ym = X.mean(axis=0), y.mean()
+        Xc = X - xm
+        A = Xc.T @ Xc + self.ridge * np.eye(k)
+        coef = np.linalg.solve(A, Xc.T @ (y - ym)) if k else np.zeros(0)
+        self.coef_ = coef
+        self.intercept_ = float(ym - xm @ coef)
+
+    def _raw_predict(self, X: np.ndarray) -> np.ndarray:
+        return self.intercept_ + X @ self.coef_
+
+    def _check(self) -> None:
+        if not hasattr(self, "coef_"):
+            raise RuntimeError("LinearBaseline is not fitted")
+
+    # -- use ----------------------------------------------------------------------------------
+    def predict(self, C: np.ndarray) -> np.ndarray:
+        """Expected healthy value for conditions ``C`` (n, n_covariates) -> (n,)."""
+        self._check()
+        return self._raw_predict(self._prep(C))
+
+    def zscore(self, C: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Standardised residual ``(y - predict(C)) / scale_`` (n,)."""
+        return (np.asarray(y, dtype=np.float64) - self.predict(C)) / self.scale_
+
+    def to_dict(self) -> dict[str, Any]:
+        self._check()
+        return {"covariates": list(self.covariates), "ridge": self.ridge,
+                "outlier_k": self.outlier_k, "cov_mean": self.cov_mean_.tolist(),
+                "cov_scale": self.cov_scale_.tolist(), "coef": self.coef_.tolist(),
+                "intercept": self.intercept_, "scale": self.scale_,
+                "residual_std": self.residual_std_, "n_samples": self.n_samples_}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> LinearBaseline:
+        b = cls(d["covariates"], ridge=float(d["ridge"]), outlier_k=float(d["outlier_k"]))
+        b.cov_mean_ = np.asarray(d["cov_mean"], dtype=np.float64)
+        b.cov_scale_ = np.asarray(d["cov_scale"], dtype=np.float64)
+        b.coef_ = np.asarray(d["coef"], dtype=np.float64)
+        b.intercept_ = float(d["intercept"])
+        b.scale_ = float(d["scale"])
+        b.residual_std_ = float(d["residual_std"])
+        b.n_samples_ = int(d["n_samples"])
+        return b
+
+
+def _covariates_for(name: str, base: Sequence[str]) -> tuple[str, ...]:
+    feat = name.split(".", 1)[1]
+    extra = ("temp_winding_est_c",) if feat in _WINDING_TEMP_FEATURES else ()
+    return tuple(base) + tuple(c for c in extra if c not in base)
+
+
+class FleetBaseline:
+    """One :class:`LinearBaseline` per aircraft feature (19), fitted on healthy flights.
+
+    Parameters
+    ----------
+    covariates : condition names used by every feature (``CONDITION_NAMES`` subset);
+        ``F_DMD`` and ``F_MTEL`` also use the estimated winding temperature.
+    ridge, outlier_k : passed to each :class:`LinearBaseline`.
+    """
+
+    def __init__(self, covariates: Sequence[str] = DEFAULT_COVARIATES, *, ridge: float = 1.0,
+                 outlier_k: float = 6.0) -> None:
+        unknown = set(covariates) - set(CONDITION_NAMES)
+        if unknown:
+            raise ValueError(f"unknown covariates {sorted(unknown)}")
+        self.covariates = tuple(covariates)
+        self.ridge = ridge
+        self.outlier_k = outlier_k
+
+    @staticmethod
+    def _cond_matrix(flights: Sequence[FlightFeatures], name: str,
+                     cov: Sequence[str]) -> np.ndarray:
+        pos = feature_position(name)
+        return np.array([[f.conditions[pos].get(c, np.nan) for c in cov] for f in flights],
+                        dtype=np.float64).reshape(len(flights), len(cov))
+
+    def fit(self, flights: Sequence[FlightFeatures]) -> FleetBaseline:
+        """Fit every feature's baseline on healthy ``flights``."""
+        if len(flights) < 3:
+            raise ValueError("need at least three healthy flights")
+        self.models_: dict[str, LinearBaseline] = {}
+        for name in AIRCRAFT_FEATURES:
+            cov = _covariates_for(name, self.covariates)
+            y = np.array([f.summaries[name].value for f in flights], dtype=np.float64)
+            C = self._cond_matrix(flights, name, cov)
+            self.models_[name] = LinearBaseline(cov, ridge=self.ridge,
+                                                outlier_k=self.outlier_k).fit(C, y)
+        self.feature_names_ = AIRCRAFT_FEATURES
+        self.n_flights_ = len(flights)
+        return self
+
+    def _check(self) -> None:
+        if not hasattr(self, "models_"):
+            raise RuntimeError("FleetBaseline is not fitted")
+
+    def zscores(self, flight: FlightFeatures) -> dict[str, float]:
+        """Standardised residual of every feature of one flight (NaN where no valid window)."""
+        self._check()
+        out: dict[str, float] = {}
+        for name, m in self.models_.items():
+            C = self._cond_matrix([flight], name, m.covariates)
+            out[name] = float(m.zscore(C, np.array([flight.summaries[name].value]))[0])
+        return out
+
+    def zscore_matrix(self, flights: Sequence[FlightFeatures]) -> np.ndarray:
+        """(n_flights, 19) standardised residuals in ``AIRCRAFT_FEATURES`` order."""
+        self._check()
+        cols = []
+        for name in AIRCRAFT_FEATURES:
+            m = self.models_[name]
+            C = self._cond_matrix(flights, name, m.covariates)
+            y = np.array([f.summaries[name].value for f in flights], dtype=np.float64)
+            cols.append(m.zscore(C, y))
+        return np.column_stack(cols) if cols else np.zeros((len(flights), 0))
+
+    def to_dict(self) -> dict[str, Any]:
+        self._check()
+        return {"format": BASELINE_FORMAT, "covariates": list(self.covariates),
+                "ridge": self.ridge, "outlier_k": self.outlier_k, "n_flights": self.n_flights_,
+                "models": {k: m.to_dict() for k, m in self.models_.items()}}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> FleetBaseline:
+        if d.get("format") != BASELINE_FORMAT:
+            raise ValueError(f"not a {BASELINE_FORMAT} document")
+        b = cls(d["covariates"], ridge=float(d["ridge"]), outlier_k=float(d["outlier_k"]))
+        b.models_ = {k: LinearBaseline.from_dict(v) for k, v in d["models"].items()}
+        b.feature_names_ = tuple(b.models_)
+        b.n_flights_ = int(d["n_flights"])
+        return b

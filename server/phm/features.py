@@ -1,0 +1,636 @@
+"""Health features of the EMAs (paper Table 1), vectorised over a whole flight.
+
+Time base and units
+-------------------
+* Input: plain arrays sampled at ``sample_rate_hz`` (800 Hz), SI units: phase currents [A],
+  phase voltages [V], motor-shaft angle ``theta`` [rad, unwrapped, mechanical], LVDT rod
+  position ``x`` [m]. Keys of a flight mapping follow flight-log format v1 (``"WL1.ia"``, ...,
+  optional ``"T_amb"`` [degC]).
+* 800 Hz -> 80 Hz: block means of ``decimation`` (10) samples; one *step* is one block
+  (12.5 ms). A trailing partial block is dropped.
+* Frames: amplitude-invariant Clarke transform (``|i|`` is the peak phase-current amplitude
+  of a balanced set); the zero-sequence (common-node) current is ``i0 = ia + ib + ic``.
+  No feature needs the resolver's electrical alignment: only magnitudes, power and the
+  mechanical angle are used.
+
+Every feature is built the same way: per 80 Hz step a few *accumulators* (e.g. numerator and
+denominator of a ratio) and a validity mask; an exponential filter (first-order IIR with time
+constant ``ewma_tau_s`` of valid time, ``scipy.signal.lfilter``) runs over the valid steps only;
+the feature at a step is a function of the filtered accumulators (a ratio of local means, which
+is far more robust than filtering a ratio). The per-flight value is the same function of the
+whole-flight means of the accumulators over valid steps (the filter's infinite-memory limit);
+the dispersion is the standard deviation of the filtered 80 Hz series over valid steps.
+
+Features (formulas and validity rules are in ``docs/FEATURES.md``):
+
+``F_TTS``  mean square of the common-node current (offset removed) over mean phase-voltage
+           amplitude [A^2/V]; current-valid steps.
+``F_DMD``  relative excess of current over the current expected with the nominal flux,
+           ``1 - psi_hat / psi_nom`` [-], psi_hat from the q-axis voltage balance; moving
+           current-valid steps.
+``F_SE``   amplitude of the current magnitude modulation at shaft frequency (demodulated with
+           the mechanical angle) relative to the mean current magnitude [-]; moving steps.
+``F_BDO``  imbalance of the three phase-voltage RMS values (std / mean over phases) [-].
+``F_MTEL`` apparent efficiency at still actuator: motor torque from the holding current over
+           the torque expected from the design aero load model ``-(k x + bias)`` [-].
+``F_MTWEAR`` lost motion of ``x - r theta`` across motion reversals [m].
+``F_REWEAR`` lost motion of ``x_WL1 - x_WL2`` across reversals of the winglet tab [m].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import lfilter
+
+__all__ = [
+    "ACTUATOR_FEATURES",
+    "POSITIONS",
+    "WINGLET_PAIR",
+    "REWEAR_NAME",
+    "AIRCRAFT_FEATURES",
+    "CONDITION_NAMES",
+    "MotorConstants",
+    "FeatureConfig",
+    "FeatureTrack",
+    "FeatureSummary",
+    "FlightFeatures",
+    "block_mean",
+    "exp_filter",
+    "actuator_features",
+    "rewear_feature",
+    "operating_conditions",
+    "flight_features",
+]
+
+ACTUATOR_FEATURES: tuple[str, ...] = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR")
+POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
+WINGLET_PAIR: tuple[str, str] = ("WL1", "WL2")
+REWEAR_NAME = "WL.F_REWEAR"
+#: the 19 feature names of one aircraft, ``"<position>.<feature>"`` plus ``"WL.F_REWEAR"``
+AIRCRAFT_FEATURES: tuple[str, ...] = tuple(
+    f"{p}.{f}" for p in POSITIONS for f in ACTUATOR_FEATURES) + (REWEAR_NAME,)
+#: per-actuator operating conditions used by the baselines
+CONDITION_NAMES: tuple[str, ...] = (
+    "temp_ground_c", "temp_mean_c", "load_rms_n", "speed_rms_rad_s", "temp_winding_est_c")
+
+
+@dataclass(frozen=True)
+class MotorConstants:
+    """Nominal EMA constants the feature maths assumes (the design values, not the truth)."""
+
+    pole_pairs: int = 4  # -
+    resistance_ohm: float = 1.86  # Ohm, phase, at ref_temp_c
+    inductance_h: float = 3.72e-3  # H
+    flux_wb: float = 0.061  # Wb, permanent-magnet flux linkage (peak, amplitude-invariant)
+    lead_m: float = 0.005  # m per motor revolution (ball screw)
+    ref_temp_c: float = 20.0  # degC, temperature of resistance_ohm
+    copper_alpha_per_k: float = 0.00393  # 1/K
+
+    @property
+    def screw_radius_m(self) -> float:
+        """r = lead / 2 pi [m/rad]."""
+        return self.lead_m / (2.0 * np.pi)
+
+    @property
+    def torque_constant_nm_per_a(self) -> float:
+        """1.5 p psi [Nm per A of peak current amplitude]."""
+        return 1.5 * self.pole_pairs * self.flux_wb
+
+
+def _default_aero() -> dict[str, float]:
+    return {"WL1": 8.0e4, "WL2": 8.0e4, "WT": 6.0e4}
+
+
+def _default_aero_bias() -> dict[str, float]:
+    return {"WL1": 500.0, "WL2": 500.0, "WT": 300.0}
+
+
+@dataclass(frozen=True)
+class FeatureConfig:
+    """Windows, thresholds and filter of the feature extraction (all SI)."""
+
+    sample_rate_hz: float = 800.0  # Hz, input rate
+    decimation: int = 10  # samples per 80 Hz step
+    max_electrical_hz: float = 80.0  # Hz, transmission limit for current features
+    min_electrical_hz: float = 2.0  # Hz, "moving" for F_DMD / F_SE
+    still_speed_rad_s: float = 0.5  # rad/s, |mean motor speed| of a step below which it is still
+    still_min_s: float = 0.3  # s, a still window lasts at least this
+    min_current_a: float = 0.3  # A (amplitude), current features need this much
+    min_voltage_v: float = 0.5  # V (amplitude), F_TTS / F_BDO need this much
+    ewma_tau_s: float = 5.0  # s of valid time, exponential filter time constant
+    #: design aero model of the rod load at cruise dynamic pressure, F = -(k x + bias) (+x is
+    #: extension): hinge-load gradient k [N/m of rod travel] and bias [N], per position
+    aero_gradient_n_per_m: Mapping[str, float] = field(default_factory=_default_aero)
+    aero_bias_n: Mapping[str, float] = field(default_factory=_default_aero_bias)
+    cruise_temp_c: float = -40.0  # degC, ambient at cruise (design dynamic pressure)
+    cruise_band_c: float = 3.0  # degC, F_MTEL only where T_amb <= cruise_temp_c + band
+    min_load_fraction: float = 0.15  # of the largest expected |load| in the flight, for F_MTEL
+    min_r_estimate_blocks: int = 20  # still steps needed to trust the resistance estimate
+    min_valid_steps: int = 40  # steps a flight needs for a feature value (else NaN)
+    min_events: int = 3  # reversals a flight needs for F_MTWEAR / F_REWEAR (else NaN)
+    electrical_offset_rad: float = 0.0  # rad, resolver zero to d axis (drive commissioning)
+    reversal_speed_m_s: float = 1.0e-3  # m/s of r*omega, "moving" for reversals
+    reversal_skip_m: float = 0.5e-3  # m of travel skipped after a reversal (> largest gap)
+    reversal_blocks: int = 4  # steps averaged on each side of a reversal
+    reversal_max_gap_s: float = 3.0  # s, longest stop between the two runs of a reversal
+    rewear_absolute: bool = True  # F_REWEAR uses |lost motion| (gap side unknown)
+
+    def __post_init__(self) -> None:
+        if self.decimation < 1 or self.sample_rate_hz <= 0 or self.ewma_tau_s <= 0:
+            raise ValueError("decimation, sample_rate_hz and ewma_tau_s must be positive")
+
+    @property
+    def step_s(self) -> float:
+        """Duration of one 80 Hz step [s]."""
+        return self.decimation / self.sample_rate_hz
+
+
+@dataclass
+class FeatureTrack:
+    """One feature over one flight at 80 Hz.
+
+    ``series[k]`` is the filtered feature at step k (NaN before the first valid step, held
+    between valid steps); ``valid[k]`` says whether step k contributed.
+    """
+
+    series: np.ndarray  # (n_steps,)
+    valid: np.ndarray  # (n_steps,) bool
+    value: float  # flight value (NaN if no valid step)
+    dispersion: float  # std of the filtered series over valid steps
+    n_valid: int
+
+    def summary(self) -> FeatureSummary:
+        return FeatureSummary(self.value, self.dispersion, self.n_valid)
+
+
+@dataclass(frozen=True)
+class FeatureSummary:
+    """Per-flight summary of one feature."""
+
+    value: float
+    dispersion: float
+    n_valid: int
+
+    def to_dict(self) -> dict[str, float | int]:
+        return {"value": self.value, "dispersion": self.dispersion, "n_valid": self.n_valid}
+
+
+@dataclass
+class FlightFeatures:
+    """All 19 features of one flight plus the operating conditions of each actuator."""
+
+    summaries: dict[str, FeatureSummary]  # AIRCRAFT_FEATURES -> summary
+    conditions: dict[str, dict[str, float]]  # position -> CONDITION_NAMES -> value
+    tracks: dict[str, FeatureTrack] | None = None  # only when asked for
+
+    def values(self) -> dict[str, float]:
+        return {k: s.value for k, s in self.summaries.items()}
+
+    def to_dict(self) -> dict[str, object]:
+        return {"summaries": {k: s.to_dict() for k, s in self.summaries.items()},
+                "conditions": self.conditions}
+
+
+# --------------------------------------------------------------------------------------------
+# building blocks
+# --------------------------------------------------------------------------------------------
+
+
+def block_mean(a: np.ndarray, decimation: int) -> np.ndarray:
+    """Means of consecutive blocks of ``decimation`` samples along axis 0.
+
+    A trailing partial block is dropped.
+    """
+    a = np.asarray(a, dtype=np.float64)
+    n = a.shape[0] // decimation
+    return a[: n * decimation].reshape((n, decimation) + a.shape[1:]).mean(axis=1)
+
+
+def exp_filter(x: np.ndarray, alpha: float) -> np.ndarray:
+    """Exponential filter ``y[k] = alpha x[k] + (1 - alpha) y[k-1]`` along axis 0, ``y[-1] = x[0]``.
+
+    Vectorised with :func:`scipy.signal.lfilter`; works on (n,) or (n, m) arrays.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape[0] == 0:
+        return x.copy()
+    zi = ((1.0 - alpha) * x[0])[np.newaxis, ...] if x.ndim > 1 else np.array([(1 - alpha) * x[0]])
+    y, _ = lfilter([alpha], [1.0, -(1.0 - alpha)], x, axis=0, zi=zi)
+    return y
+
+
+def _track(acc: np.ndarray, valid: np.ndarray, combine: Callable[[np.ndarray], np.ndarray],
+           alpha: float, min_valid: int = 1) -> FeatureTrack:
+    """Filter accumulators ``acc`` (n, m) over valid steps and combine them into a feature."""
+    n = acc.shape[0]
+    series = np.full(n, np.nan)
+    idx = np.flatnonzero(valid)
+    if idx.size == 0:
+        return FeatureTrack(series, valid, float("nan"), float("nan"), 0)
+    filt = exp_filter(acc[idx], alpha)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f_valid = combine(filt)
+        value = float(combine(acc[idx].mean(axis=0, keepdims=True))[0])
+    if idx.size < min_valid:
+        value = float("nan")
+    series[idx] = f_valid
+    # hold the last valid value between valid steps
+    last = np.maximum.accumulate(np.where(valid, np.arange(n), -1))
+    held = last >= 0
+    series[held] = series[last[held]]
+    finite = f_valid[np.isfinite(f_valid)]
+    disp = float(np.std(finite)) if finite.size > 1 else float("nan")
+    return FeatureTrack(series, valid, value, disp, int(idx.size))
+
+
+def _ratio(filt: np.ndarray) -> np.ndarray:
+    return filt[:, 0] / filt[:, 1]
+
+
+def _run_length_ok(mask: np.ndarray, min_len: int) -> np.ndarray:
+    """Steps of ``mask`` that belong to a run of at least ``min_len`` consecutive True."""
+    if min_len <= 1 or mask.size == 0:
+        return mask.copy()
+    m = mask.astype(np.int8)
+    edges = np.diff(np.r_[0, m, 0])
+    starts = np.flatnonzero(edges == 1)
+    ends = np.flatnonzero(edges == -1)
+    lengths = ends - starts
+    run_len = np.zeros(mask.size + 1, dtype=np.int64)
+    np.add.at(run_len, starts, lengths)
+    np.add.at(run_len, ends, -lengths)
+    return mask & (np.cumsum(run_len)[:-1] >= min_len)
+
+
+def _lost_motion_events(e: np.ndarray, pos_m: np.ndarray, vel_m_s: np.ndarray,
+                        cfg: FeatureConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Lost motion of ``e`` across motion reversals of ``pos_m`` (all at 80 Hz).
+
+    Runs are maximal sequences of moving steps with the same direction (still steps between
+    them are ignored). For consecutive runs A (direction s) and B (-s), ``e`` is averaged over
+    the last ``reversal_blocks`` steps of A and over the first ``reversal_blocks`` steps of B
+    after ``reversal_skip_m`` of travel; the event value is ``s * (e_B - e_A)`` [m], placed at
+    the first averaged step of B. Returns (event step indices, event values).
+    """
+    moving = np.abs(vel_m_s) > cfg.reversal_speed_m_s
+    mv = np.flatnonzero(moving)
+    if mv.size < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    s = np.sign(vel_m_s[mv])
+    new_run = np.r_[True, s[1:] != s[:-1]]
+    run = np.cumsum(new_run) - 1
+    n_runs = int(run[-1]) + 1
+    if n_runs < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    start_pos = pos_m[mv[new_run]]
+    travel = np.abs(pos_m[mv] - start_pos[run])
+    ok = travel >= cfg.reversal_skip_m
+    k = cfg.reversal_blocks
+    # first k qualifying steps of each run
+    cq = np.cumsum(ok)
+    cq_before_run = np.r_[0, cq[np.flatnonzero(new_run)[1:] - 1]]
+    first_sel = ok & ((cq - cq_before_run[run]) <= k)
+    # last k qualifying steps of each run
+    rev_ok = ok[::-1]
+    rev_run = run[::-1]
+    rev_new = np.r_[True, rev_run[1:] != rev_run[:-1]]
+    rcq = np.cumsum(rev_ok)
+    rcq_before = np.r_[0, rcq[np.flatnonzero(rev_new)[1:] - 1]]
+    rev_run_id = np.cumsum(rev_new) - 1
+    last_sel = (rev_ok & ((rcq - rcq_before[rev_run_id]) <= k))[::-1]
+    cnt_first = np.bincount(run, weights=first_sel, minlength=n_runs)
+    cnt_last = np.bincount(run, weights=last_sel, minlength=n_runs)
+    e_first = np.bincount(run, weights=np.where(first_sel, e[mv], 0.0), minlength=n_runs)
+    e_last = np.bincount(run, weights=np.where(last_sel, e[mv], 0.0), minlength=n_runs)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e_first = e_first / cnt_first
+        e_last = e_last / cnt_last
+    run_sign = s[new_run]
+    run_first_step = mv[new_run]
+    run_last_step = mv[np.r_[np.flatnonzero(new_run)[1:] - 1, mv.size - 1]]
+    # first selected step of each run (event position)
+    first_sel_step = np.full(n_runs, -1, dtype=np.int64)
+    sel_idx = np.flatnonzero(first_sel)
+    first_sel_step[run[sel_idx[::-1]]] = mv[sel_idx[::-1]]
+    a = np.arange(n_runs - 1)
+    b = a + 1
+    gap_s = (run_first_step[b] - run_last_step[a]) * cfg.step_s
+    good = ((cnt_last[a] >= 1) & (cnt_first[b] >= 1) & (gap_s <= cfg.reversal_max_gap_s)
+            & (first_sel_step[b] >= 0))
+    vals = run_sign[a] * (e_first[b] - e_last[a])
+    return first_sel_step[b][good], vals[good]
+
+
+def _detrend_runs(valid: np.ndarray, theta: np.ndarray, *ys: np.ndarray) -> list[np.ndarray]:
+    """Residuals of each ``y`` after a linear fit on ``theta`` within each run of ``valid``.
+
+    Runs of fewer than three steps give zero residuals. Vectorised with ``np.bincount``.
+    """
+    n = valid.size
+    edges = np.diff(np.r_[0, valid.astype(np.int8)])
+    run = np.cumsum(edges == 1) - 1
+    idx = np.flatnonzero(valid)
+    out = [np.zeros(n) for _ in ys]
+    if idx.size == 0:
+        return out
+    r = run[idx]
+    m = int(r.max()) + 1
+    cnt = np.bincount(r, minlength=m)
+    th = theta[idx]
+    th_mean = np.bincount(r, th, m) / np.maximum(cnt, 1)
+    dth = th - th_mean[r]
+    sxx = np.bincount(r, dth * dth, m)
+    good = (cnt >= 3) & (sxx > 1e-12)
+    for y, o in zip(ys, out, strict=True):
+        yv = y[idx]
+        y_mean = np.bincount(r, yv, m) / np.maximum(cnt, 1)
+        slope = np.where(good, np.bincount(r, dth * yv, m) / np.where(good, sxx, 1.0), 0.0)
+        res = yv - y_mean[r] - slope[r] * dth
+        o[idx] = np.where(good[r], res, 0.0)
+    return out
+
+
+def _se_combine(f: np.ndarray) -> np.ndarray:
+    """Amplitude of the 1/rev component (2x2 least squares) over the mean current magnitude."""
+    yc, ys, cc, ss, cs, i_mean = (f[:, j] for j in range(6))
+    det = cc * ss - cs * cs
+    a = (yc * ss - ys * cs) / det
+    b = (ys * cc - yc * cs) / det
+    return np.hypot(a, b) / i_mean
+
+
+def _event_track(n_steps: int, steps: np.ndarray, vals: np.ndarray, alpha: float,
+                 absolute: bool = False, min_events: int = 1) -> FeatureTrack:
+    acc = np.zeros((n_steps, 2))
+    valid = np.zeros(n_steps, dtype=bool)
+    v = np.abs(vals) if absolute else vals
+    # two events never share a step (runs last at least one step), but be safe
+    np.add.at(acc[:, 0], steps, v)
+    np.add.at(acc[:, 1], steps, 1.0)
+    valid[steps] = True
+    return _track(acc, valid, _ratio, alpha, min_events)
+
+
+# --------------------------------------------------------------------------------------------
+# per actuator
+# --------------------------------------------------------------------------------------------
+
+
+def _clarke(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    alpha = (2.0 * a - b - c) / 3.0
+    beta = (b - c) / np.sqrt(3.0)
+    return alpha, beta
+
+
+def actuator_features(
+    sig: Mapping[str, np.ndarray],
+    *,
+    aero_gradient_n_per_m: float,
+    aero_bias_n: float = 0.0,
+    t_amb_c: np.ndarray | None = None,
+    config: FeatureConfig | None = None,
+    motor: MotorConstants | None = None,
+) -> tuple[dict[str, FeatureTrack], dict[str, float]]:
+    """The six features of one actuator over one flight.
+
+    Parameters
+    ----------
+    sig : mapping with ``ia ib ic va vb vc theta x`` (n,) at 800 Hz, SI units.
+    aero_gradient_n_per_m, aero_bias_n : design aero model of the rod load at cruise,
+        ``F = -(aero_gradient_n_per_m * x + aero_bias_n)`` [N].
+    t_amb_c : optional ambient temperature (n,) [degC]; when given, ``F_MTEL`` uses only
+        still windows at cruise (where the design dynamic pressure applies).
+
+    Returns
+    -------
+    tracks : ``ACTUATOR_FEATURES`` -> :class:`FeatureTrack` (80 Hz).
+    extras : per-flight helper quantities (``psi_hat_wb``, ``r_hat_ohm``, ``load_rms_n``,
+        ``speed_rms_rad_s``, ``temp_winding_est_c``).
+    """
+    cfg = config or FeatureConfig()
+    mc = motor or MotorConstants()
+    d = cfg.decimation
+    n = min(len(sig[k]) for k in ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")) // d
+    if n < 2:
+        raise ValueError("flight shorter than two 80 Hz steps")
+    cut = n * d
+
+    def arr(k: str) -> np.ndarray:
+        return np.asarray(sig[k][:cut], dtype=np.float64)
+
+    ia, ib, ic = arr("ia"), arr("ib"), arr("ic")
+    va, vb, vc = arr("va"), arr("vb"), arr("vc")
+    theta, x = arr("theta"), arr("x")
+    alpha = 1.0 - np.exp(-cfg.step_s / cfg.ewma_tau_s)
+    r_screw = mc.screw_radius_m
+
+    # ---- 800 Hz quantities, reshaped into (n, d) blocks -----------------------------------
+    i_al, i_be = _clarke(ia, ib, ic)
+    v_al, v_be = _clarke(va, vb, vc)
+    i0 = ia + ib + ic
+    i0 = i0 - np.median(i0)  # sensor offsets of the three channels add up to a constant
+    i2 = i_al * i_al + i_be * i_be  # |i|^2 [A^2]
+    i_mag = np.sqrt(i2)
+    v_mag = np.sqrt(v_al * v_al + v_be * v_be)
+    p_ab = v_al * i_al + v_be * i_be  # (2/3) x electrical power [W]
+    omega = np.gradient(theta, 1.0 / cfg.sample_rate_hz)  # rad/s, 800 Hz
+    v0 = (va + vb + vc) / 3.0
+
+    def blk(a: np.ndarray) -> np.ndarray:
+        return a.reshape(n, d)
+
+    omega_b = blk(omega)
+    w_mean = omega_b.mean(axis=1)
+    w_absmax = np.abs(omega_b).max(axis=1)
+    f_e_max = mc.pole_pairs * w_absmax / (2.0 * np.pi)
+    f_e_mean = mc.pole_pairs * np.abs(w_mean) / (2.0 * np.pi)
+    i_mag_b = blk(i_mag).mean(axis=1)
+    v_mag_b = blk(v_mag).mean(axis=1)
+    i2_b = blk(i2).mean(axis=1)
+    p_b = blk(p_ab).mean(axis=1)
+    theta_b = blk(theta).mean(axis=1)
+    x_b = blk(x).mean(axis=1)
+
+    current_ok = (f_e_max < cfg.max_electrical_hz) & (i_mag_b > cfg.min_current_a)
+    moving = f_e_mean > cfg.min_electrical_hz
+    still = _run_length_ok(np.abs(w_mean) < cfg.still_speed_rad_s,
+                           max(1, int(round(cfg.still_min_s / cfg.step_s))))
+
+    # ---- resistance (winding temperature) from still steps: p = R |i|^2 -------------------
+    r_sel = still & (i_mag_b > 2 * cfg.min_current_a)
+    if np.count_nonzero(r_sel) >= cfg.min_r_estimate_blocks:
+        r_hat = float(p_b[r_sel].sum() / i2_b[r_sel].sum())
+    else:
+        r_hat = float("nan")
+    r_use = r_hat if np.isfinite(r_hat) and r_hat > 0 else mc.resistance_ohm
+    temp_wind = mc.ref_temp_c + (r_use / mc.resistance_ohm - 1.0) / mc.copper_alpha_per_k
+    if not np.isfinite(r_hat):
+        temp_wind = float("nan")
+
+    tracks: dict[str, FeatureTrack] = {}
+
+    # ---- F_TTS: mean square common-node current over mean phase-voltage amplitude ---------
+    i0sq_b = blk(i0 * i0).mean(axis=1)
+    tts_valid = current_ok & (v_mag_b > cfg.min_voltage_v)
+    tracks["F_TTS"] = _track(np.c_[i0sq_b, v_mag_b], tts_valid, _ratio, alpha,
+                             cfg.min_valid_steps)
+
+    # ---- F_DMD: 1 - psi_hat/psi_nom; psi_hat from the q-axis voltage balance ---------------
+    # v_q = R i_q + L di_q/dt + omega_e psi (i_d = 0 control, L_d = L_q): least squares of
+    # (v_q - R_hat i_q) on omega_e over moving steps, psi_hat = sum(e w) / sum(w^2).
+    # The current needed per unit torque scales with 1/psi, so F_DMD is also the relative
+    # excess of phase current over the current expected with the nominal flux.
+    th_e = mc.pole_pairs * theta - cfg.electrical_offset_rad
+    ce, se_ = np.cos(th_e), np.sin(th_e)
+    i_q_b = blk(-i_al * se_ + i_be * ce).mean(axis=1)
+    v_q_b = blk(-v_al * se_ + v_be * ce).mean(axis=1)
+    we_b = mc.pole_pairs * w_mean
+    emf_b = v_q_b - r_use * i_q_b
+    dmd_valid = current_ok & moving
+    psi_nom = mc.flux_wb
+
+    def dmd_combine(f: np.ndarray) -> np.ndarray:
+        return 1.0 - (f[:, 0] / f[:, 1]) / psi_nom
+
+    tracks["F_DMD"] = _track(np.c_[emf_b * we_b, we_b * we_b], dmd_valid, dmd_combine, alpha,
+                             cfg.min_valid_steps)
+    psi_hat = psi_nom * (1.0 - tracks["F_DMD"].value)
+    if not np.isfinite(psi_hat):
+        psi_hat = psi_nom
+    psi_hat = float(np.clip(psi_hat, 0.6 * psi_nom, 1.2 * psi_nom))
+
+    # ---- F_SE: |i| modulation at shaft frequency (mechanical angle) -----------------------
+    # |i| = a_run + b_run theta + c cos(theta) + s sin(theta): the slow trend of each moving
+    # run (load follows position) is removed by per-run linear regression on theta before
+    # projecting on the 1/rev components (Frisch-Waugh), so partial revolutions do not leak.
+    se_valid = current_ok & moving
+    cos_b = blk(np.cos(theta)).mean(axis=1)
+    sin_b = blk(np.sin(theta)).mean(axis=1)
+    y_t, c_t, s_t = _detrend_runs(se_valid, theta_b, i_mag_b, cos_b, sin_b)
+    se_acc = np.c_[y_t * c_t, y_t * s_t, c_t * c_t, s_t * s_t, c_t * s_t, i_mag_b]
+    tracks["F_SE"] = _track(se_acc, se_valid, _se_combine, alpha, cfg.min_valid_steps)
+
+    # ---- F_BDO: imbalance of per-phase voltage RMS ----------------------------------------
+    ms = np.c_[blk((va - v0) ** 2).mean(axis=1), blk((vb - v0) ** 2).mean(axis=1),
+               blk((vc - v0) ** 2).mean(axis=1)]
+    # rotating windows only: a hold's DC voltages depend on where the rotor stopped
+    bdo_valid = current_ok & moving & (v_mag_b > cfg.min_voltage_v)
+
+    def bdo_combine(f: np.ndarray) -> np.ndarray:
+        rms = np.sqrt(np.maximum(f, 0.0))
+        return rms.std(axis=1) / rms.mean(axis=1)
+
+    tracks["F_BDO"] = _track(ms, bdo_valid, bdo_combine, alpha, cfg.min_valid_steps)
+
+    # ---- F_MTEL: apparent efficiency at still actuator ------------------------------------
+    load_exp = -(aero_gradient_n_per_m * x_b + aero_bias_n)  # N
+    load_abs = np.abs(load_exp)
+    load_floor = cfg.min_load_fraction * (load_abs.max() if load_abs.size else 0.0)
+    mtel_valid = still & (load_abs > max(load_floor, 1e-9)) & (i_mag_b > cfg.min_current_a)
+    if t_amb_c is not None and len(t_amb_c) >= cut:
+        t_amb_b = block_mean(np.asarray(t_amb_c[:cut], dtype=np.float64), d)
+        mtel_valid &= t_amb_b <= cfg.cruise_temp_c + cfg.cruise_band_c
+    torque_b = 1.5 * mc.pole_pairs * psi_hat * i_mag_b  # Nm (flux from F_DMD's estimate)
+    tracks["F_MTEL"] = _track(np.c_[torque_b, r_screw * load_abs], mtel_valid, _ratio, alpha,
+                              cfg.min_valid_steps)
+
+    # ---- F_MTWEAR: lost motion of x - r theta at reversals ----------------------------------
+    pos_b = r_screw * theta_b
+    vel_b = r_screw * w_mean
+    steps, vals = _lost_motion_events(x_b - pos_b, pos_b, vel_b, cfg)
+    tracks["F_MTWEAR"] = _event_track(n, steps, vals, alpha, min_events=cfg.min_events)
+
+    extras = {
+        "psi_hat_wb": float(psi_hat),
+        "r_hat_ohm": r_hat,
+        "temp_winding_est_c": float(temp_wind),
+        "load_rms_n": float(np.sqrt(np.mean(load_exp ** 2))),
+        "speed_rms_rad_s": float(np.sqrt(np.mean(w_mean ** 2))),
+    }
+    return tracks, extras
+
+
+def rewear_feature(
+    x1: np.ndarray, x2: np.ndarray, theta1: np.ndarray, theta2: np.ndarray, *,
+    config: FeatureConfig | None = None, motor: MotorConstants | None = None,
+) -> FeatureTrack:
+    """``F_REWEAR``: lost motion of the LVDT difference ``x1 - x2`` of the winglet pair [m].
+
+    Reversals are those of the tab, taken from the mean shaft position of the two drives.
+    """
+    cfg = config or FeatureConfig()
+    mc = motor or MotorConstants()
+    d = cfg.decimation
+    r = mc.screw_radius_m
+    xb1, xb2 = block_mean(x1, d), block_mean(x2, d)
+    pos = r * 0.5 * (block_mean(theta1, d) + block_mean(theta2, d))
+    n = min(xb1.size, xb2.size, pos.size)
+    xb1, xb2, pos = xb1[:n], xb2[:n], pos[:n]
+    vel = np.gradient(pos, cfg.step_s) if n > 1 else np.zeros(n)
+    steps, vals = _lost_motion_events(xb1 - xb2, pos, vel, cfg)
+    alpha = 1.0 - np.exp(-cfg.step_s / cfg.ewma_tau_s)
+    return _event_track(n, steps, vals, alpha, absolute=cfg.rewear_absolute,
+                        min_events=cfg.min_events)
+
+
+def operating_conditions(channels: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """Flight-level conditions from the optional ``T_amb`` channel [degC] (NaN if absent).
+
+    ``temp_ground_c`` is the largest ambient temperature of the flight (on ground, before the
+    climb to cruise), ``temp_mean_c`` its mean.
+    """
+    t_amb = channels.get("T_amb")
+    if t_amb is None or len(t_amb) == 0:
+        return {"temp_ground_c": float("nan"), "temp_mean_c": float("nan")}
+    t = np.asarray(t_amb, dtype=np.float64)
+    return {"temp_ground_c": float(np.max(t)), "temp_mean_c": float(np.mean(t))}
+
+
+def flight_features(
+    channels: Mapping[str, np.ndarray],
+    *,
+    config: FeatureConfig | None = None,
+    motor: MotorConstants | None = None,
+    ground_temp_c: float | None = None,
+    keep_tracks: bool = False,
+) -> FlightFeatures:
+    """The 19 features of one flight from flight-log v1 channels (``"WL1.ia"``, ...).
+
+    ``ground_temp_c`` overrides the ground temperature when the log has no ``T_amb``.
+    """
+    cfg = config or FeatureConfig()
+    flight_cond = operating_conditions(channels)
+    if ground_temp_c is not None and not np.isfinite(flight_cond["temp_ground_c"]):
+        flight_cond = {"temp_ground_c": float(ground_temp_c),
+                       "temp_mean_c": float(ground_temp_c)}
+    summaries: dict[str, FeatureSummary] = {}
+    conditions: dict[str, dict[str, float]] = {}
+    tracks_all: dict[str, FeatureTrack] = {}
+    for p in POSITIONS:
+        sig = {s: channels[f"{p}.{s}"] for s in ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")}
+        tracks, extras = actuator_features(
+            sig, aero_gradient_n_per_m=float(cfg.aero_gradient_n_per_m[p]),
+            aero_bias_n=float(cfg.aero_bias_n[p]), t_amb_c=channels.get("T_amb"), config=cfg,
+            motor=motor)
+        for f, tr in tracks.items():
+            summaries[f"{p}.{f}"] = tr.summary()
+            if keep_tracks:
+                tracks_all[f"{p}.{f}"] = tr
+        conditions[p] = {**flight_cond,
+                         "load_rms_n": extras["load_rms_n"],
+                         "speed_rms_rad_s": extras["speed_rms_rad_s"],
+                         "temp_winding_est_c": extras["temp_winding_est_c"]}
+    a, b = WINGLET_PAIR
+    rew = rewear_feature(channels[f"{a}.x"], channels[f"{b}.x"], channels[f"{a}.theta"],
+                         channels[f"{b}.theta"], config=cfg, motor=motor)
+    summaries[REWEAR_NAME] = rew.summary()
+    if keep_tracks:
+        tracks_all[REWEAR_NAME] = rew
+    wl_cond = {k: float(np.nanmean([conditions[a][k], conditions[b][k]]))
+               if np.isfinite([conditions[a][k], conditions[b][k]]).any() else float("nan")
+               for k in CONDITION_NAMES}
+    conditions["WL"] = wl_cond
+    return FlightFeatures(summaries, conditions, tracks_all if keep_tracks else None)

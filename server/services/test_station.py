@@ -1,0 +1,117 @@
+"""Test station: fault injections into simulated aircraft, and the ground truth reported back.
+
+An injection is ``pending`` until the sim worker simulates its onset flight, then ``active``;
+``cancelled`` by an operator, or ``failed`` once the actuator reaches the failure threshold.
+One pending/active injection per actuator at a time (one fault at a time, as in the paper).
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from server.errors import Conflict, NotFound, Unprocessable
+from server.models import FAULT_MODES, Aircraft, GroundTruth, Injection, utcnow
+
+__all__ = ["PROGRESSIVE", "create_injection", "list_injections", "get_injection",
+           "cancel_injection", "update_injection_status", "report_ground_truth",
+           "list_ground_truth"]
+
+PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
+LIVE = ("pending", "active")
+
+
+def create_injection(*, session: Session, tail: str, position: str, fault_mode: str,
+                     onset_flight: int, time_to_failure_flights: int | None,
+                     severity: float | None, created_by: str) -> Injection:
+    aircraft = session.scalar(select(Aircraft).where(Aircraft.tail == tail))
+    if aircraft is None:
+        raise NotFound(f"Aircraft '{tail}' does not exist.")
+    if fault_mode not in FAULT_MODES:
+        raise Unprocessable(f"Unknown fault mode '{fault_mode}'.", code="unknown_fault_mode")
+    if fault_mode == "REWEAR" and position == "WT":
+        raise Unprocessable("Rod-end wear (REWEAR) is monitored on the winglet pair only: "
+                            "use WL1 or WL2.", code="invalid_position")
+    if fault_mode not in PROGRESSIVE and time_to_failure_flights is not None:
+        raise Unprocessable(f"{fault_mode} is imposed a priori; it has no time to failure.",
+                            code="not_progressive")
+    live = session.scalar(select(Injection).where(
+        Injection.aircraft_id == aircraft.id, Injection.status.in_(LIVE)))
+    if live is not None:
+        raise Conflict(f"Aircraft '{tail}' already has a live injection ({live.fault_mode} on "
+                       f"{live.position}); the simulator runs one fault at a time.",
+                       code="injection_exists", details={"injection_id": live.id})
+    row = Injection(aircraft_id=aircraft.id, position=position, fault_mode=fault_mode,
+                    onset_flight=onset_flight, time_to_failure_flights=time_to_failure_flights,
+                    severity=severity, created_by=created_by, status="pending")
+    session.add(row)
+    session.flush()
+    return row
+
+
+def get_injection(*, session: Session, injection_id: int) -> Injection:
+    row = session.get(Injection, injection_id)
+    if row is None:
+        raise NotFound(f"Injection {injection_id} does not exist.")
+    return row
+
+
+def list_injections(*, session: Session, tail: str | None, status: str | None, limit: int,
+                    offset: int) -> tuple[list[tuple[Injection, str]], int]:
+    query = select(Injection, Aircraft.tail).join(Aircraft)
+    if tail:
+        query = query.where(Aircraft.tail == tail)
+    if status:
+        query = query.where(Injection.status == status)
+    total = session.scalar(select(func.count()).select_from(query.subquery())) or 0
+    rows = session.execute(query.order_by(Injection.id.desc()).limit(limit).offset(offset)).all()
+    return [(r[0], r[1]) for r in rows], total
+
+
+def cancel_injection(*, session: Session, injection_id: int) -> Injection:
+    row = get_injection(session=session, injection_id=injection_id)
+    if row.status not in LIVE:
+        raise Conflict(f"Injection {injection_id} is {row.status}; only pending or active "
+                       "injections can be cancelled.", code="not_live")
+    row.status = "cancelled"
+    row.cancelled_at = utcnow()
+    return row
+
+
+def update_injection_status(*, session: Session, injection_id: int, status: str,
+                            failure_flight: int | None = None) -> Injection:
+    """Sim worker: pending -> active at onset, active -> failed at the threshold."""
+    row = get_injection(session=session, injection_id=injection_id)
+    allowed = {"pending": {"active", "failed"}, "active": {"failed"}}
+    if status == row.status:
+        return row
+    if status not in allowed.get(row.status, set()):
+        raise Conflict(f"Injection {injection_id} cannot go from {row.status} to {status}.",
+                       code="bad_transition")
+    row.status = status
+    if failure_flight is not None:
+        row.failure_flight = failure_flight
+    return row
+
+
+def report_ground_truth(*, session: Session, injection_id: int, flight_code: str,
+                        flight_number: int, severity: float, severity_norm: float,
+                        true_rul_flights: int | None) -> GroundTruth:
+    """Record (idempotently) the true fault state of one simulated flight."""
+    get_injection(session=session, injection_id=injection_id)
+    row = session.scalar(select(GroundTruth).where(GroundTruth.injection_id == injection_id,
+                                                   GroundTruth.flight_code == flight_code))
+    if row is None:
+        row = GroundTruth(injection_id=injection_id, flight_code=flight_code)
+        session.add(row)
+    row.flight_number = flight_number
+    row.severity = severity
+    row.severity_norm = severity_norm
+    row.true_rul_flights = true_rul_flights
+    session.flush()
+    return row
+
+
+def list_ground_truth(*, session: Session, injection_id: int) -> list[GroundTruth]:
+    return list(session.scalars(select(GroundTruth).where(
+        GroundTruth.injection_id == injection_id).order_by(GroundTruth.flight_number)))

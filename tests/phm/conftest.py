@@ -1,0 +1,210 @@
+"""Fixtures for the PHM feature/detection tests.
+
+* ``synth_actuator``: a factory of synthetic 800 Hz actuator signals built from the d-q motor
+  equations (no simulator needed) with optional faults, for fast unit tests.
+* ``campaigns``: quick design and verification campaigns generated once per session with the
+  simulator's CLI (fixed seeds) into a temporary directory; the slow tests skip when the
+  simulator is not installed.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+FS = 800.0
+P = 4
+R = 1.86
+L = 3.72e-3
+PSI = 0.061
+LEAD = 0.005
+RS = LEAD / (2 * np.pi)
+
+
+def make_actuator(
+    *,
+    seconds: float = 60.0,
+    seed: int = 0,
+    psi_scale: float = 1.0,
+    se_amp: float = 0.0,
+    tts_i0: float = 0.0,
+    bdo: float = 0.0,
+    backlash_m: float = 0.0,
+    hold_eta: float = 0.9,
+    load_gradient: float = 4.0e4,
+    r_ohm: float = R,
+    noise_a: float = 0.02,
+    noise_v: float = 0.2,
+    noise_x: float = 2e-6,
+) -> dict[str, np.ndarray]:
+    """Synthetic EMA signals from the d-q equations (i_d = 0 control, ideal current loop).
+
+    The rod follows a sequence of smooth moves and holds; motor torque = J alpha + load
+    torque; a hold carries ``hold_eta`` x the load torque (back-driving efficiency).
+    ``psi_scale`` < 1 is magnet degradation, ``se_amp`` modulates the flux with the mechanical
+    angle, ``tts_i0`` adds a common-node current proportional to the phase-a current,
+    ``bdo`` clips the positive half of phase a's voltage, ``backlash_m`` adds a dead zone
+    between shaft and rod.
+    """
+    rng = np.random.default_rng(seed)
+    n = int(seconds * FS)
+    t = np.arange(n) / FS
+    # position profile: random targets, raised-cosine moves of 0.6-1.5 s, holds of 0.5-2 s
+    x_cmd = np.zeros(n)
+    k, pos = 0, 0.0
+    while k < n:
+        target = rng.uniform(-0.02, 0.02)
+        m = int(rng.uniform(0.6, 1.5) * FS)
+        h = int(rng.uniform(0.5, 2.0) * FS)
+        s = 0.5 - 0.5 * np.cos(np.pi * np.arange(m) / m)
+        seg = np.r_[pos + (target - pos) * s, np.full(h, target)]
+        x_cmd[k : k + seg.size] = seg[: n - k]
+        k += seg.size
+        pos = target
+    theta = x_cmd / RS
+    w = np.gradient(theta, 1 / FS)
+    acc = np.gradient(w, 1 / FS)
+    load = load_gradient * x_cmd
+    moving = np.abs(w) > 0.05
+    t_load = np.where(moving, RS * load / 0.9, hold_eta * RS * load)
+    torque = 1e-4 * acc + t_load
+    psi_th = PSI * psi_scale * (1.0 + se_amp * np.cos(theta))
+    iq = torque / (1.5 * P * psi_th)
+    th_e = P * theta
+    diq = np.gradient(iq, 1 / FS)
+    we = P * w
+    vd = -we * L * iq
+    vq = r_ohm * iq + L * diq + we * psi_th
+    c, s_ = np.cos(th_e), np.sin(th_e)
+    i_al, i_be = -iq * s_, iq * c
+    v_al, v_be = vd * c - vq * s_, vd * s_ + vq * c
+    ia = i_al
+    ib = -0.5 * i_al + np.sqrt(3) / 2 * i_be
+    ic = -0.5 * i_al - np.sqrt(3) / 2 * i_be
+    va = v_al
+    vb = -0.5 * v_al + np.sqrt(3) / 2 * v_be
+    vc = -0.5 * v_al - np.sqrt(3) / 2 * v_be
+    if tts_i0:
+        i0 = tts_i0 * ia
+        ia, ib, ic = ia + i0 / 3, ib + i0 / 3, ic + i0 / 3
+    if bdo:
+        va = np.where(va > 0, va * (1 - bdo), va)
+    x_rod = x_cmd.copy()
+    if backlash_m:
+        # rod lags the screw by half the gap in the direction of motion (hold keeps last side)
+        sgn = np.sign(w)
+        sgn[~moving] = 0
+        idx = np.maximum.accumulate(np.where(sgn != 0, np.arange(n), 0))
+        side = sgn[idx]
+        side[side == 0] = 1
+        x_rod = x_cmd - side * backlash_m / 2
+        from scipy.signal import lfilter
+
+        x_rod = lfilter([0.05], [1, -0.95], x_rod - x_rod[0]) + x_rod[0]
+    out = {
+        "ia": ia + noise_a * rng.standard_normal(n),
+        "ib": ib + noise_a * rng.standard_normal(n),
+        "ic": ic + noise_a * rng.standard_normal(n),
+        "va": va + noise_v * rng.standard_normal(n),
+        "vb": vb + noise_v * rng.standard_normal(n),
+        "vc": vc + noise_v * rng.standard_normal(n),
+        "theta": theta,
+        "x": x_rod + noise_x * rng.standard_normal(n),
+        "t": t,
+    }
+    return out
+
+
+@pytest.fixture
+def synth_actuator() -> Callable[..., dict[str, np.ndarray]]:
+    return make_actuator
+
+
+# --------------------------------------------------------------------------------------------
+# simulated campaigns (generated once per session; PHM_CAMPAIGN_DIR reuses existing ones)
+# --------------------------------------------------------------------------------------------
+
+DESIGN_SEED = 11
+VERIFICATION_SEED = 23
+
+
+def _sim_worker_exe() -> str | None:
+    exe = Path(os.environ.get("VIRTUAL_ENV", Path(__file__).resolve().parents[2] / ".venv"))
+    cand = exe / "bin" / "sim-worker"
+    if cand.exists():
+        return str(cand)
+    return shutil.which("sim-worker")
+
+
+def _campaign(kind: str, seed: int, root: Path) -> Path:
+    out = root / f"{kind}_{seed}"
+    if (out / "manifest.json").exists():
+        return out
+    try:
+        import sim_worker.cli  # noqa: F401
+    except ImportError:
+        pytest.skip("the simulator (sim_worker.cli) is not available")
+    exe = _sim_worker_exe()
+    if exe is None:
+        pytest.skip("sim-worker console script not installed")
+    subprocess.run(
+        [
+            exe,
+            "campaign",
+            "--kind",
+            kind,
+            "--out",
+            str(out),
+            "--seed",
+            str(seed),
+            "--scale",
+            "quick",
+        ],
+        check=True,
+        capture_output=True,
+        timeout=900,
+    )
+    return out
+
+
+@pytest.fixture(scope="session")
+def campaign_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    env = os.environ.get("PHM_CAMPAIGN_DIR")
+    if env:
+        Path(env).mkdir(parents=True, exist_ok=True)
+        return Path(env)
+    return tmp_path_factory.mktemp("phm_campaigns")
+
+
+@pytest.fixture(scope="session")
+def design_campaign(campaign_root: Path):
+    from server.phm.evaluate_detection import load_campaign
+
+    return load_campaign(_campaign("design", DESIGN_SEED, campaign_root), jobs=2)
+
+
+@pytest.fixture(scope="session")
+def verification_campaign(campaign_root: Path):
+    from server.phm.evaluate_detection import load_campaign
+
+    return load_campaign(_campaign("verification", VERIFICATION_SEED, campaign_root), jobs=2)
+
+
+@pytest.fixture(scope="session")
+def detection_model(design_campaign):
+    from server.phm.evaluate_detection import fit_detection
+
+    return fit_detection(design_campaign)
+
+
+@pytest.fixture(scope="session")
+def verification_outcomes(detection_model, verification_campaign):
+    from server.phm.evaluate_detection import evaluate
+
+    return evaluate(detection_model, verification_campaign)

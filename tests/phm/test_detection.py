@@ -1,0 +1,177 @@
+"""Baselines and detection: unit tests on synthetic residuals, campaign tests on the simulator."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from server.phm.baselines import FleetBaseline, LinearBaseline
+from server.phm.detection import DetectionState, FaultDetector, running_statistics
+from server.phm.evaluate_detection import DetectionModel, summarise
+from server.phm.features import AIRCRAFT_FEATURES, FeatureSummary, FlightFeatures
+
+
+def test_linear_baseline_removes_temperature_and_load_trend() -> None:
+    rng = np.random.default_rng(0)
+    n = 400
+    temp = rng.uniform(-10, 45, n)
+    load = rng.uniform(200, 900, n)
+    y = 1.0 + 0.02 * temp + 0.001 * load + 0.01 * rng.standard_normal(n)
+    C = np.c_[temp, load]
+    b = LinearBaseline(("temp_ground_c", "load_rms_n"), ridge=1e-6).fit(C, y)
+    z = b.zscore(C, y)
+    assert abs(np.mean(z)) < 0.1 and 0.8 < np.std(z) < 1.25
+    # hot and cold flights share one distribution after normalisation
+    assert abs(z[temp > 30].mean() - z[temp < 5].mean()) < 0.3
+    b2 = LinearBaseline.from_dict(json.loads(json.dumps(b.to_dict())))
+    assert np.allclose(b2.zscore(C, y), z)
+    # missing covariates fall back to the training mean instead of NaN
+    assert np.isfinite(b.predict(np.array([[np.nan, 500.0]]))).all()
+
+
+def test_linear_baseline_is_robust_to_outliers() -> None:
+    rng = np.random.default_rng(1)
+    C = rng.uniform(0, 1, (200, 1))
+    y = 2 * C[:, 0] + 0.05 * rng.standard_normal(200)
+    y[:5] += 50.0
+    b = LinearBaseline(("temp_ground_c",), ridge=1e-6).fit(C, y)
+    assert b.scale_ == pytest.approx(0.05, rel=0.3)
+
+
+def test_unfitted_models_refuse() -> None:
+    with pytest.raises(RuntimeError):
+        LinearBaseline().predict(np.zeros((1, 4)))
+    with pytest.raises(RuntimeError):
+        FaultDetector().new_state("WT")
+
+
+def _flight(rng: np.random.Generator, shift: dict[str, float] | None = None) -> FlightFeatures:
+    shift = shift or {}
+    summ = {n: FeatureSummary(float(rng.standard_normal() + shift.get(n, 0.0)), 0.1, 100)
+            for n in AIRCRAFT_FEATURES}
+    cond = {p: {"temp_ground_c": float(rng.uniform(-5, 40)), "temp_mean_c": 0.0,
+                "load_rms_n": 500.0, "speed_rms_rad_s": 10.0, "temp_winding_est_c": 30.0}
+            for p in ("WL1", "WL2", "WT", "WL")}
+    return FlightFeatures(summ, cond)
+
+
+def test_running_statistics_matches_naive_and_skips_nan() -> None:
+    rng = np.random.default_rng(2)
+    z = rng.standard_normal((30, 2))
+    z[5, 0] = np.nan
+    s = running_statistics(z, 3)
+    col = z[:, 0]
+    valid = [v for v in col if np.isfinite(v)]
+    # flight 10 of column 0: last three valid values up to flight 10
+    upto = [v for v in col[:11] if np.isfinite(v)]
+    assert s[10, 0] == pytest.approx(sum(upto[-3:]) / np.sqrt(3))
+    assert s[5, 0] == s[4, 0]  # held through the missing flight
+    assert len(valid) == 29
+    assert s[0, 1] == pytest.approx(z[0, 1])
+
+
+def test_detector_quiet_on_healthy_and_fast_on_steps() -> None:
+    rng = np.random.default_rng(3)
+    names = ["WT.F_A", "WT.F_B"]
+    train = [rng.standard_normal((300, 2)) for _ in range(8)]
+    det = FaultDetector().fit(train, names)
+    # fresh healthy sequences: no alarm
+    for _ in range(10):
+        conf = det.confidence_sequence(rng.standard_normal((300, 2)), names)
+        assert conf.max() < det.alarm_confidence
+    # a step of 12 standard deviations alarms on the first faulty flight
+    st = DetectionState.new("WT", names)
+    for k in range(20):
+        z = {"WT.F_A": float(rng.standard_normal()), "WT.F_B": float(rng.standard_normal())}
+        if k >= 10:
+            z["WT.F_B"] += 12.0
+        res = det.update(st, z)
+        if k < 10:
+            assert not res.alarm
+    assert st.alarm and st.alarm_flight == 11 and st.alarm_features == ["WT.F_B"]
+    # a slow drift alarms only once it has clearly left the band
+    st2 = DetectionState.new("WT", names)
+    first = None
+    for k in range(200):
+        z = {"WT.F_A": float(rng.standard_normal() + 0.03 * k), "WT.F_B": 0.0}
+        if det.update(st2, z).new_alarm:
+            first = k
+    assert first is not None and 40 < first < 200
+
+
+def test_state_and_detector_round_trip_through_json() -> None:
+    rng = np.random.default_rng(4)
+    names = list(AIRCRAFT_FEATURES)
+    det = FaultDetector().fit([rng.standard_normal((50, len(names)))], names)
+    det2 = FaultDetector.from_dict(json.loads(json.dumps(det.to_dict())))
+    st = det.new_state("WL1")
+    for _ in range(12):
+        det.update(st, {n: float(rng.standard_normal()) for n in names})
+    st2 = DetectionState.from_dict(json.loads(json.dumps(st.to_dict())))
+    assert st2 == st
+    z = {n: 9.0 for n in names}
+    r1, r2 = det.update(st, z), det2.update(st2, z)
+    assert r1 == r2 and st == st2
+    st.reset()
+    assert not st.alarm and st.n_flights == 0 and all(not h for h in st.history.values())
+    with pytest.raises(ValueError):
+        DetectionState.from_dict({"format": "other"})
+
+
+def test_fleet_baseline_and_model_round_trip() -> None:
+    rng = np.random.default_rng(5)
+    flights = [_flight(rng) for _ in range(60)]
+    fb = FleetBaseline().fit(flights)
+    det = FaultDetector().fit([fb.zscore_matrix(flights)], AIRCRAFT_FEATURES)
+    model = DetectionModel(fb, det)
+    m2 = DetectionModel.from_dict(json.loads(json.dumps(model.to_dict())))
+    f = _flight(rng, {"WT.F_DMD": 20.0})
+    z1, z2 = fb.zscores(f), m2.baseline.zscores(f)
+    assert z1 == pytest.approx(z2)
+    assert z1["WT.F_DMD"] > 10
+
+
+# --------------------------------------------------------------------------------------------
+# on simulated campaigns: fit on DESIGN, score on VERIFICATION
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_no_false_alarm_on_healthy_verification_flights(verification_campaign,
+                                                        verification_outcomes) -> None:
+    healthy = [o for o in verification_outcomes if o.mode == "healthy"]
+    n_flights = sum(o.n_flights for o in healthy)
+    assert sum(o.false_alarms + o.other_unit_alarms for o in healthy) == 0
+    # nor before the onset of any fault pattern
+    assert sum(o.false_alarms for o in verification_outcomes) == 0
+    # the requirement is stated on >= 250 healthy flights of >= 10 aircraft
+    assert len({o.aircraft for o in healthy}) >= 10, "too few healthy aircraft in the campaign"
+    assert n_flights >= 250, f"only {n_flights} healthy verification flights in the campaign"
+
+
+@pytest.mark.slow
+def test_progressive_faults_detected_before_half_life(verification_outcomes) -> None:
+    prog = [o for o in verification_outcomes if o.mode in ("TTS", "DMD", "MTEL", "MTWEAR",
+                                                           "REWEAR")]
+    assert prog
+    late = [(o.id, o.mode, o.detection_pct_life) for o in prog
+            if o.detected_index is None or not o.detection_pct_life < 50.0]
+    assert not late, late
+
+
+@pytest.mark.slow
+def test_step_faults_detected_within_three_flights(verification_outcomes) -> None:
+    steps = [o for o in verification_outcomes if o.mode in ("SE", "BDO")]
+    assert steps
+    slow = [(o.id, o.mode, o.flights_after_onset) for o in steps
+            if o.detected_index is None or o.flights_after_onset > 3]
+    assert not slow, slow
+
+
+@pytest.mark.slow
+def test_summary_rows_cover_every_mode(verification_outcomes) -> None:
+    rows = summarise(verification_outcomes)
+    assert {r["mode"] for r in rows} >= {"healthy", "TTS", "DMD", "SE", "BDO", "MTEL",
+                                          "MTWEAR", "REWEAR"}
