@@ -22,7 +22,8 @@ from sqlalchemy.orm import Session, aliased, sessionmaker
 
 from server.models import Job, utcnow
 
-__all__ = ["RetryPolicy", "claim_next", "complete", "fail", "renew_lease", "ClaimedJob"]
+__all__ = ["RetryPolicy", "claim_next", "complete", "fail", "defer", "renew_lease",
+           "ClaimedJob"]
 
 
 @dataclass(frozen=True)
@@ -125,3 +126,13 @@ def fail(session: Session, *, job: ClaimedJob, worker_id: str, error: str,
     session.execute(update(Job).where(Job.id == job.id, Job.locked_by == worker_id)
                     .values(**values))
     return "dead" if dead else "queued"
+
+
+def defer(session: Session, *, job: ClaimedJob, worker_id: str, reason: str,
+          delay_s: float) -> None:
+    """Put a job back without counting the attempt (it could not start, e.g. no model yet)."""
+    now = utcnow()
+    session.execute(update(Job).where(Job.id == job.id, Job.locked_by == worker_id)
+                    .values(status="queued", attempts=Job.attempts - 1, last_error=reason,
+                            run_after=now + timedelta(seconds=delay_s), lease_until=None,
+                            locked_by=None, updated_at=now))

@@ -24,7 +24,7 @@ from server.db import make_engine, make_session_factory
 from server.jobs import queue
 from server.migrate import ensure_schema
 
-__all__ = ["JobContext", "Worker", "HANDLERS", "run_worker_process"]
+__all__ = ["JobContext", "Worker", "HANDLERS", "Deferred", "run_worker_process"]
 
 log = logging.getLogger("hmsm.worker")
 
@@ -37,13 +37,21 @@ class JobContext:
 
 
 Handler = Callable[[JobContext, queue.ClaimedJob], None]
+
+
+class Deferred(Exception):
+    """Raised by a handler that cannot run yet: requeue after ``delay_s``, no attempt used."""
+
+    def __init__(self, reason: str, delay_s: float = 30.0):
+        super().__init__(reason)
+        self.delay_s = delay_s
 HANDLERS: dict[str, Handler] = {}
 
 
 def _default_handlers() -> dict[str, Handler]:
-    from server.jobs.pipeline import analyze_flight
+    from server.jobs.pipeline import analyze_flight_job
 
-    return {"analyze_flight": analyze_flight, **HANDLERS}
+    return {"analyze_flight": analyze_flight_job, **HANDLERS}
 
 
 class Worker:
@@ -82,7 +90,13 @@ class Worker:
             if handler is None:
                 raise LookupError(f"no handler for job kind {job.kind!r}")
             handler(self.ctx, job)
-        except Exception:
+        except Exception as exc:
+            if isinstance(exc, Deferred):
+                with self.ctx.factory() as session:
+                    queue.defer(session, job=job, worker_id=self.worker_id, reason=str(exc),
+                                delay_s=exc.delay_s)
+                    session.commit()
+                return True
             error = traceback.format_exc()
             log.warning("job %s (%s) failed on attempt %s", job.id, job.kind, job.attempts)
             with self.ctx.factory() as session:

@@ -1,0 +1,254 @@
+"""The PHM chain of one actuator, flight by flight, as the service runs it (paper Figure 15).
+
+features (whole aircraft) -> standardised residuals z -> detection per actuator -> after an
+alarm: classification (class log-probabilities accumulated since the alarm) -> for a
+progressive mode: particle-filter prognosis on the mode's measurement feature.
+
+Units and time base: one step per flight; ``flight_index`` counts the flights an actuator has
+seen since installation. Severity is normalised (failure threshold 1.0).
+
+Monitored units: each actuator carries its own six features; the winglet actuators also carry
+the pair's ``WL.F_REWEAR`` (rod-end wear cannot be told apart between the two rod ends from the
+two LVDTs alone, so both winglet actuators alarm on it). The classifier sees the seven generic
+features of the alarmed actuator (``F_REWEAR`` = 0 for the wingtip).
+
+Everything persists as JSON: :class:`PhmModel` (trained, in a model version) and
+:class:`ActuatorHealth` (state per actuator, between flights). Never pickle.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .baselines import FleetBaseline
+from .classification import FaultClassifier
+from .detection import DetectionState, FaultDetector
+from .features import FlightFeatures
+from .prognosis import (
+    MeasurementModel,
+    ParticleFilterPrognoser,
+    PrognoserConfig,
+    PrognoserState,
+    RulDistribution,
+)
+
+__all__ = [
+    "MODEL_FORMAT",
+    "HEALTH_FORMAT",
+    "PROGRESSIVE",
+    "GENERIC_FEATURES",
+    "actuator_feature_names",
+    "classifier_vector",
+    "MeasurementSpec",
+    "PhmModel",
+    "ActuatorHealth",
+    "ActuatorOutcome",
+    "analyze_flight",
+]
+
+MODEL_FORMAT = "ema-phm-model/1"
+HEALTH_FORMAT = "ema-actuator-health/1"
+PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
+GENERIC_FEATURES = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR", "F_REWEAR")
+_HISTORY_FLIGHTS = 600  # flights of residuals kept for a filter replay
+
+
+def actuator_feature_names(position: str) -> list[str]:
+    """Aircraft feature names monitored for one actuator position."""
+    names = [f"{position}.{g}" for g in GENERIC_FEATURES if g != "F_REWEAR"]
+    if position in ("WL1", "WL2"):
+        names.append("WL.F_REWEAR")
+    return names
+
+
+def _generic(name: str) -> str:
+    return name.split(".", 1)[1]
+
+
+def classifier_vector(z: Mapping[str, float], position: str) -> np.ndarray:
+    """The seven generic residuals of an actuator; missing or invalid values count as 0."""
+    out = np.zeros(len(GENERIC_FEATURES))
+    for name in actuator_feature_names(position):
+        v = z.get(name, math.nan)
+        if v is not None and math.isfinite(v):
+            out[GENERIC_FEATURES.index(_generic(name))] = float(v)
+    return out
+
+
+@dataclass(frozen=True)
+class MeasurementSpec:
+    """Which generic feature tracks a progressive mode, and how it depends on severity."""
+
+    feature: str
+    model: MeasurementModel
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"feature": self.feature, "model": self.model.to_dict()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> MeasurementSpec:
+        return cls(str(d["feature"]), MeasurementModel.from_dict(dict(d["model"])))
+
+
+@dataclass
+class PhmModel:
+    """Everything the chain needs at run time, fitted on a design campaign."""
+
+    baseline: FleetBaseline
+    detector: FaultDetector
+    classifier: FaultClassifier | None
+    measurement: dict[str, MeasurementSpec]
+    prognoser: PrognoserConfig = field(default_factory=PrognoserConfig)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": MODEL_FORMAT, "baseline": self.baseline.to_dict(),
+                "detector": self.detector.to_dict(),
+                "classifier": None if self.classifier is None else self.classifier.to_dict(),
+                "measurement": {m: s.to_dict() for m, s in self.measurement.items()},
+                "prognoser": self.prognoser.to_dict()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> PhmModel:
+        if d.get("format") != MODEL_FORMAT:
+            raise ValueError(f"not a {MODEL_FORMAT} document")
+        clf = d.get("classifier")
+        return cls(FleetBaseline.from_dict(d["baseline"]), FaultDetector.from_dict(d["detector"]),
+                   None if clf is None else FaultClassifier.from_dict(clf),
+                   {m: MeasurementSpec.from_dict(s) for m, s in d["measurement"].items()},
+                   PrognoserConfig.from_dict(dict(d["prognoser"])))
+
+    def new_health(self, position: str) -> ActuatorHealth:
+        known = set(self.detector.feature_names_)
+        feats = [f for f in actuator_feature_names(position) if f in known]
+        return ActuatorHealth(position=position, detection=DetectionState.new(position, feats))
+
+
+@dataclass
+class ActuatorHealth:
+    """State of one actuator carried between flights (JSON)."""
+
+    position: str
+    detection: DetectionState
+    flights_seen: int = 0
+    class_log_prob: dict[str, float] | None = None
+    fault_mode: str | None = None
+    prognosis: dict[str, Any] | None = None
+    history: list[tuple[int, dict[str, float]]] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": HEALTH_FORMAT, "position": self.position,
+                "detection": self.detection.to_dict(), "flights_seen": self.flights_seen,
+                "class_log_prob": self.class_log_prob, "fault_mode": self.fault_mode,
+                "prognosis": self.prognosis,
+                "history": [[i, z] for i, z in self.history]}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> ActuatorHealth:
+        if d.get("format") != HEALTH_FORMAT:
+            raise ValueError(f"not a {HEALTH_FORMAT} document")
+        return cls(position=str(d["position"]),
+                   detection=DetectionState.from_dict(d["detection"]),
+                   flights_seen=int(d["flights_seen"]),
+                   class_log_prob=d.get("class_log_prob"), fault_mode=d.get("fault_mode"),
+                   prognosis=d.get("prognosis"),
+                   history=[(int(i), {k: float(v) for k, v in z.items()})
+                            for i, z in d.get("history", [])])
+
+
+@dataclass
+class ActuatorOutcome:
+    """What one flight said about one actuator."""
+
+    flight_index: int
+    features: dict[str, dict[str, float]]
+    z: dict[str, float]
+    confidence: dict[str, float]
+    max_confidence: float
+    alarm: bool
+    new_alarm: bool
+    alarm_features: list[str]
+    class_probabilities: dict[str, float] | None
+    fault_mode: str | None
+    rul: RulDistribution | None = None
+
+
+def _finite(v: float) -> float | None:
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
+def _replay(model: PhmModel, mode: str, history: list[tuple[int, dict[str, float]]],
+            seed: int) -> PrognoserState | None:
+    spec = model.measurement.get(mode)
+    if spec is None:
+        return None
+    pf = ParticleFilterPrognoser(model.prognoser, spec.model)
+    state = ParticleFilterPrognoser.initial_state(model.prognoser, spec.model, seed)
+    for index, z in history:
+        value = z.get(spec.feature)
+        if value is not None and math.isfinite(value):
+            state = pf.update(state, value, index)
+    return state
+
+
+def analyze_flight(model: PhmModel, features: FlightFeatures,
+                   health: dict[str, ActuatorHealth], *, seed: int = 0
+                   ) -> dict[str, ActuatorOutcome]:
+    """Advance every actuator's state by one flight (``health`` is updated in place)."""
+    z_all = model.baseline.zscores(features)
+    out: dict[str, ActuatorOutcome] = {}
+    for position, h in health.items():
+        h.flights_seen += 1
+        index = h.flights_seen
+        det = model.detector.update(h.detection, z_all)
+        generic = {GENERIC_FEATURES[i]: float(v) for i, v in
+                   enumerate(classifier_vector(z_all, position))}
+        h.history.append((index, generic))
+        del h.history[:-_HISTORY_FLIGHTS]
+
+        probs = None
+        if det.alarm and model.classifier is not None:
+            logp = model.classifier.predict_log_proba(
+                classifier_vector(z_all, position)[np.newaxis, :])[0]
+            classes = [str(c) for c in model.classifier.classes_.tolist()]
+            acc = h.class_log_prob or dict.fromkeys(classes, 0.0)
+            acc = {c: acc.get(c, 0.0) + float(lp) for c, lp in zip(classes, logp, strict=True)}
+            h.class_log_prob = acc
+            top = max(acc.values())
+            weights = {c: math.exp(v - top) for c, v in acc.items()}
+            total = sum(weights.values())
+            probs = {c: w / total for c, w in weights.items()}
+            mode = max(probs, key=lambda c: probs[c])
+            if mode != h.fault_mode:
+                h.fault_mode = mode
+                h.prognosis = None  # the filter restarts on the new mode's feature
+
+        rul = None
+        if det.alarm and h.fault_mode in PROGRESSIVE and h.fault_mode in model.measurement:
+            spec = model.measurement[h.fault_mode]
+            pf = ParticleFilterPrognoser(model.prognoser, spec.model)
+            if h.prognosis is None:
+                state = _replay(model, h.fault_mode, h.history, seed)
+            else:
+                state = PrognoserState.from_dict(h.prognosis)
+                value = generic.get(spec.feature)
+                if value is not None and math.isfinite(value):
+                    state = pf.update(state, value, index)
+            if state is not None:
+                h.prognosis = state.to_dict()
+                rul = pf.predict(state)
+
+        feats = {name: features.summaries[name].to_dict()
+                 for name in actuator_feature_names(position) if name in features.summaries}
+        out[position] = ActuatorOutcome(
+            flight_index=index, features=feats,
+            z={n: v for n in actuator_feature_names(position)
+               if (v := _finite(z_all.get(n, math.nan))) is not None},
+            confidence=dict(det.confidence), max_confidence=float(det.max_confidence),
+            alarm=det.alarm, new_alarm=det.new_alarm, alarm_features=list(det.alarm_features),
+            class_probabilities=probs, fault_mode=h.fault_mode if det.alarm else None, rul=rul)
+    return out
