@@ -15,6 +15,7 @@ from server.api import (
     health_records,
     jobs,
     keys,
+    models_api,
     test_station,
 )
 from server.blobstore import BlobStore
@@ -118,8 +119,8 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     app.state.session_factory = make_session_factory(engine)
     app.state.blobs = blobs
     install_error_handlers(app)
-    for module in (health, aircraft, actuators, health_records, flights, jobs, keys,
-                   test_station):
+    for module in (health, aircraft, actuators, health_records, flights, jobs, models_api,
+                   keys, test_station):
         app.include_router(module.router, prefix=API_PREFIX)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
     app.add_middleware(SecurityHeadersMiddleware)

@@ -128,6 +128,50 @@ def cmd_worker(args: argparse.Namespace, settings: Settings) -> int:
     return 0
 
 
+def cmd_train(args: argparse.Namespace, settings: Settings) -> int:
+    from pathlib import Path
+
+    from tqdm import tqdm
+
+    from server.jobs.training_job import train_into_version
+    from server.services import models as service
+
+    design = Path(args.campaign_dir)
+    if not (design / "manifest.json").exists():
+        print(f"hmsm: {design} has no manifest.json; make one with "
+              "`sim-worker campaign --kind design --out DIR`", file=sys.stderr)
+        return 2
+    factory = _session(settings)
+    with factory() as session:
+        version = service.create_version(session=session, name=args.name or design.name,
+                                         training={"campaign": str(design)})
+        session.commit()
+        version_id = version.id
+    bar = tqdm(total=100, desc="training", unit="%", disable=args.no_progress)
+
+    def progress(stage: str, fraction: float) -> None:
+        bar.set_postfix_str(stage)
+        bar.update(max(0, int(round(100 * fraction)) - bar.n))
+
+    report = train_into_version(factory, version_id, design, seed=args.seed,
+                                activate=not args.no_activate, progress=progress)
+    bar.close()
+    conf = report["classifier"]["confusion"]
+    print(f"model version {version_id} ({'active' if not args.no_activate else 'inactive'}): "
+          f"held-out accuracy {100 * conf['accuracy']:.1f} % on "
+          f"{report['classifier']['n_test']} flights of "
+          f"{len(report['classifier']['test_groups'])} patterns")
+    classes = conf["classes"]
+    print("confusion (rows true, columns predicted, %):")
+    print("        " + " ".join(f"{c:>7s}" for c in classes))
+    for c, row in zip(classes, conf["rates"], strict=True):
+        print(f"{c:>7s} " + " ".join("      -" if v is None else f"{100 * v:7.1f}" for v in row))
+    print("measurement features: " + ", ".join(
+        f"{m}->{r['feature']} (rho {r['spearman']:+.2f})"
+        for m, r in report["measurement"].items()))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="hmsm", description="EMA health management service.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -146,6 +190,14 @@ def build_parser() -> argparse.ArgumentParser:
     kr.add_argument("id", type=int)
     kact.add_parser("list", help="list keys")
     keys.set_defaults(func=cmd_keys)
+
+    train = sub.add_parser("train", help="train a model version from a design campaign")
+    train.add_argument("campaign_dir", help="design campaign directory (sim-worker campaign)")
+    train.add_argument("--seed", type=int, default=0, help="seed of the 70/30 split")
+    train.add_argument("--name", default=None, help="model version name")
+    train.add_argument("--no-activate", action="store_true", help="do not make it active")
+    train.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    train.set_defaults(func=cmd_train)
 
     worker = sub.add_parser("worker", help="run analysis workers")
     worker.add_argument("--concurrency", type=int, default=1, help="worker processes")

@@ -50,8 +50,9 @@ HANDLERS: dict[str, Handler] = {}
 
 def _default_handlers() -> dict[str, Handler]:
     from server.jobs.pipeline import analyze_flight_job
+    from server.jobs.training_job import train_model_job
 
-    return {"analyze_flight": analyze_flight_job, **HANDLERS}
+    return {"analyze_flight": analyze_flight_job, "train_model": train_model_job, **HANDLERS}
 
 
 class Worker:
