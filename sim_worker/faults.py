@@ -1,0 +1,187 @@
+"""The seven fault modes: severity, failure threshold, physical entry point and progression law.
+
+Severity units (one fault at a time, on one actuator position):
+
+============  =========================================  ============  ==========  ===========
+mode          severity                                   threshold     onset       progression
+============  =========================================  ============  ==========  ===========
+``TTS``       fraction of phase-a turns shorted [-]      0.10          0.005       Arrhenius
+``DMD``       irreversible PM flux loss h [-]             0.20          0.010       thermal
+``SE``        relative static eccentricity [-]           0.50          drawn       a priori
+``BDO``       leg-a upper MOSFET base drive open [-]     1.0           1.0         a priori
+``MTEL``      loss of direct screw efficiency [-]        0.15          0.0075      grease life
+``MTWEAR``    added ball-screw backlash [m]              0.3e-3        1.5e-5      Archard
+``REWEAR``    added rod-end backlash [m]                 2.0e-3        1.0e-4      Archard
+============  =========================================  ============  ==========  ===========
+
+Progression per flight, on the normalised severity ``s_n = s / threshold``::
+
+    s_n+ = s_n + rate * driver(summary) * (s_n + c_mode) * exp(N(0, 0.3^2) - 0.045)
+
+``driver`` is the physics law measured from the flight (REFERENCE.md fault laws): insulation life
+halves per +10 K of mean winding temperature (TTS); magnet loss grows with temperature and current
+loading (DMD); grease life halves per +15 K above 70 degC (MTEL); Archard wear volume grows with
+force times sliding distance on the screw (MTWEAR) and on the rod end (REWEAR). Every driver is
+multiplied by the flight's block hours over 1.5 h. ``rate`` is drawn per pattern so that the
+expected fault-to-failure span at the base's average conditions is ``U(170, 360)`` flights
+(accelerated ageing, as in the paper); actual spans spread further with season and usage.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+__all__ = [
+    "MODES",
+    "PROGRESSIVE",
+    "A_PRIORI",
+    "THRESHOLDS",
+    "ActuatorSummary",
+    "FlightSummary",
+    "FaultState",
+    "healthy",
+    "new_fault",
+    "advance_fault",
+    "fault_entries",
+    "driver",
+]
+
+MODES: tuple[str, ...] = ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR", "REWEAR")
+PROGRESSIVE: tuple[str, ...] = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
+A_PRIORI: tuple[str, ...] = ("SE", "BDO")
+THRESHOLDS: dict[str, float] = {"TTS": 0.10, "DMD": 0.20, "SE": 0.5, "BDO": 1.0, "MTEL": 0.15,
+                                "MTWEAR": 0.3e-3, "REWEAR": 2.0e-3}
+_ONSET_NORM = 0.05  # onset severity / threshold of the progressive modes
+_GROWTH_C = {"TTS": 0.05, "DMD": 0.3, "MTEL": 0.1, "MTWEAR": 2.0, "REWEAR": 0.8}
+_SPAN_FLIGHTS = (170.0, 360.0)
+_PROCESS_SD = 0.3
+_BLOCK_HOURS_REF = 1.5
+_WORK_REF_N_M = 300.0  # N m, screw sliding work of a typical recorded flight
+TTS_RF_OHM = 0.1  # Ohm, resistance of the insulation breakdown path between shorted turns
+TTS_LEAK_S_AT_FAILURE = 0.05  # S, winding-to-frame leakage conductance at the threshold [est]
+SE_FLUX_PER_ECC = 0.5  # relative flux modulation per unit relative eccentricity [est]
+
+
+@dataclass(frozen=True)
+class ActuatorSummary:
+    """What one actuator did in one flight (measured from the simulation or estimated)."""
+
+    winding_mean_c: float  # degC
+    winding_max_c: float  # degC
+    current_rms_a: float  # A, sqrt(mean(i_d^2 + i_q^2)) (peak-value d-q)
+    load_rms_n: float  # N, link force
+    work_screw_n_m: float  # N m, integral |F| |v_nut| dt
+    work_rod_end_n_m: float  # N m, integral |F| |v_attachment| dt
+    travel_m: float  # m, integral |v_nut| dt
+
+
+@dataclass(frozen=True)
+class FlightSummary:
+    """One flight: per-position actuator summaries plus flight conditions."""
+
+    actuators: dict[str, ActuatorSummary]
+    block_hours: float  # h
+    ground_temp_c: float  # degC
+    duration_s: float  # s, recorded
+    measured: bool  # True when from the 12 kHz simulation, False when estimated
+
+
+@dataclass(frozen=True)
+class FaultState:
+    """One actuator fault (``mode == "healthy"`` for none)."""
+
+    mode: str
+    position: str | None
+    severity: float
+    threshold: float | None
+    rate: float = 0.0  # 1/flight, progression rate constant (progressive modes)
+    phase_rad: float = 0.0  # SE: angle of the narrowest air gap
+
+    @property
+    def severity_norm(self) -> float:
+        return 0.0 if not self.threshold else self.severity / self.threshold
+
+    @property
+    def failed(self) -> bool:
+        return self.mode in PROGRESSIVE and self.severity >= (self.threshold or math.inf)
+
+
+def healthy() -> FaultState:
+    return FaultState(mode="healthy", position=None, severity=0.0, threshold=None)
+
+
+def driver(mode: str, s: ActuatorSummary, block_hours: float) -> float:
+    """Physics driver of one flight for ``mode`` (dimensionless, about 1 at mild conditions)."""
+    bh = block_hours / _BLOCK_HOURS_REF
+    if mode == "TTS":  # Montsinger / Arrhenius: life halves per +10 K
+        return bh * 2.0 ** ((s.winding_mean_c - 40.0) / 10.0)
+    if mode == "DMD":  # hot magnet under armature loading
+        loading = 1.0 + (s.current_rms_a / 6.0) ** 2
+        return bh * math.exp((s.winding_mean_c - 40.0) / 25.0) * loading
+    if mode == "MTEL":  # SKF: grease life halves per +15 K above 70 degC
+        return bh * 2.0 ** ((s.winding_mean_c - 70.0) / 15.0)
+    if mode == "MTWEAR":  # Archard: K F_N s / H
+        return bh * s.work_screw_n_m / _WORK_REF_N_M
+    if mode == "REWEAR":
+        return bh * s.work_rod_end_n_m / _WORK_REF_N_M
+    return 0.0
+
+
+def new_fault(mode: str, position: str, rng: np.random.Generator, *,
+              reference: ActuatorSummary | None = None) -> FaultState:
+    """A fault at onset. Progressive modes draw the rate so that, at the ``reference`` flight
+    (the base's average conditions), failure comes after U(170, 360) flights."""
+    if mode not in MODES:
+        raise ValueError(f"unknown fault mode {mode!r}")
+    thr = THRESHOLDS[mode]
+    if mode == "SE":
+        return FaultState(mode, position, float(rng.uniform(0.12, 0.35)), thr,
+                          phase_rad=float(rng.uniform(0.0, 2.0 * math.pi)))
+    if mode == "BDO":
+        return FaultState(mode, position, 1.0, thr)
+    if reference is None:
+        raise ValueError("progressive modes need a reference flight summary to set the rate")
+    span = float(rng.uniform(*_SPAN_FLIGHTS))
+    c = _GROWTH_C[mode]
+    d_ref = max(driver(mode, reference, _BLOCK_HOURS_REF), 1e-9)
+    rate = math.log((1.0 + c) / (_ONSET_NORM + c)) / (span * d_ref)
+    return FaultState(mode, position, _ONSET_NORM * thr, thr, rate=rate)
+
+
+def advance_fault(state: FaultState, summary: FlightSummary, rng: np.random.Generator
+                  ) -> FaultState:
+    """Severity after one flight, by the mode's law driven by what the flight did."""
+    if state.mode not in PROGRESSIVE or state.position is None or state.threshold is None:
+        return state
+    s = summary.actuators[state.position]
+    sn = state.severity_norm
+    noise = math.exp(_PROCESS_SD * float(rng.standard_normal()) - 0.5 * _PROCESS_SD**2)
+    dsn = state.rate * driver(state.mode, s, summary.block_hours) * (sn + _GROWTH_C[state.mode])
+    return replace(state, severity=(sn + dsn * noise) * state.threshold)
+
+
+def fault_entries(state: FaultState, position: str) -> dict[str, float]:
+    """Model entries (see params.pack_ema) for the actuator at ``position``."""
+    if state.position != position or state.mode == "healthy":
+        return {}
+    s = state.severity
+    if state.mode == "TTS":
+        return {"tts_sigma": s, "tts_rf_ohm": TTS_RF_OHM,
+                "tts_g_s": TTS_LEAK_S_AT_FAILURE * s / THRESHOLDS["TTS"]}
+    if state.mode == "DMD":
+        return {"dmd_h": s}
+    if state.mode == "SE":
+        return {"se_eps": SE_FLUX_PER_ECC * s, "se_phi": state.phase_rad}
+    if state.mode == "BDO":
+        return {"bdo_leg": 0.0, "bdo_upper": 1.0}
+    if state.mode == "MTEL":
+        # grease aging: screw friction angle up (efficiency down) and seal/bearing drag up
+        return {"mtel_deta": s, "mtel_drag": 2.0 * s / THRESHOLDS["MTEL"]}
+    if state.mode == "MTWEAR":
+        return {"screw_backlash_m": s}
+    if state.mode == "REWEAR":
+        return {"rod_end_backlash_m": s}
+    raise ValueError(state.mode)

@@ -1,0 +1,196 @@
+"""One flight of the simulated half-wing: conditions, 12 kHz simulation, flight log, summary.
+
+Random draws, in this order, all from the ``rng`` passed in (seeded per aircraft and flight):
+block hours, ground temperature, eq. (1) warp, gust sequence, sensor-noise seeds of the kernel.
+:func:`estimate_summary` makes the same first draws, so an estimated summary (used for flights of
+a fault-to-failure run that are not rendered) sees the same conditions as a simulated one would.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timedelta, timezone
+
+import numpy as np
+from scipy.signal import lfilter
+
+from server.flightlog import NOMINAL_SAMPLE_RATE_HZ, FlightLog, FlightMetadata
+
+from .faults import ActuatorSummary, FaultState, FlightSummary, fault_entries
+from .fleet import POSITIONS, SURFACE_OF, WINGLET, WINGTIP, Aircraft, draw_ground_temperature
+from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
+from .params import OUT_HZ, pack_ema, pack_surface
+from .scenario import REFERENCE_DURATION_S, Scenario, Warp, build_scenario, draw_warp
+
+__all__ = [
+    "EPOCH",
+    "FlightConditions",
+    "SimResult",
+    "draw_conditions",
+    "run_scenario",
+    "simulate_flight",
+    "estimate_summary",
+    "flight_start",
+]
+
+EPOCH = datetime(2024, 1, 1, 6, 0, tzinfo=timezone.utc)
+SOURCE = "sim_worker RT model v1"
+_SURFACES = (WINGLET, WINGTIP)
+_F_DYN_N = 50.0  # N, mean inertial + friction share of the link force while moving [est]
+_X_LSB_M = 2.0**-20  # m, recorder resolution of the command channel
+_T_LSB_C = 2.0**-6  # degC, recorder resolution of the ambient temperature
+_SURF_LSB_RAD = 2.0**-18  # rad, recorder resolution of the surface deflections
+_SIGNALS = ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")
+
+
+def flight_start(flight_index: int, *, epoch: datetime = EPOCH, day_offset: float = 0.0
+                 ) -> datetime:
+    """Take-off time of flight ``flight_index``: two flights a day from ``epoch + day_offset``."""
+    return epoch + timedelta(days=day_offset + 0.5 * flight_index)
+
+
+@dataclass(frozen=True)
+class FlightConditions:
+    started_at: datetime
+    block_hours: float  # h
+    ground_temp_c: float  # degC
+    warp: Warp
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Raw kernel outputs of one run (sensor signals and true states at 800 Hz)."""
+
+    scenario: Scenario
+    signals: np.ndarray  # (n, 3, 8) measured ia ib ic [A] va vb vc [V] theta [rad] x [m]
+    surfaces: np.ndarray  # (n, 2) rad
+    truth: np.ndarray  # (n, 3, N_DBG) true states, see kernel.D
+    acc: np.ndarray  # (3, N_ACC) accumulators, see kernel.A
+    params: np.ndarray  # (3, N_PAR) the kernel parameter rows used
+
+
+def draw_conditions(aircraft: Aircraft, flight_index: int, rng: np.random.Generator, *,
+                    started_at: datetime | None = None) -> FlightConditions:
+    start = started_at if started_at is not None else flight_start(flight_index)
+    block_hours = float(np.clip(rng.normal(1.4, 0.4), 0.6, 3.0))
+    ground = draw_ground_temperature(aircraft.base, start.month, rng)
+    return FlightConditions(started_at=start, block_hours=round(block_hours, 3),
+                            ground_temp_c=ground, warp=draw_warp(rng))
+
+
+def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
+                 rng: np.random.Generator, *, t0_winding_c: float | None = None) -> SimResult:
+    """Simulate ``scenario`` at 12 kHz with ``fault`` on its position (kernel call)."""
+    t0 = float(scenario.t_amb[0] + 3.0) if t0_winding_c is None else t0_winding_c
+    par = np.stack([
+        pack_ema(aircraft.ema[pos], aircraft.nominal, surface=SURFACE_OF[pos],
+                 arm_m=_SURFACES[SURFACE_OF[pos]].arm_m, offsets=aircraft.offsets[pos],
+                 faults=fault_entries(fault, pos), t0_winding_c=t0)
+        for pos in POSITIONS
+    ])
+    spar = np.stack([pack_surface(s) for s in _SURFACES])
+    n = scenario.t.shape[0]
+    seeds = rng.integers(1, 2**63 - 1, size=len(POSITIONS), dtype=np.uint64)
+    out = np.zeros((n, len(POSITIONS), N_SIG))
+    surf = np.zeros((n, len(_SURFACES)))
+    dbg = np.zeros((n, len(POSITIONS), N_DBG))
+    acc = np.zeros((len(POSITIONS), N_ACC))
+    simulate(par, spar, scenario.x_cmd, scenario.f_ext, np.ascontiguousarray(scenario.t_amb),
+             seeds, out, surf, dbg, acc)
+    return SimResult(scenario=scenario, signals=out, surfaces=surf, truth=dbg, acc=acc,
+                     params=par)
+
+
+def _q32(v: np.ndarray, lsb: float) -> np.ndarray:
+    return (np.round(v / lsb) * lsb).astype(np.float32)
+
+
+def _summary_from_acc(acc: np.ndarray, cond: FlightConditions, duration_s: float
+                      ) -> FlightSummary:
+    acts = {}
+    for k, pos in enumerate(POSITIONS):
+        a = acc[k]
+        n = max(a[A.N], 1.0)
+        acts[pos] = ActuatorSummary(
+            winding_mean_c=float(a[A.TW_SUM] / n), winding_max_c=float(a[A.TW_MAX]),
+            current_rms_a=float(np.sqrt(a[A.I2_SUM] / n)),
+            load_rms_n=float(np.sqrt(a[A.F2_SUM] / n)),
+            work_screw_n_m=float(a[A.WORK_SCREW]), work_rod_end_n_m=float(a[A.WORK_ROD]),
+            travel_m=float(a[A.TRAVEL]))
+    return FlightSummary(actuators=acts, block_hours=cond.block_hours,
+                         ground_temp_c=cond.ground_temp_c, duration_s=duration_s, measured=True)
+
+
+def simulate_flight(
+    aircraft: Aircraft,
+    fault: FaultState,
+    flight_index: int,
+    rng: np.random.Generator,
+    *,
+    flight_id: str | None = None,
+    started_at: datetime | None = None,
+    duration_s: float = REFERENCE_DURATION_S,
+) -> tuple[FlightLog, FlightSummary]:
+    """Simulate one flight and return its download (format v1) and what the actuators did."""
+    cond = draw_conditions(aircraft, flight_index, rng, started_at=started_at)
+    scenario = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s)
+    res = run_scenario(aircraft, fault, scenario, rng)
+    channels: dict[str, np.ndarray] = {"t": scenario.t.astype(np.float64)}
+    for k, pos in enumerate(POSITIONS):
+        for i, sig in enumerate(_SIGNALS):
+            channels[f"{pos}.{sig}"] = res.signals[:, k, i].astype(np.float32)
+    for k, pos in enumerate(POSITIONS):
+        channels[f"{pos}.x_cmd"] = _q32(scenario.x_cmd[:, k], _X_LSB_M)
+    channels["T_amb"] = _q32(scenario.t_amb, _T_LSB_C)
+    channels["surf_WL"] = _q32(res.surfaces[:, 0], _SURF_LSB_RAD)
+    channels["surf_WT"] = _q32(res.surfaces[:, 1], _SURF_LSB_RAD)
+    meta = FlightMetadata(
+        aircraft=aircraft.tail,
+        flight=flight_id or f"{aircraft.tail}-F{flight_index:05d}",
+        started_at=cond.started_at,
+        block_hours=cond.block_hours,
+        sample_rate_hz=NOMINAL_SAMPLE_RATE_HZ,
+        actuator_serials=dict(aircraft.serials),
+        source=SOURCE,
+    )
+    duration = float(scenario.t[-1]) if scenario.t.size else 0.0
+    return FlightLog(metadata=meta, channels=channels), _summary_from_acc(res.acc, cond, duration)
+
+
+def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Generator, *,
+                     started_at: datetime | None = None,
+                     duration_s: float = REFERENCE_DURATION_S,
+                     conditions: FlightConditions | None = None) -> FlightSummary:
+    """Quasi-static estimate of :class:`FlightSummary` from the scenario alone (no 12 kHz run).
+
+    Travel and sliding work from the command, link force from the aerodynamic load, current from
+    force x lead / (efficiency x torque constant), winding temperature from the same first-order
+    thermal model driven by ambient and copper losses.
+    """
+    cond = conditions or draw_conditions(aircraft, flight_index, rng, started_at=started_at)
+    sc = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s)
+    acts = {}
+    dt = 1.0 / OUT_HZ
+    for k, pos in enumerate(POSITIONS):
+        p = aircraft.ema[pos]
+        x = sc.x_cmd[:, k]
+        f = np.abs(sc.f_ext[:, SURFACE_OF[pos]])
+        dx = np.abs(np.diff(x, prepend=x[0]))
+        kt = 1.5 * p.motor.pole_pairs * p.motor.psi_pm_wb
+        i = (f * p.screw.r_m_per_rad / p.screw.eta_direct + p.screw.coulomb_torque_nm) / kt
+        r_hot = p.motor.r_s_ohm * (1.0 + p.motor.alpha_cu_per_k * (cond.ground_temp_c - 20.0))
+        p_cu = 1.5 * r_hot * i**2
+        rth, cth = p.thermal.r_th_k_per_w, p.thermal.c_th_j_per_k
+        a = 1.0 - dt / (rth * cth)
+        u = sc.t_amb + rth * p_cu
+        t0 = float(sc.t_amb[0] + 3.0)
+        tw, _ = lfilter([1.0 - a], [1.0, -a], u, zi=[a * t0])
+        acts[pos] = ActuatorSummary(
+            winding_mean_c=float(np.mean(tw)), winding_max_c=float(np.max(tw)),
+            current_rms_a=float(np.sqrt(np.mean(i**2))), load_rms_n=float(np.sqrt(np.mean(f**2))),
+            work_screw_n_m=float(np.sum((f + _F_DYN_N) * dx)),
+            work_rod_end_n_m=float(np.sum((f + _F_DYN_N) * dx)),
+            travel_m=float(np.sum(dx)))
+    return FlightSummary(actuators=acts, block_hours=cond.block_hours,
+                         ground_temp_c=cond.ground_temp_c,
+                         duration_s=float(sc.t[-1]) if sc.t.size else 0.0, measured=False)
