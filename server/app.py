@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from fastapi import FastAPI
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -122,11 +120,15 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     for module in (health, aircraft, actuators, health_records, flights, jobs, models_api,
                    keys, test_station):
         app.include_router(module.router, prefix=API_PREFIX)
+    from fastapi.staticfiles import StaticFiles
+
+    from server.web import events as web_events
+    from server.web import routes as web_routes
+
+    app.include_router(web_events.router, prefix=API_PREFIX)
+    app.include_router(web_routes.router)  # dashboard pages; "/" redirects to /fleet
+    app.mount("/static", StaticFiles(directory=web_routes.STATIC_DIR), name="static")
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
     app.add_middleware(SecurityHeadersMiddleware)
-
-    @app.get("/", include_in_schema=False)
-    def root() -> dict[str, Any]:
-        return {"service": "hmsm", "api": API_PREFIX, "docs": "/docs"}
 
     return app

@@ -75,28 +75,16 @@ def cmd_serve(args: argparse.Namespace, settings: Settings) -> int:
 
 
 def cmd_demo(args: argparse.Namespace, settings: Settings) -> int:
-    import uvicorn
+    from server.demo import run_demo
 
-    from server.app import create_app
-    from server.auth import create_key
-    from server.db import session_scope
-
-    app = create_app(settings)
-    keys = {}
-    with session_scope(app.state.session_factory) as session:
-        for role in ("admin", "uploader", "operator", "viewer"):
-            keys[role] = create_key(session=session, name=f"demo-{role}", role=role)[1]
-    host = args.host or settings.host
-    port = args.port if args.port is not None else settings.port
-    print("\nHMSM demo")
-    print(f"  API:      http://{host}:{port}/api/v1   (OpenAPI: http://{host}:{port}/docs)")
-    print(f"  data dir: {settings.data_dir}")
-    for role, key in keys.items():
-        print(f"  {role:8s} key: {key}")
-    print("  try: curl -H 'Authorization: Bearer <viewer key>' "
-          f"http://{host}:{port}/api/v1/aircraft\n", flush=True)
-    uvicorn.run(app, host=host, port=port, log_level=args.log_level)
-    return 0
+    if not settings.is_sqlite:
+        print("hmsm: the demo runs on the embedded SQLite database; unset HMSM_DATABASE_URL",
+              file=sys.stderr)
+        return 2
+    return run_demo(settings, host=args.host or settings.host,
+                    port=args.port if args.port is not None else settings.port,
+                    n_aircraft=args.aircraft, rate=args.rate, seed=args.seed,
+                    log_level=args.log_level)
 
 
 def cmd_worker(args: argparse.Namespace, settings: Settings) -> int:
@@ -211,7 +199,11 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=text)
         p.add_argument("--host", default=None, help="bind address (default HMSM_HOST, 127.0.0.1)")
         p.add_argument("--port", type=int, default=None, help="port (default HMSM_PORT, 8000)")
-        p.add_argument("--log-level", default="info")
+        p.add_argument("--log-level", default="info" if name == "serve" else "warning")
+        if name == "demo":
+            p.add_argument("--aircraft", type=int, default=10, help="simulated aircraft")
+            p.add_argument("--rate", type=float, default=30.0, help="flights per minute")
+            p.add_argument("--seed", type=int, default=1)
         p.set_defaults(func=func)
     return parser
 

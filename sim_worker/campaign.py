@@ -32,7 +32,7 @@ from .faults import (
     PROGRESSIVE,
     ActuatorSummary,
     FaultState,
-     advance_fault,
+    advance_fault,
     healthy,
     new_fault,
 )
@@ -63,13 +63,15 @@ class ScaleConfig:
 
 
 SCALES: dict[str, dict[str, ScaleConfig]] = {
+    # Quick scale: big enough for honest statistics in CI (>= 250 healthy verification
+    # flights on 10 aircraft, >= 3 patterns per mode), small enough for ~1 min per campaign.
     "quick": {
-        "design": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=4,
-                              patterns_per_mode=2, render_every=25, apriori_flights=4,
-                              apriori_onset=1),
-        "verification": ScaleConfig(duration_s=60.0, healthy_patterns=5, healthy_flights=2,
-                                    patterns_per_mode=2, render_every=40, apriori_flights=4,
-                                    apriori_onset=1),
+        "design": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=12,
+                              patterns_per_mode=4, render_every=20, apriori_flights=6,
+                              apriori_onset=2),
+        "verification": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=25,
+                                    patterns_per_mode=3, render_every=20, apriori_flights=6,
+                                    apriori_onset=2),
     },
     "paper": {
         "design": ScaleConfig(duration_s=120.0, healthy_patterns=10, healthy_flights=50,

@@ -27,7 +27,47 @@ def build_parser() -> argparse.ArgumentParser:
                       help="worker processes (default: all cores); results do not depend on it")
     camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     camp.set_defaults(func=_cmd_campaign)
+
+    run = sub.add_parser("run", help="fly the simulated fleet against a running HMSM")
+    run.add_argument("--api", required=True, help="HMSM base URL, e.g. http://127.0.0.1:8000")
+    run.add_argument("--key", required=True, help="API key that may upload (and register "
+                     "aircraft: admin)")
+    run.add_argument("--operator-key", default=None,
+                     help="key for test-station reports (default: --key)")
+    run.add_argument("--aircraft", type=int, default=10, help="number of simulated aircraft")
+    run.add_argument("--rate", type=float, default=20.0, help="flights per minute, whole fleet")
+    run.add_argument("--seed", type=int, default=0)
+    run.add_argument("--duration", type=float, default=120.0,
+                     help="seconds of actuator activity recorded per flight")
+    run.add_argument("--max-flights", type=int, default=None, help="stop after this many")
+    run.set_defaults(func=_cmd_run)
     return parser
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    import logging
+    import signal
+    import threading
+
+    from .service import Api, ApiError, SimFleetRunner
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    api = Api(args.api, args.key, operator_key=args.operator_key, stop=stop.is_set)
+    runner = SimFleetRunner(api, n_aircraft=args.aircraft, rate_per_min=args.rate,
+                            seed=args.seed, duration_s=args.duration, sleep=stop.wait)
+    try:
+        flown = runner.run(max_flights=args.max_flights, stop=stop.is_set)
+    except ApiError as exc:
+        print(f"sim-worker: the HMSM refused a request: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        api.close()
+    print(f"sim-worker: {flown} flights flown")
+    return 0
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:

@@ -131,20 +131,24 @@ def driver(mode: str, s: ActuatorSummary, block_hours: float) -> float:
 
 
 def new_fault(mode: str, position: str, rng: np.random.Generator, *,
-              reference: ActuatorSummary | None = None) -> FaultState:
+              reference: ActuatorSummary | None = None, span_flights: float | None = None,
+              severity_norm: float | None = None) -> FaultState:
     """A fault at onset. Progressive modes draw the rate so that, at the ``reference`` flight
-    (the base's average conditions), failure comes after U(170, 360) flights."""
+    (the base's average conditions), failure comes after U(170, 360) flights, or after
+    ``span_flights`` when a test-station operator sets it. ``severity_norm`` imposes the
+    severity of an a priori fault (SE) as a fraction of its threshold."""
     if mode not in MODES:
         raise ValueError(f"unknown fault mode {mode!r}")
     thr = THRESHOLDS[mode]
     if mode == "SE":
-        return FaultState(mode, position, float(rng.uniform(0.12, 0.35)), thr,
-                          phase_rad=float(rng.uniform(0.0, 2.0 * math.pi)))
+        drawn = float(rng.uniform(0.12, 0.35))
+        return FaultState(mode, position, drawn if severity_norm is None else severity_norm * thr,
+                          thr, phase_rad=float(rng.uniform(0.0, 2.0 * math.pi)))
     if mode == "BDO":
         return FaultState(mode, position, 1.0, thr)
     if reference is None:
         raise ValueError("progressive modes need a reference flight summary to set the rate")
-    span = float(rng.uniform(*_SPAN_FLIGHTS))
+    span = float(rng.uniform(*_SPAN_FLIGHTS)) if span_flights is None else float(span_flights)
     c = _GROWTH_C[mode]
     d_ref = max(driver(mode, reference, _BLOCK_HOURS_REF), 1e-9)
     rate = math.log((1.0 + c) / (_ONSET_NORM + c)) / (span * d_ref)

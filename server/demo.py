@@ -1,0 +1,147 @@
+"""``hmsm demo``: the whole system on one machine with the embedded database.
+
+Upgrades the database, trains a quick model if none is active (simulating a quick design
+campaign first), registers the simulated fleet with a few faults already injected, then runs
+the API, one analysis worker and the sim worker together, and prints the URL and the keys.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from sqlalchemy import select
+
+from server.config import Settings
+
+__all__ = ["DEMO_INJECTIONS", "prepare_demo", "run_demo"]
+
+# (tail, position, mode, onset flight, flights to failure): short lives so that alarms and RUL
+# cones appear within minutes at the demo's flight rate.
+DEMO_INJECTIONS = [
+    ("SIM01", "WL1", "MTWEAR", 3, 60),
+    ("SIM02", "WT", "DMD", 3, 70),
+    ("SIM04", "WL2", "REWEAR", 2, 50),
+    ("SIM06", "WT", "BDO", 4, None),
+    ("SIM08", "WL1", "TTS", 3, 60),
+]
+
+
+def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str, str]:
+    """Model, fleet, injections and keys; return the keys by role."""
+    from tqdm import tqdm
+
+    from server.auth import create_key
+    from server.db import make_engine, make_session_factory, session_scope
+    from server.jobs.training_job import campaign_dir_for, train_into_version
+    from server.migrate import ensure_schema
+    from server.models import Aircraft, ModelVersion
+    from server.services import fleet, test_station
+    from server.services import models as model_service
+    from sim_worker.service import fleet_plan
+
+    engine = make_engine(settings.effective_database_url)
+    ensure_schema(engine, settings.effective_database_url, auto_upgrade=True)
+    factory = make_session_factory(engine)
+    with factory() as session:
+        has_model = session.scalar(select(ModelVersion.id).where(ModelVersion.active.is_(True)))
+    if has_model is None:
+        design = campaign_dir_for(settings.data_dir, "demo-design")
+        if not (design / "manifest.json").exists():
+            print("simulating a quick design campaign (about a minute on 2 cores)...",
+                  flush=True)
+            from sim_worker import run_campaign
+
+            run_campaign("design", design, seed=seed, scale="quick", progress=True)
+        with session_scope(factory) as session:
+            version = model_service.create_version(session=session, name="demo-quick",
+                                                   training={"campaign": str(design)})
+            version_id = version.id
+        bar = tqdm(total=100, desc="training the demo model", unit="%")
+
+        def progress(stage: str, fraction: float) -> None:
+            bar.set_postfix_str(stage)
+            bar.update(max(0, int(round(100 * fraction)) - bar.n))
+
+        train_into_version(factory, version_id, design, seed=seed, activate=True,
+                           progress=progress)
+        bar.close()
+
+    with session_scope(factory) as session:
+        for aircraft in fleet_plan(n_aircraft, seed):
+            if session.scalar(select(Aircraft.id).where(Aircraft.tail == aircraft.tail)) is None:
+                fleet.create_aircraft(session=session, tail=aircraft.tail, base=aircraft.base,
+                                      serials=dict(aircraft.serials))
+    for tail, position, mode, onset, ttf in DEMO_INJECTIONS:
+        if int(tail[3:]) > n_aircraft:
+            continue
+        with factory() as session:
+            try:
+                test_station.create_injection(session=session, tail=tail, position=position,
+                                              fault_mode=mode, onset_flight=onset,
+                                              time_to_failure_flights=ttf, severity=None,
+                                              created_by="demo")
+                session.commit()
+            except Exception:  # already injected on an earlier run of the demo
+                session.rollback()
+    keys: dict[str, str] = {}
+    with session_scope(factory) as session:
+        for role in ("admin", "operator", "uploader", "viewer"):
+            keys[role] = create_key(session=session, name=f"demo-{role}", role=role)[1]
+    engine.dispose()
+    return keys
+
+
+def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate: float,
+             seed: int, log_level: str) -> int:
+    import uvicorn
+
+    from server.app import create_app
+
+    keys = prepare_demo(settings, n_aircraft=n_aircraft, seed=seed)
+    app = create_app(settings)
+    url = f"http://{host}:{port}"
+    env = {**os.environ, "HMSM_DATA_DIR": str(settings.data_dir)}
+    if settings.database_url:
+        env["HMSM_DATABASE_URL"] = settings.database_url
+    logs = settings.data_dir / "logs"
+    logs.mkdir(parents=True, exist_ok=True)
+    children: list[subprocess.Popen[bytes]] = []
+
+    def start(name: str, argv: list[str]) -> None:
+        out = open(logs / f"{name}.log", "ab")  # noqa: SIM115 - closed with the process
+        children.append(subprocess.Popen(argv, env=env, stdout=out, stderr=subprocess.STDOUT))
+
+    def stop_children(*_: object) -> None:
+        for child in children:
+            if child.poll() is None:
+                child.terminate()
+        for child in children:
+            try:
+                child.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                child.kill()
+
+    start("worker", [sys.executable, "-m", "server.cli", "worker"])
+    start("sim-worker", [sys.executable, "-m", "sim_worker.cli", "run", "--api", url, "--key",
+                         keys["admin"], "--aircraft", str(n_aircraft), "--rate", str(rate),
+                         "--seed", str(seed), "--duration", "60"])
+    print("\nHMSM demo is running")
+    print(f"  dashboard: {url}/            API: {url}/api/v1   OpenAPI: {url}/docs")
+    print(f"  data dir:  {settings.data_dir}   logs: {logs}")
+    for role, key in keys.items():
+        print(f"  {role:8s} key: {key}")
+    print(f"  {n_aircraft} simulated aircraft fly {rate:g} flights a minute; faults injected: "
+          + ", ".join(f"{t}/{p} {m}" for t, p, m, _, _ in DEMO_INJECTIONS
+                      if int(t[3:]) <= n_aircraft))
+    print("  Ctrl-C stops everything.\n", flush=True)
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    try:
+        uvicorn.run(app, host=host, port=port, log_level=log_level)
+    finally:
+        stop_children()
+        time.sleep(0.1)
+    return 0

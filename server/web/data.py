@@ -1,0 +1,232 @@
+"""View models of the dashboard pages: plain dicts assembled from the same services as the API.
+
+Nothing here renders HTML or touches the request; each function takes ``*, session`` and returns
+data the templates and :mod:`server.web.figures` consume. Query counts are fixed per page (the
+fleet page: the two queries of :func:`server.services.health.fleet_grid`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from scipy.special import ndtri
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from server.flightlog import POSITIONS
+from server.models import FAULT_MODES, Flight, ModelVersion
+from server.services import fleet as fleet_service
+from server.services import health as health_service
+from server.services import models as model_service
+from server.services import test_station as station_service
+
+__all__ = ["PAPER_TABLE2", "STATUS_RANK", "fleet_view", "alarms_view", "actuator_view",
+           "models_view", "station_view", "evaluation_view", "health_dict", "prognosis_dict"]
+
+#: the paper's Table 2: prognostic horizon [-] and relative accuracy [%] per progressive mode
+PAPER_TABLE2: dict[str, tuple[float, float]] = {
+    "TTS": (0.11, 64.3), "DMD": (0.55, 75.3), "MTEL": (0.15, 78.2), "MTWEAR": (0.82, 81.2),
+    "REWEAR": (0.65, 79.3),
+}
+STATUS_RANK = {"red": 0, "amber": 1, "green": 2}
+DEFAULT_BAND = 3.0
+ALARM_CONFIDENCE = 0.98
+
+
+def fleet_view(*, session: Session, sort: str = "rul", base: str | None = None,
+               status: str | None = None) -> dict[str, Any]:
+    """Aircraft rows x positions, sorted by RUL (shortest first) or tail; filtered."""
+    cells = health_service.fleet_grid(session=session)
+    bases = sorted({c.base for c in cells})
+    by_tail: dict[str, dict[str, Any]] = {}
+    for c in cells:
+        row = by_tail.setdefault(c.tail, {"tail": c.tail, "base": c.base, "cells": {}})
+        row["cells"][c.position] = c
+    counts = {s: sum(1 for c in cells if c.status == s) for s in STATUS_RANK}
+    rows = list(by_tail.values())
+    for row in rows:
+        present = list(row["cells"].values())
+        row["worst"] = min((c.status for c in present), key=STATUS_RANK.__getitem__,
+                           default="green")
+        ruls = [c.rul_median for c in present if c.rul_median is not None]
+        row["min_rul"] = min(ruls) if ruls else None
+    if base:
+        rows = [r for r in rows if r["base"] == base]
+    if status in STATUS_RANK:
+        rows = [r for r in rows if any(c.status == status for c in r["cells"].values())]
+    if sort == "tail":
+        rows.sort(key=lambda r: r["tail"])
+    else:
+        rows.sort(key=lambda r: (r["min_rul"] is None, r["min_rul"] or 0.0,
+                                 STATUS_RANK[r["worst"]], r["tail"]))
+    return {"rows": rows, "positions": POSITIONS, "bases": bases, "counts": counts,
+            "sort": "tail" if sort == "tail" else "rul", "base": base or "",
+            "status": status if status in STATUS_RANK else "", "n_actuators": len(cells)}
+
+
+def alarms_view(*, session: Session, status: str | None, limit: int = 200) -> dict[str, Any]:
+    rows, total = health_service.list_alarms(session=session, status=status, tail=None,
+                                             limit=limit, offset=0)
+    items = [{"alarm": a, "actuator": act, "tail": tail,
+              "priority": health_service.alarm_priority(a.confidence, a.fault_mode,
+                                                        a.rul_median_flights)}
+             for a, act, tail in rows]
+    return {"items": items, "total": total, "status": status or ""}
+
+
+def health_dict(row: Any) -> dict[str, Any]:
+    return {"flight_index": row.flight_index, "features": row.features, "scores": row.scores,
+            "confidence": row.confidence, "alarm": row.alarm,
+            "class_probabilities": row.class_probabilities}
+
+
+def prognosis_dict(row: Any) -> dict[str, Any]:
+    return {"flight_index": row.flight_index, "flight_id": row.flight_id,
+            "fault_mode": row.fault_mode, "severity_mean": row.severity_mean,
+            "severity_std": row.severity_std, "rul_quantiles": row.rul_quantiles,
+            "p_fail_within": row.p_fail_within, "histogram": row.histogram}
+
+
+def detector_levels(payload: Mapping[str, Any] | None, features: Sequence[str]
+                    ) -> tuple[float, float]:
+    """(healthy band, single-flight alarm threshold) in standard errors for the plotted
+    features: the detector's one-flight band (median over the features), + Phi^-1(0.98)."""
+    det = (payload or {}).get("detector") or {}
+    names = list(det.get("feature_names") or [])
+    band = det.get("band") or []
+    values = []
+    for f in features:
+        if f in names:
+            row = band[names.index(f)] if names.index(f) < len(band) else None
+            if isinstance(row, list) and row:
+                values.append(float(row[0]))
+    b = sorted(values)[len(values) // 2] if values else DEFAULT_BAND
+    level = float(det.get("alarm_confidence", ALARM_CONFIDENCE))
+    return b, b + float(ndtri(level))
+
+
+def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> dict[str, Any]:
+    actuator = fleet_service.get_actuator(session=session, actuator_id=actuator_id)
+    tail = actuator.aircraft.tail
+    records = [health_dict(r) for r in health_service.health_records(
+        session=session, actuator_id=actuator_id, limit=limit)]
+    progs_rows = health_service.prognoses(session=session, actuator_id=actuator_id, limit=limit)
+    progs = [prognosis_dict(p) for p in progs_rows]
+    history, _ = fleet_service.list_actuators(session=session, tail=tail,
+                                              position=actuator.position, installed=None,
+                                              limit=100, offset=0)
+    previous = [a for a in history if a.id != actuator.id]
+    alarms, _ = health_service.list_alarms(session=session, status=None, tail=tail, limit=500,
+                                           offset=0)
+    own_alarms = [a for a, act, _t in alarms if act.id == actuator.id]
+
+    # Ground truth from the test station: injections at this aircraft/position, aligned to the
+    # prognoses through the flight codes of the flights those prognoses were made on.
+    injections, _ = station_service.list_injections(session=session, tail=tail, status=None,
+                                                    limit=100, offset=0)
+    truth_by_code: dict[str, float] = {}
+    for inj, _t in injections:
+        if inj.position != actuator.position:
+            continue
+        for gt in station_service.list_ground_truth(session=session, injection_id=inj.id):
+            if gt.true_rul_flights is not None:
+                truth_by_code[gt.flight_code] = float(gt.true_rul_flights)
+    truth: dict[int, float] = {}
+    if truth_by_code and progs:
+        codes = dict(session.execute(select(Flight.id, Flight.flight_code).where(
+            Flight.id.in_([p["flight_id"] for p in progs]))).all())
+        for p in progs:
+            code = codes.get(p["flight_id"])
+            if code in truth_by_code:
+                truth[p["flight_index"]] = truth_by_code[code]
+
+    z_names = sorted({n for r in records for n in (r["scores"] or {}).get("z", {})})
+    model_id = next((r.model_version_id for r in reversed(
+        health_service.health_records(session=session, actuator_id=actuator_id, limit=1))),
+        None)
+    model_row = session.get(ModelVersion, model_id) if model_id else session.scalar(
+        select(ModelVersion).where(ModelVersion.active.is_(True)))
+    band, threshold = detector_levels(model_row.payload if model_row else None, z_names)
+    latest = records[-1] if records else None
+    return {"actuator": actuator, "tail": tail, "records": records, "prognoses": progs,
+            "truth": truth, "previous": previous, "alarms": own_alarms, "band": band,
+            "threshold": threshold, "latest": latest, "latest_prognosis":
+            progs[-1] if progs else None}
+
+
+def models_view(*, session: Session, model_id: int | None) -> dict[str, Any]:
+    versions = model_service.list_versions(session=session)
+    chosen = None
+    if model_id is not None:
+        chosen = next((v for v in versions if v.id == model_id), None)
+    if chosen is None:
+        chosen = next((v for v in versions if v.active), None) or next(
+            (v for v in versions if (v.metrics or {}).get("confusion")), None)
+    confusion = (chosen.metrics or {}).get("confusion") if chosen else None
+    per_class = []
+    if confusion:
+        for i, c in enumerate(confusion.get("classes", [])):
+            per_class.append({
+                "cls": c, "support": _at(confusion.get("support"), i),
+                "recall": _at(confusion.get("recall"), i),
+                "precision": _at(confusion.get("precision"), i)})
+    return {"versions": versions, "chosen": chosen, "confusion": confusion,
+            "per_class": per_class}
+
+
+def _at(values: Any, i: int) -> Any:
+    return values[i] if isinstance(values, list) and i < len(values) else None
+
+
+def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
+    rows, total = station_service.list_injections(session=session, tail=None, status=None,
+                                                  limit=limit, offset=0)
+    items = []
+    for inj, tail in rows:
+        truth = station_service.list_ground_truth(session=session, injection_id=inj.id)
+        items.append({"injection": inj, "tail": tail, "truth_count": len(truth),
+                      "truth_latest": truth[-1] if truth else None})
+    aircraft, _ = fleet_service.list_aircraft(session=session, base=None, limit=1000, offset=0)
+    return {"items": items, "total": total, "tails": [a.tail for a in aircraft],
+            "positions": POSITIONS, "modes": FAULT_MODES,
+            "progressive": station_service.PROGRESSIVE}
+
+
+def evaluation_view(*, data_dir: Path) -> dict[str, Any]:
+    """The paper's Table 2 beside ours (``<data_dir>/evaluation/latest.json`` if present)."""
+    path = data_dir / "evaluation" / "latest.json"
+    ours: dict[str, Any] | None = None
+    error = None
+    if path.exists():
+        try:
+            doc = json.loads(path.read_text())
+            ours = dict(doc.get("prognosis") or {})
+        except (OSError, ValueError, AttributeError) as exc:
+            error = f"{path.name} could not be read: {exc.__class__.__name__}"
+    rows = []
+    for mode, (ph, ra) in PAPER_TABLE2.items():
+        mine = (ours or {}).get(mode) or {}
+        rows.append({"mode": mode, "paper_ph": ph, "paper_ra": ra,
+                     "ph": _num(mine.get("ph")), "ra": _percent(mine.get("ra"))})
+    return {"rows": rows, "has_ours": ours is not None, "error": error,
+            "path": "evaluation/latest.json"}
+
+
+def _num(v: Any) -> float | None:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def _percent(v: Any) -> float | None:
+    """RA as a percentage; values in [0, 1] are read as fractions."""
+    f = _num(v)
+    if f is None:
+        return None
+    return 100.0 * f if abs(f) <= 1.0 else f

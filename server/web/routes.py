@@ -1,0 +1,333 @@
+"""Dashboard pages (server-rendered Jinja2) and their form posts.
+
+Handlers are thin: authenticate from the ``hmsm_session`` cookie, call the same services as the
+JSON API (through :mod:`server.web.data`), build figures with :mod:`server.web.figures`, render.
+
+Security:
+
+* the session cookie holds the API key the user pasted: ``HttpOnly``, ``SameSite=Strict``,
+  ``Secure`` on https, ``Path=/``;
+* every form post carries a CSRF token bound to the cookie (HMAC-SHA256 of a fixed label keyed
+  by the cookie value, so it needs no server-side state and cannot be computed by a page that
+  cannot read the cookie) and, when the browser sends an ``Origin``, it must be our own;
+* roles are enforced here as in the API (``server.auth.may``); the templates only hide controls.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+from functools import cache
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote, urlsplit
+
+import plotly
+from fastapi import APIRouter, Form, Request
+from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
+from fastapi.templating import Jinja2Templates
+from pydantic import ValidationError
+
+import web
+from server.api.deps import SessionDep, SettingsDep
+from server.auth import authenticate, may
+from server.errors import DomainError
+from server.models import ApiKey
+from server.services import fleet as fleet_service
+from server.services import health as health_service
+from server.services import models as model_service
+from server.services import test_station as station_service
+from server.web import data, figures
+
+__all__ = ["router", "COOKIE", "STATIC_DIR", "TEMPLATE_DIR", "csrf_token"]
+
+COOKIE = "hmsm_session"
+WEB_DIR = Path(web.__file__).resolve().parent
+TEMPLATE_DIR = WEB_DIR / "templates"
+STATIC_DIR = WEB_DIR / "static"
+PLOTLY_JS = Path(plotly.__file__).resolve().parent / "package_data" / "plotly.min.js"
+_NO_STORE = {"Cache-Control": "no-store"}
+
+router = APIRouter(include_in_schema=False)
+
+
+@cache
+def templates() -> Jinja2Templates:
+    t = Jinja2Templates(directory=str(TEMPLATE_DIR))
+    t.env.autoescape = True
+    t.env.globals["figure_json"] = figures.figure_json
+    return t
+
+
+def csrf_token(session_cookie: str) -> str:
+    return hmac.new(session_cookie.encode(), b"hmsm-dashboard-csrf", hashlib.sha256).hexdigest()
+
+
+def _key(request: Request, session: SessionDep) -> ApiKey | None:
+    token = request.cookies.get(COOKIE)
+    return authenticate(session=session, plaintext=token) if token else None
+
+
+def _signin_redirect(request: Request) -> RedirectResponse:
+    target = request.url.path + (f"?{request.url.query}" if request.url.query else "")
+    return RedirectResponse(f"/signin?next={quote(target, safe='')}", status_code=303)
+
+
+def _safe_next(value: str | None) -> str:
+    """Only local absolute paths (no scheme, no host, no ``//``) are followed after sign-in."""
+    if not value or not value.startswith("/") or value.startswith("//") or "\\" in value:
+        return "/fleet"
+    parts = urlsplit(value)
+    return "/fleet" if parts.scheme or parts.netloc else value
+
+
+def _render(request: Request, name: str, key: ApiKey | None, status_code: int = 200,
+            **context: Any) -> HTMLResponse:
+    cookie = request.cookies.get(COOKIE, "")
+    ctx = {"key": key, "role": key.role if key else None,
+           "can": {"admin": bool(key and may(key.role, "admin")),
+                   "operate": bool(key and may(key.role, "operate"))},
+           "csrf": csrf_token(cookie) if cookie and key else "",
+           "nav": name.removesuffix(".html"), **context}
+    return templates().TemplateResponse(request, name, ctx, status_code=status_code,
+                                        headers=_NO_STORE)
+
+
+def _problem(request: Request, key: ApiKey | None, status: int, message: str) -> HTMLResponse:
+    return _render(request, "error.html", key, status_code=status, status=status,
+                   message=message)
+
+
+def _check_post(request: Request, session: SessionDep, csrf: str, action: str
+                ) -> ApiKey | Response:
+    """The key behind a form post, or the response refusing it (sign-in, 403)."""
+    key = _key(request, session)
+    if key is None:
+        return _signin_redirect(request)
+    origin = request.headers.get("origin")
+    if origin is not None and origin != "null":
+        own = f"{request.url.scheme}://{request.url.netloc}"
+        if origin != own:
+            return _problem(request, key, 403, "Cross-origin form post refused.")
+    expected = csrf_token(request.cookies.get(COOKIE, ""))
+    if not csrf or not hmac.compare_digest(csrf, expected):
+        return _problem(request, key, 403, "The form is stale or was not sent by this "
+                        "dashboard (CSRF token mismatch); reload the page and try again.")
+    if not may(key.role, action):
+        return _problem(request, key, 403, f"Role '{key.role}' may not do this.")
+    return key
+
+
+# ------------------------------------------------------------------------------------------
+# sign in / out, static
+# ------------------------------------------------------------------------------------------
+
+
+@router.get("/")
+def root() -> RedirectResponse:
+    return RedirectResponse("/fleet", status_code=307)
+
+
+@router.get("/static/vendor/plotly.min.js")
+def plotly_js() -> FileResponse:
+    """plotly.js from the installed ``plotly`` package (never a CDN)."""
+    return FileResponse(PLOTLY_JS, media_type="text/javascript",
+                        headers={"Cache-Control": "public, max-age=86400"})
+
+
+@router.get("/signin", response_class=HTMLResponse)
+def signin_form(request: Request, session: SessionDep, next: str | None = None) -> Response:
+    return _render(request, "signin.html", _key(request, session), next=_safe_next(next),
+                   error=None)
+
+
+@router.post("/signin", response_class=HTMLResponse)
+def signin(request: Request, session: SessionDep, key: str = Form(""),
+           next: str = Form("/fleet")) -> Response:
+    row = authenticate(session=session, plaintext=key.strip())
+    if row is None:
+        return _render(request, "signin.html", None, status_code=401, next=_safe_next(next),
+                       error="That key is unknown or revoked.")
+    response = RedirectResponse(_safe_next(next), status_code=303)
+    response.set_cookie(COOKIE, key.strip(), httponly=True, samesite="strict", path="/",
+                        secure=request.url.scheme == "https", max_age=12 * 3600)
+    return response
+
+
+@router.post("/signout")
+def signout(request: Request) -> Response:
+    response = RedirectResponse("/signin", status_code=303)
+    response.delete_cookie(COOKIE, path="/", httponly=True, samesite="strict",
+                           secure=request.url.scheme == "https")
+    return response
+
+
+# ------------------------------------------------------------------------------------------
+# pages
+# ------------------------------------------------------------------------------------------
+
+
+@router.get("/fleet", response_class=HTMLResponse)
+def fleet_page(request: Request, session: SessionDep, sort: str = "rul",
+               base: str | None = None, status: str | None = None) -> Response:
+    key = _key(request, session)
+    if key is None:
+        return _signin_redirect(request)
+    return _render(request, "fleet.html", key,
+                   **data.fleet_view(session=session, sort=sort, base=base or None,
+                                     status=status or None))
+
+
+@router.get("/alarms", response_class=HTMLResponse)
+def alarms_page(request: Request, session: SessionDep, status: str | None = None) -> Response:
+    key = _key(request, session)
+    if key is None:
+        return _signin_redirect(request)
+    status = status if status in ("open", "acknowledged", "closed") else None
+    return _render(request, "alarms.html", key, **data.alarms_view(session=session,
+                                                                   status=status))
+
+
+def _alarm_action(request: Request, session: SessionDep, alarm_id: int, note: str, csrf: str,
+                  back: str, action: str) -> Response:
+    key = _check_post(request, session, csrf, "admin")
+    if not isinstance(key, ApiKey):
+        return key
+    fn = (health_service.acknowledge_alarm if action == "acknowledge"
+          else health_service.close_alarm)
+    try:
+        fn(session=session, alarm_id=alarm_id, by=key.name, note=note.strip()[:2000] or None)
+    except DomainError as exc:
+        return _problem(request, key, exc.status_code, exc.message)
+    session.commit()
+    return RedirectResponse(_safe_next(back or "/alarms"), status_code=303)
+
+
+@router.post("/alarms/{alarm_id}/acknowledge")
+def acknowledge(request: Request, session: SessionDep, alarm_id: int, note: str = Form(""),
+                csrf: str = Form(""), back: str = Form("/alarms")) -> Response:
+    return _alarm_action(request, session, alarm_id, note, csrf, back, "acknowledge")
+
+
+@router.post("/alarms/{alarm_id}/close")
+def close(request: Request, session: SessionDep, alarm_id: int, note: str = Form(""),
+          csrf: str = Form(""), back: str = Form("/alarms")) -> Response:
+    return _alarm_action(request, session, alarm_id, note, csrf, back, "close")
+
+
+@router.get("/actuators/{actuator_id}", response_class=HTMLResponse)
+def actuator_page(request: Request, session: SessionDep, actuator_id: int) -> Response:
+    key = _key(request, session)
+    if key is None:
+        return _signin_redirect(request)
+    try:
+        view = data.actuator_view(session=session, actuator_id=actuator_id)
+    except DomainError as exc:
+        return _problem(request, key, exc.status_code, exc.message)
+    figs = {
+        "trends": figures.feature_trends(view["records"], band=view["band"],
+                                         threshold=view["threshold"]),
+        "confidence": figures.detection_confidence(view["records"]),
+        "classes": figures.class_probabilities(view["records"]),
+        "severity": figures.severity_band(view["prognoses"]),
+        "cone": figures.rul_cone(view["prognoses"], view["truth"]),
+        "histogram": figures.rul_histogram(view["latest_prognosis"]),
+    }
+    return _render(request, "actuator.html", key, figs=figs, **view)
+
+
+@router.post("/actuators/{actuator_id}/replace")
+def replace(request: Request, session: SessionDep, actuator_id: int,
+            new_serial: str = Form(""), note: str = Form(""), csrf: str = Form("")
+            ) -> Response:
+    key = _check_post(request, session, csrf, "admin")
+    if not isinstance(key, ApiKey):
+        return key
+    serial = new_serial.strip()
+    if not serial or len(serial) > 64:
+        return _problem(request, key, 422, "A new serial (1-64 characters) is required.")
+    try:
+        new = fleet_service.replace_actuator(session=session, actuator_id=actuator_id,
+                                             new_serial=serial, note=note.strip() or None)
+    except DomainError as exc:
+        return _problem(request, key, exc.status_code, exc.message)
+    session.commit()
+    return RedirectResponse(f"/actuators/{new.id}", status_code=303)
+
+
+@router.get("/models", response_class=HTMLResponse)
+def models_page(request: Request, session: SessionDep, id: int | None = None) -> Response:
+    key = _key(request, session)
+    if key is None:
+        return _signin_redirect(request)
+    view = data.models_view(session=session, model_id=id)
+    fig = figures.confusion_matrix(view["confusion"]) if view["confusion"] else None
+    return _render(request, "models.html", key, fig=fig, **view)
+
+
+@router.post("/models/{model_id}/activate")
+def activate(request: Request, session: SessionDep, model_id: int, csrf: str = Form("")
+             ) -> Response:
+    key = _check_post(request, session, csrf, "admin")
+    if not isinstance(key, ApiKey):
+        return key
+    try:
+        model_service.activate(session=session, version_id=model_id)
+    except DomainError as exc:
+        return _problem(request, key, exc.status_code, exc.message)
+    session.commit()
+    return RedirectResponse(f"/models?id={model_id}", status_code=303)
+
+
+@router.get("/test-station", response_class=HTMLResponse)
+def station_page(request: Request, session: SessionDep) -> Response:
+    key = _key(request, session)
+    if key is None:
+        return _signin_redirect(request)
+    return _render(request, "test_station.html", key, error=None, form={},
+                   **data.station_view(session=session))
+
+
+@router.post("/test-station/injections")
+def inject(request: Request, session: SessionDep, csrf: str = Form(""),
+           aircraft: str = Form(""), position: str = Form(""), fault_mode: str = Form(""),
+           onset_flight: str = Form("0"), time_to_failure_flights: str = Form("")
+           ) -> Response:
+    key = _check_post(request, session, csrf, "operate")
+    if not isinstance(key, ApiKey):
+        return key
+    from server.api.test_station import InjectionCreate
+
+    form = {"aircraft": aircraft, "position": position, "fault_mode": fault_mode,
+            "onset_flight": onset_flight, "time_to_failure_flights": time_to_failure_flights}
+    try:
+        body = InjectionCreate.model_validate({
+            "aircraft": aircraft, "position": position, "fault_mode": fault_mode,
+            "onset_flight": onset_flight or 0,
+            "time_to_failure_flights": time_to_failure_flights or None})
+        station_service.create_injection(
+            session=session, tail=body.aircraft, position=body.position,
+            fault_mode=body.fault_mode, onset_flight=body.onset_flight,
+            time_to_failure_flights=body.time_to_failure_flights, severity=body.severity,
+            created_by=key.name)
+    except ValidationError as exc:
+        msg = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"
+                        for e in exc.errors())
+        session.rollback()
+        return _render(request, "test_station.html", key, status_code=422, error=msg,
+                       form=form, **data.station_view(session=session))
+    except DomainError as exc:
+        session.rollback()
+        return _render(request, "test_station.html", key, status_code=exc.status_code,
+                       error=exc.message, form=form, **data.station_view(session=session))
+    session.commit()
+    return RedirectResponse("/test-station", status_code=303)
+
+
+@router.get("/evaluation", response_class=HTMLResponse)
+def evaluation_page(request: Request, session: SessionDep, settings: SettingsDep) -> Response:
+    key = _key(request, session)
+    if key is None:
+        return _signin_redirect(request)
+    return _render(request, "evaluation.html", key,
+                   **data.evaluation_view(data_dir=settings.data_dir))

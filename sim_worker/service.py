@@ -1,0 +1,299 @@
+"""The sim worker as a service: fly the simulated fleet, honour test-station injections, upload
+every flight over REST and report ground truth (``sim-worker run``).
+
+Per aircraft and flight number ``n`` (flight id ``<tail>-F<n:05d>``), in this order:
+
+1. pick up the aircraft's live injection (pending -> active at its onset flight; a cancelled
+   injection or a replaced actuator clears the fault);
+2. report the ground truth of flight ``n`` (true severity during the flight) -- idempotent;
+3. simulate flight ``n`` and upload it -- idempotent: the same seed gives the same bytes, and
+   the service answers 200 for bytes it already has;
+4. advance the fault by its law from what the flight did; at the failure threshold mark the
+   injection failed and back-fill the true RUL of every reported flight (the true RUL is only
+   known in hindsight).
+
+Every request is retried with exponential backoff until it succeeds, so an API outage delays
+flights but never loses or duplicates one. On restart the worker resumes at the last flight it
+uploaded or reported (re-running it is harmless) with the severity from its ground truth.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import httpx
+import numpy as np
+
+from server.flightlog import write_parquet
+
+from .faults import FaultState, advance_fault, healthy, new_fault
+from .fleet import Aircraft, build_aircraft
+from .flight import estimate_summary, flight_start, simulate_flight
+
+__all__ = ["Api", "ApiError", "SimFleetRunner", "fleet_plan"]
+
+log = logging.getLogger("sim_worker.service")
+
+_BASES = ("Turin",) * 4 + ("Vancouver",) * 3 + ("Abu Dhabi",) * 3
+_RETRYABLE = {429, 500, 502, 503, 504}
+
+
+class ApiError(RuntimeError):
+    """A request the service refused for good (4xx other than 409/422 handled by callers)."""
+
+    def __init__(self, status: int, body: Any):
+        super().__init__(f"HTTP {status}: {body}")
+        self.status = status
+        self.body = body
+
+
+class Api:
+    """HTTP client of the HMSM with retries and exponential backoff (no request is dropped)."""
+
+    def __init__(self, base_url: str, key: str, *, operator_key: str | None = None,
+                 max_backoff_s: float = 30.0, sleep: Callable[[float], None] = time.sleep,
+                 stop: Callable[[], bool] = lambda: False):
+        self.base = base_url.rstrip("/") + "/api/v1"
+        self.client = httpx.Client(timeout=60.0)
+        self.key = key
+        self.operator_key = operator_key or key
+        self.max_backoff_s = max_backoff_s
+        self.sleep = sleep
+        self.stop = stop
+
+    def request(self, method: str, path: str, *, operator: bool = False, ok: tuple[int, ...] = (
+            200, 201, 202), **kwargs: Any) -> httpx.Response:
+        key = self.operator_key if operator else self.key
+        headers = {"Authorization": f"Bearer {key}", **kwargs.pop("headers", {})}
+        delay = 0.5
+        while True:
+            try:
+                response = self.client.request(method, self.base + path, headers=headers,
+                                               **kwargs)
+                if response.status_code in ok:
+                    return response
+                if response.status_code not in _RETRYABLE:
+                    raise ApiError(response.status_code, _body(response))
+                log.warning("%s %s: HTTP %s, retrying in %.1f s", method, path,
+                            response.status_code, delay)
+            except httpx.TransportError as exc:
+                log.warning("%s %s: %s, retrying in %.1f s", method, path, exc, delay)
+            if self.stop():
+                raise InterruptedError("stopped while retrying")
+            self.sleep(delay)
+            delay = min(self.max_backoff_s, delay * 2)
+
+    def close(self) -> None:
+        self.client.close()
+
+
+def _body(response: httpx.Response) -> Any:
+    try:
+        return response.json()
+    except ValueError:
+        return response.text[:500]
+
+
+def fleet_plan(n_aircraft: int, seed: int, prefix: str = "SIM") -> list[Aircraft]:
+    """The simulated fleet: tails SIM01.., bases 4 Turin, 3 Vancouver, 3 Abu Dhabi per ten."""
+    return [build_aircraft(f"{prefix}{i + 1:02d}", _BASES[i % len(_BASES)],
+                           int(np.random.SeedSequence([seed, 7, i]).generate_state(1)[0]))
+            for i in range(n_aircraft)]
+
+
+@dataclass
+class AircraftRun:
+    aircraft: Aircraft
+    index: int
+    next_flight: int
+    fault: FaultState
+    injection_id: int | None = None
+    failed_at: int | None = None
+
+
+class SimFleetRunner:
+    """Flies ``n_aircraft`` simulated aircraft at ``rate_per_min`` flights a minute in total."""
+
+    def __init__(self, api: Api, *, n_aircraft: int, rate_per_min: float, seed: int = 0,
+                 duration_s: float = 120.0, prefix: str = "SIM",
+                 sleep: Callable[[float], None] = time.sleep):
+        if n_aircraft < 1 or rate_per_min <= 0 or duration_s < 15:
+            raise ValueError("need n_aircraft >= 1, rate > 0 and duration >= 15 s")
+        self.api = api
+        self.seed = seed
+        self.duration_s = duration_s
+        self.interval_s = 60.0 / rate_per_min
+        self.sleep = sleep
+        self.runs = [AircraftRun(a, i, 1, healthy()) for i, a in
+                     enumerate(fleet_plan(n_aircraft, seed, prefix))]
+
+    # -- set-up and recovery ------------------------------------------------------------------
+
+    def register_fleet(self) -> None:
+        """Register missing aircraft (needs an admin key) and adopt installed serials."""
+        for run in self.runs:
+            tail = run.aircraft.tail
+            response = self.api.request("GET", f"/aircraft/{tail}", ok=(200, 404))
+            if response.status_code == 404:
+                response = self.api.request("POST", "/aircraft", ok=(201, 409), json={
+                    "tail": tail, "base": run.aircraft.base,
+                    "actuators": dict(run.aircraft.serials)})
+                if response.status_code == 409:
+                    response = self.api.request("GET", f"/aircraft/{tail}")
+            self._adopt_serials(run, response.json())
+            self._resume(run)
+
+    def _adopt_serials(self, run: AircraftRun, aircraft_doc: dict[str, Any]) -> None:
+        installed = {p: a["serial"] for p, a in aircraft_doc["actuators"].items()}
+        if installed != run.aircraft.serials:
+            changed = {p for p, s in installed.items() if run.aircraft.serials.get(p) != s}
+            if run.fault.position in changed:
+                log.info("%s: actuator %s replaced; its fault is gone", run.aircraft.tail,
+                         run.fault.position)
+                run.fault, run.injection_id, run.failed_at = healthy(), None, None
+            run.aircraft = replace(run.aircraft, serials=installed)
+
+    def _resume(self, run: AircraftRun) -> None:
+        tail = run.aircraft.tail
+        pattern = re.compile(rf"^{re.escape(tail)}-F(\d+)$")
+        last, offset = 0, 0
+        while True:
+            page = self.api.request("GET", f"/flights?aircraft={tail}&limit=500&offset={offset}"
+                                    ).json()
+            for item in page["items"]:
+                m = pattern.match(item.get("flight") or "")
+                if m:
+                    last = max(last, int(m.group(1)))
+            offset += len(page["items"])
+            if offset >= page["total"] or not page["items"]:
+                break
+        live = self._live_injection(run)
+        if live is not None and live["status"] == "active":
+            truth = self.api.request("GET", f"/test-station/injections/{live['id']}/ground-truth"
+                                     ).json()
+            if truth:
+                latest = truth[-1]
+                last = max(last, int(latest["flight_number"]))
+                run.fault = replace(self._fault_for(run, live),
+                                    severity=float(latest["severity"]))
+                run.injection_id = live["id"]
+                if live.get("failure_flight") is not None:
+                    run.failed_at = int(live["failure_flight"])
+        run.next_flight = max(1, last)
+
+    # -- injections ---------------------------------------------------------------------------
+
+    def _live_injection(self, run: AircraftRun) -> dict[str, Any] | None:
+        items = self.api.request("GET", f"/test-station/injections?aircraft="
+                                 f"{run.aircraft.tail}&limit=20").json()["items"]
+        live = [i for i in items if i["status"] in ("pending", "active")]
+        return live[0] if live else None
+
+    def _fault_for(self, run: AircraftRun, injection: dict[str, Any]) -> FaultState:
+        """The injection's fault at onset; the same on every restart (seeded by its id)."""
+        rng = np.random.default_rng([self.seed, 11, run.index, int(injection["id"])])
+        reference = estimate_summary(run.aircraft, 0, np.random.default_rng(
+            [self.seed, 12, run.index])).actuators[injection["position"]]
+        return new_fault(injection["fault_mode"], injection["position"], rng,
+                         reference=reference, span_flights=injection["time_to_failure_flights"],
+                         severity_norm=injection.get("severity"))
+
+    def _sync_injection(self, run: AircraftRun, n: int) -> None:
+        live = self._live_injection(run)
+        if run.injection_id is not None and (live is None or live["id"] != run.injection_id):
+            log.info("%s: injection %s ended; flying healthy", run.aircraft.tail,
+                     run.injection_id)
+            run.fault, run.injection_id, run.failed_at = healthy(), None, None
+        if live is None or live["id"] == run.injection_id:
+            return
+        if live["status"] == "pending" and live["onset_flight"] > n:
+            return
+        run.fault = self._fault_for(run, live)
+        run.injection_id = live["id"]
+        run.failed_at = None
+        if live["status"] == "pending":
+            self.api.request("POST", f"/test-station/injections/{live['id']}/status",
+                             operator=True, json={"status": "active"})
+        log.info("%s: %s on %s from flight %d", run.aircraft.tail, run.fault.mode,
+                 run.fault.position, n)
+
+    # -- one flight ---------------------------------------------------------------------------
+
+    def fly(self, run: AircraftRun) -> str:
+        """Fly, report and upload the aircraft's next flight; return the upload outcome."""
+        n = run.next_flight
+        tail = run.aircraft.tail
+        self._adopt_serials(run, self.api.request("GET", f"/aircraft/{tail}").json())
+        self._sync_injection(run, n)
+        flight_id = f"{tail}-F{n:05d}"
+        if run.injection_id is not None:
+            self._report_truth(run, flight_id, n, None)
+        rng = np.random.default_rng([self.seed, 13, run.index, n])
+        flight_log, summary = simulate_flight(run.aircraft, run.fault, n, rng,
+                                              flight_id=flight_id, started_at=flight_start(n),
+                                              duration_s=self.duration_s)
+        response = self.api.request(
+            "POST", "/flights", ok=(200, 202, 409, 422), content=write_parquet(flight_log),
+            headers={"Content-Type": "application/vnd.apache.parquet"})
+        outcome = {200: "duplicate", 202: "accepted", 409: "conflict", 422: "rejected"}[
+            response.status_code]
+        if outcome in ("conflict", "rejected"):
+            log.error("%s: upload %s: %s", flight_id, outcome, _body(response))
+        if run.injection_id is not None and run.failed_at is None:
+            run.fault = advance_fault(run.fault, summary, np.random.default_rng(
+                [self.seed, 14, run.index, n]))
+            if run.fault.failed:
+                run.failed_at = n + 1
+                self._mark_failed(run, n + 1)
+        run.next_flight = n + 1
+        return outcome
+
+    def _report_truth(self, run: AircraftRun, flight_id: str, n: int, rul: int | None) -> None:
+        severity = float(run.fault.severity)
+        self.api.request(
+            "PUT", f"/test-station/injections/{run.injection_id}/ground-truth", operator=True,
+            json={"flight": flight_id, "flight_number": n, "severity": severity,
+                  "severity_norm": float(run.fault.severity_norm),
+                  "true_rul_flights": rul if rul is not None else (
+                      max(run.failed_at - n, 0) if run.failed_at is not None else None)})
+
+    def _mark_failed(self, run: AircraftRun, failure_flight: int) -> None:
+        path = f"/test-station/injections/{run.injection_id}"
+        self.api.request("POST", path + "/status", operator=True,
+                         json={"status": "failed", "failure_flight": failure_flight})
+        for row in self.api.request("GET", path + "/ground-truth").json():
+            self.api.request("PUT", path + "/ground-truth", operator=True, json={
+                **{k: row[k] for k in ("flight", "flight_number", "severity", "severity_norm")},
+                "true_rul_flights": max(failure_flight - int(row["flight_number"]), 0)})
+        log.info("%s: %s on %s reached failure at flight %d", run.aircraft.tail, run.fault.mode,
+                 run.fault.position, failure_flight)
+
+    # -- the loop -----------------------------------------------------------------------------
+
+    def run(self, *, max_flights: int | None = None, stop: Callable[[], bool] = lambda: False
+            ) -> int:
+        """Fly round-robin at the configured rate; return the number of flights flown."""
+        self.register_fleet()
+        flown = 0
+        next_at = time.monotonic()
+        while not stop() and (max_flights is None or flown < max_flights):
+            run = self.runs[flown % len(self.runs)]
+            try:
+                outcome = self.fly(run)
+            except InterruptedError:
+                break
+            flown += 1
+            log.info("%s-F%05d %s (%s)", run.aircraft.tail, run.next_flight - 1, outcome,
+                     run.fault.mode if run.fault.mode != "healthy" else "healthy")
+            next_at += self.interval_s
+            wait = next_at - time.monotonic()
+            if wait > 0:
+                self.sleep(wait)
+            elif wait < -10 * self.interval_s:
+                next_at = time.monotonic()  # far behind (slow machine): do not burst
+        return flown

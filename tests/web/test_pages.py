@@ -1,0 +1,260 @@
+"""Dashboard pages through the TestClient: sign-in cookie, access per role, CSRF, form posts,
+the live-event stream, and the fleet page at 100 aircraft x 3 actuators."""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import event, select
+
+from server.db import session_scope
+from server.models import Actuator, ActuatorState, Aircraft, Alarm, Flight, Injection
+from server.web.routes import csrf_token
+from tests.web.seed import add_alarm, seed_results
+
+log = logging.getLogger(__name__)
+
+PAGES = ["/fleet", "/alarms", "/models", "/test-station", "/evaluation"]
+
+
+def sign_in(client: TestClient, key: str) -> None:
+    r = client.post("/signin", data={"key": key, "next": "/fleet"}, follow_redirects=False)
+    assert r.status_code == 303, r.text
+    assert r.headers["location"] == "/fleet"
+
+
+@pytest.fixture
+def seeded(app, aircraft):  # type: ignore[no-untyped-def]
+    return seed_results(app.state.session_factory, tail=aircraft)
+
+
+def test_signin_sets_httponly_samesite_cookie_and_signout_clears_it(client, keys) -> None:
+    r = client.post("/signin", data={"key": keys["viewer"], "next": "/alarms"},
+                    follow_redirects=False)
+    assert r.status_code == 303 and r.headers["location"] == "/alarms"
+    cookie = r.headers["set-cookie"]
+    assert cookie.startswith("hmsm_session=")
+    lowered = cookie.lower()
+    assert "httponly" in lowered and "samesite=strict" in lowered and "path=/" in lowered
+    assert "secure" not in lowered  # plain http in the test client
+    r = client.post("/signout", follow_redirects=False)
+    assert r.status_code == 303 and 'hmsm_session=""' in r.headers["set-cookie"]
+
+
+def test_signin_rejects_unknown_key_and_foreign_next(client, keys) -> None:
+    r = client.post("/signin", data={"key": "hmsm_nope", "next": "/fleet"})
+    assert r.status_code == 401 and "unknown or revoked" in r.text
+    assert "set-cookie" not in r.headers
+    r = client.post("/signin", data={"key": keys["viewer"], "next": "//evil.example/x"},
+                    follow_redirects=False)
+    assert r.headers["location"] == "/fleet"
+
+
+def test_root_redirects_to_fleet(client) -> None:
+    r = client.get("/", follow_redirects=False)
+    assert r.status_code in (302, 303, 307) and r.headers["location"] == "/fleet"
+
+
+@pytest.mark.parametrize("path", PAGES + ["/actuators/1"])
+def test_pages_redirect_to_signin_without_cookie(client, aircraft, path: str) -> None:
+    r = client.get(path, follow_redirects=False)
+    assert r.status_code == 303
+    assert r.headers["location"].startswith("/signin?next=")
+
+
+def test_every_page_renders_for_a_viewer_without_admin_controls(client, keys, seeded) -> None:
+    sign_in(client, keys["viewer"])
+    for path in PAGES + [f"/actuators/{seeded.actuator_id}"]:
+        r = client.get(path)
+        assert r.status_code == 200, (path, r.text[:500])
+        assert r.headers["content-type"].startswith("text/html")
+        assert "script-src 'self'" in r.headers["content-security-policy"]
+        assert "<script>" not in r.text  # no inline script (CSP)
+        assert 'name="csrf"' not in r.text  # a viewer gets no forms that change anything
+    alarms = client.get("/alarms").text
+    assert f'id="alarm-{seeded.alarm_id}"' in alarms and ">Acknowledge</button>" not in alarms
+    station = client.get("/test-station").text
+    assert 'id="inject-form"' not in station and 'id="no-inject"' in station
+
+
+def test_actuator_page_embeds_figures_with_data(client, keys, seeded) -> None:
+    sign_in(client, keys["viewer"])
+    html = client.get(f"/actuators/{seeded.actuator_id}").text
+    for fig in ("fig-cone", "fig-hist", "fig-trends", "fig-confidence", "fig-classes",
+                "fig-severity"):
+        assert f'data-target="{fig}"' in html
+    start = html.index('data-target="fig-cone">') + len('data-target="fig-cone">')
+    cone = json.loads(html[start:html.index("</script>", start)])
+    names = [t.get("name") for t in cone["data"]]
+    assert {"median RUL", "5-95 % band", "true RUL", "true RUL +-20 %"} <= set(names)
+    assert "/static/vendor/plotly.min.js" in html
+    models = client.get("/models").text
+    assert 'data-target="fig-confusion"' in models and "per-class" in models
+
+
+def test_plotly_js_and_static_assets_are_served_locally(client) -> None:
+    r = client.get("/static/vendor/plotly.min.js")
+    assert r.status_code == 200 and len(r.content) > 1_000_000
+    assert client.get("/static/app.js").status_code == 200
+    assert client.get("/static/app.css").status_code == 200
+
+
+def test_viewer_cannot_acknowledge_or_inject(client, keys, seeded, aircraft) -> None:
+    sign_in(client, keys["viewer"])
+    token = csrf_token(keys["viewer"])
+    r = client.post(f"/alarms/{seeded.alarm_id}/acknowledge", data={"note": "x", "csrf": token})
+    assert r.status_code == 403
+    r = client.post("/test-station/injections", data={
+        "csrf": token, "aircraft": aircraft, "position": "WT", "fault_mode": "SE"})
+    assert r.status_code == 403
+    # and the JSON API refuses the same with the cookie
+    r = client.post(f"/api/v1/alarms/{seeded.alarm_id}/acknowledge", json={"note": "x"})
+    assert r.status_code == 403
+
+
+def test_csrf_token_and_origin_are_checked(client, keys, seeded) -> None:
+    sign_in(client, keys["admin"])
+    url = f"/alarms/{seeded.alarm_id}/acknowledge"
+    assert client.post(url, data={"note": "x"}).status_code == 403
+    assert client.post(url, data={"note": "x", "csrf": "0" * 64}).status_code == 403
+    r = client.post(url, data={"note": "x", "csrf": csrf_token(keys["admin"])},
+                    headers={"Origin": "https://evil.example"})
+    assert r.status_code == 403
+    with session_scope(client.app.state.session_factory) as s:
+        assert s.get(Alarm, seeded.alarm_id).status == "open"
+
+
+def test_admin_acknowledges_then_closes_with_notes(client, keys, seeded) -> None:
+    sign_in(client, keys["admin"])
+    token = csrf_token(keys["admin"])
+    r = client.post(f"/alarms/{seeded.alarm_id}/acknowledge",
+                    data={"note": "inspect <rod end>", "csrf": token, "back": "/alarms"},
+                    headers={"Origin": "http://testserver"}, follow_redirects=False)
+    assert r.status_code == 303 and r.headers["location"] == "/alarms"
+    page = client.get("/alarms").text
+    assert "inspect &lt;rod end&gt;" in page  # escaped
+    r = client.post(f"/alarms/{seeded.alarm_id}/close", data={"note": "replaced",
+                                                              "csrf": token})
+    assert r.status_code == 200  # followed the redirect back to the inbox
+    with session_scope(client.app.state.session_factory) as s:
+        row = s.get(Alarm, seeded.alarm_id)
+        assert row.status == "closed" and row.closed_by == "test-admin"
+        assert row.note == "inspect <rod end>\nreplaced"
+    r = client.post(f"/alarms/{seeded.alarm_id}/close", data={"csrf": token})
+    assert r.status_code == 409
+
+
+def test_operator_injects_and_sees_it_listed_errors_are_shown(client, keys, aircraft) -> None:
+    sign_in(client, keys["operator"])
+    token = csrf_token(keys["operator"])
+    r = client.post("/test-station/injections", data={
+        "csrf": token, "aircraft": aircraft, "position": "WL2", "fault_mode": "MTWEAR",
+        "onset_flight": "3", "time_to_failure_flights": "120"})
+    assert r.status_code == 200 and 'id="injection-1"' in r.text and "MTWEAR" in r.text
+    r = client.post("/test-station/injections", data={
+        "csrf": token, "aircraft": aircraft, "position": "WT", "fault_mode": "SE"})
+    assert r.status_code == 409 and "already has a live injection" in r.text
+    r = client.post("/test-station/injections", data={
+        "csrf": token, "aircraft": aircraft, "position": "WT", "fault_mode": "SE",
+        "time_to_failure_flights": "3"})
+    assert r.status_code == 422
+    with session_scope(client.app.state.session_factory) as s:
+        assert len(s.scalars(select(Injection)).all()) == 1
+
+
+def test_admin_replaces_actuator_and_history_shows_previous(client, keys, seeded) -> None:
+    sign_in(client, keys["admin"])
+    r = client.post(f"/actuators/{seeded.actuator_id}/replace", data={
+        "csrf": csrf_token(keys["admin"]), "new_serial": "NEW-001", "note": "worn rod end"},
+        follow_redirects=False)
+    assert r.status_code == 303
+    page = client.get(r.headers["location"]).text
+    assert "NEW-001" in page and "worn rod end" in page
+
+
+def test_evaluation_page_reads_latest_json_or_says_not_run(client, keys, app) -> None:
+    sign_in(client, keys["viewer"])
+    page = client.get("/evaluation").text
+    assert 'id="not-run"' in page and "0.82" in page and "81.2" in page
+    path = app.state.settings.data_dir / "evaluation" / "latest.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"prognosis": {"DMD": {"ph": 0.5, "ra": 0.713}}}))
+    page = client.get("/evaluation").text
+    assert 'id="not-run"' not in page and "0.50" in page and "71.3" in page
+
+
+def test_events_stream_needs_a_key_and_reports_new_alarms(client, keys, seeded, aircraft
+                                                          ) -> None:
+    assert client.get("/api/v1/events?timeout=1").status_code == 401
+    sign_in(client, keys["viewer"])
+    factory = client.app.state.session_factory
+    import threading
+
+    timer = threading.Timer(0.6, add_alarm, args=(factory,),
+                            kwargs={"tail": aircraft, "position": "WT"})
+    timer.start()
+    with client.stream("GET", "/api/v1/events?timeout=2&poll=0.3") as r:
+        assert r.status_code == 200
+        assert r.headers["content-type"].startswith("text/event-stream")
+        body = "".join(r.iter_text())
+    timer.join()
+    assert "event: hello" in body
+    assert "event: alarm\n" in body and "event: alarm-status" in body
+
+
+def _fleet(factory, n: int) -> None:  # type: ignore[no-untyped-def]
+    with session_scope(factory) as s:
+        for i in range(n):
+            ac = Aircraft(tail=f"N{i:03d}", base=("Turin", "Naples", "Rome")[i % 3])
+            s.add(ac)
+            for p in ("WL1", "WL2", "WT"):
+                s.add(Actuator(aircraft=ac, position=p, serial=f"S-{i:03d}-{p}"))
+        s.flush()
+        acts = s.scalars(select(Actuator)).all()
+        for k, act in enumerate(acts):
+            s.add(ActuatorState(actuator_id=act.id, flights_seen=50, detection={
+                "confidence": 0.1}))
+            if k % 7 == 0:
+                f = Flight(aircraft_id=act.aircraft_id, tail="x", flight_code=f"F{k}",
+                           status="analyzed", reasons=[], sha256=f"{k:064d}", size_bytes=1,
+                           blob_path="x", content_kind="seed", flight_metadata={})
+                s.add(f)
+                s.flush()
+                s.add(Alarm(actuator_id=act.id, flight_id=f.id, status="open",
+                            confidence=0.99, fault_mode="DMD", features=[],
+                            rul_median_flights=float(k % 60)))
+
+
+def test_fleet_page_100_aircraft_by_3_actuators(client, keys, capsys) -> None:
+    _fleet(client.app.state.session_factory, 100)
+    sign_in(client, keys["viewer"])
+    engine = client.app.state.engine
+    statements: list[str] = []
+
+    def count(conn, cursor, statement, *args):  # type: ignore[no-untyped-def]
+        statements.append(statement)
+
+    client.get("/fleet")  # warm up templates
+    event.listen(engine, "before_cursor_execute", count)
+    try:
+        t0 = time.perf_counter()
+        r = client.get("/fleet?sort=rul")
+        elapsed = time.perf_counter() - t0
+    finally:
+        event.remove(engine, "before_cursor_execute", count)
+    assert r.status_code == 200
+    assert r.text.count('class="cell ') == 300
+    assert len(statements) <= 5, statements  # key lookup + the grid's two queries
+    with capsys.disabled():
+        print(f"\n[fleet page] 100 aircraft x 3 actuators rendered in {1000 * elapsed:.0f} ms "
+              f"with {len(statements)} SQL statements")
+    log.info("fleet page 100x3: %.0f ms", 1000 * elapsed)
+    # sorted by RUL: the first row holds the shortest median RUL (0 flights)
+    first = r.text.index("<tbody>")
+    assert ">0<" in r.text[first:first + 2500].replace(" ", "").replace("\n", "")
+    by_base = client.get("/fleet?sort=tail&base=Rome&status=red")
+    assert by_base.status_code == 200 and "N002" in by_base.text and "N000" not in by_base.text
