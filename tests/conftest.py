@@ -64,3 +64,50 @@ def settings(backend: str, tmp_path, request: pytest.FixtureRequest) -> Settings
         truncate_all(url)
         return Settings(data_dir=tmp_path / "data", database_url=url)
     return Settings(data_dir=tmp_path / "data")
+
+
+# ---------------------------------------------------------------------------------------------
+# simulated campaigns and a trained model, once per session (PHM_CAMPAIGN_DIR reuses a cache)
+# ---------------------------------------------------------------------------------------------
+
+DESIGN_SEED, VERIFICATION_SEED = 1, 2
+
+
+def make_campaign(kind: str, seed: int, root) -> object:  # type: ignore[no-untyped-def]
+    """``root/<kind>_<seed>``: a quick campaign, generated unless its manifest exists."""
+    from pathlib import Path
+
+    out = Path(root) / f"{kind}_{seed}"
+    if not (out / "manifest.json").exists():
+        from sim_worker import run_campaign
+
+        run_campaign(kind, out, seed=seed, scale="quick", workers=os.cpu_count() or 1,
+                     progress=False)
+    return out
+
+
+@pytest.fixture(scope="session")
+def campaign_root(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    from pathlib import Path
+
+    env = os.environ.get("PHM_CAMPAIGN_DIR")
+    if env:
+        Path(env).mkdir(parents=True, exist_ok=True)
+        return Path(env)
+    return tmp_path_factory.mktemp("phm_campaigns")
+
+
+@pytest.fixture(scope="session")
+def design_campaign_dir(campaign_root):  # type: ignore[no-untyped-def]
+    return make_campaign("design", DESIGN_SEED, campaign_root)
+
+
+@pytest.fixture(scope="session")
+def trained_model(design_campaign_dir):  # type: ignore[no-untyped-def]
+    """(model JSON, training report) of the PHM chain fitted on the quick design campaign."""
+    import json
+
+    from server.phm.training import train_phm_model
+
+    model, report = train_phm_model(design_campaign_dir, seed=0, jobs=os.cpu_count() or 1)
+    return json.loads(json.dumps(model.to_dict())), report

@@ -24,7 +24,7 @@ class HealthRecordRead(BaseModel):
     scores: dict[str, Any]
     confidence: float
     alarm: bool
-    class_probabilities: dict[str, float] | None
+    class_probabilities: dict[str, float | None] | None
 
 
 class PrognosisRead(BaseModel):
@@ -34,8 +34,9 @@ class PrognosisRead(BaseModel):
     fault_mode: str
     severity_mean: float
     severity_std: float
-    rul_quantiles: dict[str, float]
-    p_fail_within: dict[str, float]
+    rul_quantiles: dict[str, float | None] = Field(
+        description="RUL quantiles [flights]; null when beyond the prediction horizon")
+    p_fail_within: dict[str, float | None]
     histogram: dict[str, Any]
     created_at: datetime
 

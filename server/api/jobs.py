@@ -31,6 +31,7 @@ class JobRead(BaseModel):
     locked_by: str | None
     last_error: str | None
     created_at: datetime
+    started_at: datetime | None
     finished_at: datetime | None
 
 

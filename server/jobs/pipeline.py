@@ -60,6 +60,19 @@ def _reject(ctx: JobContext, flight_id: int, reasons: list[dict[str, Any]]) -> N
         session.commit()
 
 
+def json_safe(value: Any) -> Any:
+    """JSON that every backend stores: non-finite floats (invalid features) become null."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        return json_safe(value.item())
+    return value
+
+
 def _rul_fields(outcome: ActuatorOutcome) -> dict[str, Any] | None:
     rul = outcome.rul
     if rul is None:
@@ -134,11 +147,12 @@ def _store(session: Any, flight: Flight, act: Actuator, out: ActuatorOutcome,
     session.add(HealthRecord(
         actuator_id=act.id, flight_id=flight.id, model_version_id=model_id,
         flight_index=out.flight_index, started_at=flight.started_at,
-        features=out.features, scores={"z": out.z, "confidence": out.confidence,
-                                       "alarm_features": out.alarm_features},
+        features=json_safe(out.features),
+        scores=json_safe({"z": out.z, "confidence": out.confidence,
+                          "alarm_features": out.alarm_features}),
         confidence=out.max_confidence, alarm=out.alarm,
-        class_probabilities=out.class_probabilities))
-    doc = health.to_dict()
+        class_probabilities=json_safe(out.class_probabilities)))
+    doc = json_safe(health.to_dict())
     doc["confidence"] = out.max_confidence
     if state is None:
         state = ActuatorState(actuator_id=act.id)
@@ -149,7 +163,7 @@ def _store(session: Any, flight: Flight, act: Actuator, out: ActuatorOutcome,
     state.fault_mode = out.fault_mode
     state.updated_at = utcnow()
 
-    rul = _rul_fields(out)
+    rul = json_safe(_rul_fields(out))
     if rul is not None and out.fault_mode is not None:
         session.add(Prognosis(actuator_id=act.id, flight_id=flight.id,
                               flight_index=out.flight_index, fault_mode=out.fault_mode,

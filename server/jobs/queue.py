@@ -76,7 +76,8 @@ def claim_next(factory: sessionmaker[Session], *, worker_id: str, lease_s: float
                 update(Job)
                 .where(Job.id == _eligible(now, postgres))
                 .values(status="running", attempts=Job.attempts + 1, locked_by=worker_id,
-                        lease_until=now + timedelta(seconds=lease_s), updated_at=now)
+                        lease_until=now + timedelta(seconds=lease_s), updated_at=now,
+                        started_at=now)
                 .returning(Job.id, Job.kind, Job.flight_id, Job.lock_key, Job.attempts,
                            Job.max_attempts, Job.payload)
             )

@@ -196,13 +196,25 @@ def _replay(model: PhmModel, mode: str, history: list[tuple[int, dict[str, float
 
 
 def analyze_flight(model: PhmModel, features: FlightFeatures,
-                   health: dict[str, ActuatorHealth], *, seed: int = 0
-                   ) -> dict[str, ActuatorOutcome]:
-    """Advance every actuator's state by one flight (``health`` is updated in place)."""
+                   health: dict[str, ActuatorHealth], *, seed: int = 0,
+                   flight_index: int | None = None) -> dict[str, ActuatorOutcome]:
+    """Advance every actuator's state by one flight (``health`` is updated in place).
+
+    ``flight_index`` is the flight number of this flight when flights in between were not
+    analysed (e.g. a campaign that renders every 20th flight): the particle filter then
+    propagates over the gap. Default: ``flights_seen + 1`` (every flight analysed, the
+    service's case). It must increase strictly from flight to flight.
+    """
     z_all = model.baseline.zscores(features)
     out: dict[str, ActuatorOutcome] = {}
     for position, h in health.items():
-        h.flights_seen += 1
+        if flight_index is None:
+            h.flights_seen += 1
+        else:
+            if h.history and int(flight_index) <= h.history[-1][0]:
+                raise ValueError(f"flight_index must increase: {flight_index} after "
+                                 f"{h.history[-1][0]}")
+            h.flights_seen = int(flight_index)
         index = h.flights_seen
         det = model.detector.update(h.detection, z_all)
         generic = {GENERIC_FEATURES[i]: float(v) for i, v in

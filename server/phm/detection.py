@@ -22,6 +22,10 @@ paper's value), i.e. ``|S_w| >= b_w + 2.05``. The short window reacts within one
 step faults (SE, BDO); the long window accumulates evidence of slow drifts. The alarm latches
 until :meth:`DetectionState.reset` (a maintenance action).
 
+The test is one-sided along each fault's physical direction (``DEFAULT_DIRECTIONS``: F_MTEL
+falls, every other feature grows), ``|S_w|`` being replaced by ``direction * S_w``, and one
+band serves a generic feature on every position (the largest over the positions).
+
 Everything persists as JSON (``to_dict`` / ``from_dict``), never pickle.
 """
 
@@ -37,6 +41,8 @@ from scipy.special import ndtr, ndtri
 
 __all__ = [
     "DETECTOR_FORMAT",
+    "DEFAULT_DIRECTIONS",
+    "generic_feature",
     "STATE_FORMAT",
     "UNITS",
     "unit_features",
@@ -47,9 +53,17 @@ __all__ = [
 ]
 
 DETECTOR_FORMAT = "ema-detector/1"
+#: physical direction of each generic feature under its fault: +1 grows, -1 falls, 0 either
+DEFAULT_DIRECTIONS: dict[str, int] = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1,
+                                      "F_MTEL": -1, "F_MTWEAR": 1, "F_REWEAR": 1}
 STATE_FORMAT = "ema-detection-state/1"
 #: monitored units and the prefix of their feature names
 UNITS: tuple[str, ...] = ("WL1", "WL2", "WT", "WL")
+
+
+def generic_feature(name: str) -> str:
+    """``"WL1.F_TTS"`` -> ``"F_TTS"``."""
+    return name.split(".", 1)[-1]
 
 
 def unit_features(unit: str, feature_names: Iterable[str]) -> list[str]:
@@ -154,10 +168,16 @@ class FaultDetector:
     alarm_confidence : confidence at which a unit alarms (0.98).
     band_floor : smallest allowed band ``b_w`` (in standard errors).
     band_margin : extra margin added to the largest healthy ``|S_w|`` (standard errors).
+    directions : generic feature -> +1 (the fault makes it grow), -1 (fall) or 0 (either);
+        the statistic is ``direction * S_w`` (one-sided test), ``|S_w|`` for 0 / unknown.
+    pool_positions : one band per generic feature, the largest over the positions (more
+        healthy flights behind each band, same physics on every actuator).
     """
 
     def __init__(self, windows: Sequence[int] = (1, 3, 8), *, alarm_confidence: float = 0.98,
-                 band_floor: float = 3.0, band_margin: float = 0.0) -> None:
+                 band_floor: float = 3.0, band_margin: float = 0.0,
+                 directions: Mapping[str, int] | None = None,
+                 pool_positions: bool = True) -> None:
         if not windows or min(windows) < 1:
             raise ValueError("windows must be positive flight counts")
         if not 0.5 < alarm_confidence < 1.0:
@@ -166,6 +186,17 @@ class FaultDetector:
         self.alarm_confidence = float(alarm_confidence)
         self.band_floor = float(band_floor)
         self.band_margin = float(band_margin)
+        self.directions = dict(DEFAULT_DIRECTIONS if directions is None else directions)
+        self.pool_positions = bool(pool_positions)
+
+    def _dir(self, names: Sequence[str]) -> np.ndarray:
+        return np.array([self.directions.get(generic_feature(n), 0) for n in names],
+                        dtype=np.float64)
+
+    @staticmethod
+    def _oriented(s: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Signed statistic along the fault direction (``|s|`` where ``d == 0``)."""
+        return np.where(d == 0, np.abs(s), d * s)
 
     def fit(self, healthy_sequences: Sequence[np.ndarray],
             feature_names: Sequence[str]) -> FaultDetector:
@@ -175,16 +206,22 @@ class FaultDetector:
         monitored actuator history (flights in order), columns in ``feature_names`` order.
         """
         names = list(feature_names)
+        dirs = self._dir(names)
         band = np.full((len(names), len(self.windows)), self.band_floor)
         seen = np.zeros(len(names), dtype=np.int64)
         for seq in healthy_sequences:
             seq = np.asarray(seq, dtype=np.float64).reshape(-1, len(names))
             seen += np.isfinite(seq).sum(axis=0)
             for k, w in enumerate(self.windows):
-                s = np.abs(running_statistics(seq, w))
+                s = self._oriented(running_statistics(seq, w), dirs[np.newaxis, :])
                 with np.errstate(invalid="ignore"):
                     m = np.nanmax(np.where(np.isfinite(s), s, -np.inf), axis=0)
                 band[:, k] = np.maximum(band[:, k], m + self.band_margin)
+        if self.pool_positions:
+            gen = [generic_feature(n) for n in names]
+            for g in set(gen):
+                idx = [i for i, x in enumerate(gen) if x == g]
+                band[idx] = band[idx].max(axis=0)
         self.feature_names_ = names
         self.band_ = band
         self.n_healthy_flights_ = seen
@@ -215,7 +252,8 @@ class FaultDetector:
         z = np.asarray(z, dtype=np.float64).reshape(-1, len(idx))
         conf = np.zeros(z.shape)
         for k, w in enumerate(self.windows):
-            s = np.abs(running_statistics(z, w))
+            s = self._oriented(running_statistics(z, w),
+                               self._dir(feature_names)[np.newaxis, :])
             c = ndtr(s - self.band_[idx, k][np.newaxis, :])
             conf = np.fmax(conf, np.where(np.isfinite(c), c, 0.0))
         return conf
@@ -232,12 +270,14 @@ class FaultDetector:
                 hist.append(float(v))
                 del hist[:-keep]
             i = self.feature_names_.index(f)
+            d = self.directions.get(generic_feature(f), 0)
             c = 0.0
             for k, w in enumerate(self.windows):
                 if not hist:
                     break
                 last = hist[-w:]
-                s = abs(sum(last)) / math.sqrt(len(last))
+                s = sum(last) / math.sqrt(len(last))
+                s = abs(s) if d == 0 else d * s
                 c = max(c, float(ndtr(s - self.band_[i, k])))
             conf[f] = c
         state.n_flights += 1
@@ -255,7 +295,9 @@ class FaultDetector:
         self._check()
         return {"format": DETECTOR_FORMAT, "windows": list(self.windows),
                 "alarm_confidence": self.alarm_confidence, "band_floor": self.band_floor,
-                "band_margin": self.band_margin, "feature_names": list(self.feature_names_),
+                "band_margin": self.band_margin, "directions": dict(self.directions),
+                "pool_positions": self.pool_positions,
+                "feature_names": list(self.feature_names_),
                 "band": self.band_.tolist(),
                 "n_healthy_flights": self.n_healthy_flights_.tolist()}
 
@@ -264,7 +306,9 @@ class FaultDetector:
         if d.get("format") != DETECTOR_FORMAT:
             raise ValueError(f"not a {DETECTOR_FORMAT} document")
         det = cls(d["windows"], alarm_confidence=float(d["alarm_confidence"]),
-                  band_floor=float(d["band_floor"]), band_margin=float(d["band_margin"]))
+                  band_floor=float(d["band_floor"]), band_margin=float(d["band_margin"]),
+                  directions={k: int(v) for k, v in d.get("directions", {}).items()},
+                  pool_positions=bool(d.get("pool_positions", False)))
         det.feature_names_ = list(d["feature_names"])
         det.band_ = np.asarray(d["band"], dtype=np.float64).reshape(len(det.feature_names_),
                                                                     len(det.windows))

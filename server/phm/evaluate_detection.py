@@ -37,6 +37,7 @@ from .baselines import FleetBaseline
 from .detection import UNITS, DetectionState, FaultDetector
 from .features import (
     AIRCRAFT_FEATURES,
+    FEATURE_VERSION,
     FeatureConfig,
     FeatureSummary,
     FlightFeatures,
@@ -128,7 +129,7 @@ def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | 
     if manifest.get("format") != "ema-campaign/1":
         raise ValueError(f"{root}: not an ema-campaign/1 manifest")
     cache_path = root / "phm_features.json"
-    cfg_key = repr(cfg)
+    cfg_key = f"{FEATURE_VERSION} {cfg!r}"
     cached: dict[str, Any] = {}
     if cache and cache_path.exists():
         doc = json.loads(cache_path.read_text())

@@ -23,16 +23,16 @@ the dispersion is the standard deviation of the filtered 80 Hz series over valid
 
 Features (formulas and validity rules are in ``docs/FEATURES.md``):
 
-``F_TTS``  mean square of the common-node current (offset removed) over mean phase-voltage
-           amplitude [A^2/V]; current-valid steps.
+``F_TTS``  leakage conductance winding-to-frame [S]: slope of the common-node current on the
+           fault-point potential ``v_cm + u_k / 2`` (largest over the phases).
 ``F_DMD``  relative excess of current over the current expected with the nominal flux,
            ``1 - psi_hat / psi_nom`` [-], psi_hat from the q-axis voltage balance; moving
            current-valid steps.
-``F_SE``   amplitude of the current magnitude modulation at shaft frequency (demodulated with
-           the mechanical angle) relative to the mean current magnitude [-]; moving steps.
+``F_SE``   relative 1/rev modulation of the flux from the q-axis back-EMF (mechanical angle)
+           [-]; moving steps.
 ``F_BDO``  imbalance of the three phase-voltage RMS values (std / mean over phases) [-].
-``F_MTEL`` apparent efficiency at still actuator: motor torque from the holding current over
-           the torque expected from the design aero load model ``-(k x + bias)`` [-].
+``F_MTEL`` sqrt of the ratio of apparent efficiencies moving with / against the design aero
+           load ``-(k x + bias)`` (~ sqrt(eta_d eta_b)) [-]; the load scale cancels.
 ``F_MTWEAR`` lost motion of ``x - r theta`` across motion reversals [m].
 ``F_REWEAR`` lost motion of ``x_WL1 - x_WL2`` across reversals of the winglet tab [m].
 """
@@ -46,6 +46,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 __all__ = [
+    "FEATURE_VERSION",
     "ACTUATOR_FEATURES",
     "POSITIONS",
     "WINGLET_PAIR",
@@ -65,6 +66,8 @@ __all__ = [
     "flight_features",
 ]
 
+#: bumped whenever a feature formula changes (invalidates cached campaign features)
+FEATURE_VERSION = "features/3"
 ACTUATOR_FEATURES: tuple[str, ...] = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR")
 POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
 WINGLET_PAIR: tuple[str, str] = ("WL1", "WL2")
@@ -324,42 +327,31 @@ def _lost_motion_events(e: np.ndarray, pos_m: np.ndarray, vel_m_s: np.ndarray,
     return first_sel_step[b][good], vals[good]
 
 
-def _detrend_runs(valid: np.ndarray, theta: np.ndarray, *ys: np.ndarray) -> list[np.ndarray]:
-    """Residuals of each ``y`` after a linear fit on ``theta`` within each run of ``valid``.
-
-    Runs of fewer than three steps give zero residuals. Vectorised with ``np.bincount``.
-    """
-    n = valid.size
-    edges = np.diff(np.r_[0, valid.astype(np.int8)])
-    run = np.cumsum(edges == 1) - 1
-    idx = np.flatnonzero(valid)
-    out = [np.zeros(n) for _ in ys]
-    if idx.size == 0:
-        return out
-    r = run[idx]
-    m = int(r.max()) + 1
-    cnt = np.bincount(r, minlength=m)
-    th = theta[idx]
-    th_mean = np.bincount(r, th, m) / np.maximum(cnt, 1)
-    dth = th - th_mean[r]
-    sxx = np.bincount(r, dth * dth, m)
-    good = (cnt >= 3) & (sxx > 1e-12)
-    for y, o in zip(ys, out, strict=True):
-        yv = y[idx]
-        y_mean = np.bincount(r, yv, m) / np.maximum(cnt, 1)
-        slope = np.where(good, np.bincount(r, dth * yv, m) / np.where(good, sxx, 1.0), 0.0)
-        res = yv - y_mean[r] - slope[r] * dth
-        o[idx] = np.where(good[r], res, 0.0)
-    return out
-
-
 def _se_combine(f: np.ndarray) -> np.ndarray:
-    """Amplitude of the 1/rev component (2x2 least squares) over the mean current magnitude."""
-    yc, ys, cc, ss, cs, i_mean = (f[:, j] for j in range(6))
-    det = cc * ss - cs * cs
-    a = (yc * ss - ys * cs) / det
-    b = (ys * cc - yc * cs) / det
-    return np.hypot(a, b) / i_mean
+    """Relative 1/rev modulation from the 3x3 normal equations (6 upper entries, 3 rhs)."""
+    n = f.shape[0]
+    iu = np.triu_indices(3)
+    A = np.zeros((n, 3, 3))
+    A[:, iu[0], iu[1]] = f[:, :6]
+    A[:, iu[1], iu[0]] = f[:, :6]
+    det = np.linalg.det(A)
+    ok = np.isfinite(det) & (np.abs(det) > 1e-12 * np.abs(A[:, 0, 0]) ** 3)
+    A[~ok] = np.eye(3)
+    coef = np.linalg.solve(A, np.where(ok[:, np.newaxis], f[:, 6:9], 0.0)[..., np.newaxis])[..., 0]
+    out = np.hypot(coef[:, 1], coef[:, 2]) / coef[:, 0]
+    return np.where(ok, out, np.nan)
+
+
+def _tts_combine(f: np.ndarray) -> np.ndarray:
+    """Largest per-phase least-squares slope of i0 on x_k (filtered means) [S]."""
+    y, x, xy, xx = f[:, 0:1], f[:, 1:4], f[:, 4:7], f[:, 7:10]
+    return np.max((xy - x * y) / (xx - x * x), axis=1)
+
+
+def _mtel_combine(f: np.ndarray) -> np.ndarray:
+    """sqrt(mean apparent efficiency moving with the load / moving against it) [-]."""
+    ratio = (f[:, 0] / f[:, 1]) / (f[:, 2] / f[:, 3])
+    return np.sqrt(np.where(ratio > 0, ratio, np.nan))
 
 
 def _event_track(n_steps: int, steps: np.ndarray, vals: np.ndarray, alpha: float,
@@ -472,11 +464,21 @@ def actuator_features(
 
     tracks: dict[str, FeatureTrack] = {}
 
-    # ---- F_TTS: mean square common-node current over mean phase-voltage amplitude ---------
-    i0sq_b = blk(i0 * i0).mean(axis=1)
-    tts_valid = current_ok & (v_mag_b > cfg.min_voltage_v)
-    tracks["F_TTS"] = _track(np.c_[i0sq_b, v_mag_b], tts_valid, _ratio, alpha,
-                             cfg.min_valid_steps)
+    # ---- F_TTS: leakage conductance of the winding to the frame [S] ----------------------
+    # A turn-to-turn short damages the insulation and opens a path from the mid-winding of
+    # the faulty phase to the frame: the common-node current is i0 = G (v_cm + u_k / 2), with
+    # the common-mode voltage of a min-max (space-vector) modulator v_cm = -(max u + min u)/2
+    # reconstructed from the three measured phase voltages. Per phase k, the least-squares
+    # slope of i0 on x_k = v_cm + u_k / 2 (with intercept: sensor offsets) estimates G; the
+    # feature is the largest of the three slopes (the faulty phase is not known a priori).
+    # A healthy motor gives 0 +- noise whatever the operating point, unlike var(i0) / |v|.
+    u_b = np.c_[blk(va).mean(axis=1), blk(vb).mean(axis=1), blk(vc).mean(axis=1)]
+    v_cm_b = -0.5 * (u_b.max(axis=1) + u_b.min(axis=1))
+    x_tts = v_cm_b[:, np.newaxis] + 0.5 * u_b  # (n, 3) [V]
+    i0_b = blk(i0).mean(axis=1)
+    tts_acc = np.c_[i0_b, x_tts, x_tts * i0_b[:, np.newaxis], x_tts * x_tts]
+    tts_valid = f_e_max < cfg.max_electrical_hz
+    tracks["F_TTS"] = _track(tts_acc, tts_valid, _tts_combine, alpha, cfg.min_valid_steps)
 
     # ---- F_DMD: 1 - psi_hat/psi_nom; psi_hat from the q-axis voltage balance ---------------
     # v_q = R i_q + L di_q/dt + omega_e psi (i_d = 0 control, L_d = L_q): least squares of
@@ -502,15 +504,19 @@ def actuator_features(
         psi_hat = psi_nom
     psi_hat = float(np.clip(psi_hat, 0.6 * psi_nom, 1.2 * psi_nom))
 
-    # ---- F_SE: |i| modulation at shaft frequency (mechanical angle) -----------------------
-    # |i| = a_run + b_run theta + c cos(theta) + s sin(theta): the slow trend of each moving
-    # run (load follows position) is removed by per-run linear regression on theta before
-    # projecting on the 1/rev components (Frisch-Waugh), so partial revolutions do not leak.
+    # ---- F_SE: flux modulation at shaft frequency from the back-EMF ----------------------
+    # Static eccentricity modulates the flux linkage psi (1 + m cos(theta - phi)); the q-axis
+    # back-EMF e = v_q - R_hat i_q = omega_e psi(theta) shows it whatever the load and the
+    # acceleration (unlike the current). Weighted least squares of e on omega_e [1, cos theta,
+    # sin theta] over moving current-valid steps; F_SE = hypot(b, c) / a, the relative
+    # 1/rev modulation of the flux [-].
     se_valid = current_ok & moving
     cos_b = blk(np.cos(theta)).mean(axis=1)
     sin_b = blk(np.sin(theta)).mean(axis=1)
-    y_t, c_t, s_t = _detrend_runs(se_valid, theta_b, i_mag_b, cos_b, sin_b)
-    se_acc = np.c_[y_t * c_t, y_t * s_t, c_t * c_t, s_t * s_t, c_t * s_t, i_mag_b]
+    xs = np.c_[we_b, we_b * cos_b, we_b * sin_b]
+    iu = np.triu_indices(3)
+    se_acc = np.c_[(xs[:, :, np.newaxis] * xs[:, np.newaxis, :])[:, iu[0], iu[1]],
+                   xs * emf_b[:, np.newaxis]]
     tracks["F_SE"] = _track(se_acc, se_valid, _se_combine, alpha, cfg.min_valid_steps)
 
     # ---- F_BDO: imbalance of per-phase voltage RMS ----------------------------------------
@@ -525,17 +531,34 @@ def actuator_features(
 
     tracks["F_BDO"] = _track(ms, bdo_valid, bdo_combine, alpha, cfg.min_valid_steps)
 
-    # ---- F_MTEL: apparent efficiency at still actuator ------------------------------------
+    # ---- F_MTEL: transmission efficiency from motion against / with the load --------------
+    # Under an aerodynamic load F the motor torque moving against the load is
+    # r |F| / eta_d + T_c and moving with it (back-driven) r |F| eta_b - T_c. The apparent
+    # efficiencies a = T / (r |F_exp|) of the two directions share the unknown dynamic-pressure
+    # scale of the flight, which cancels in their ratio: F_MTEL = sqrt(a_with / a_against)
+    # ~ sqrt(eta_d eta_b) (net of Coulomb drag) [-], falling with lubricant aging. Holds are
+    # not used: the holding current keeps the value it had when motion stopped, anywhere
+    # between the two friction edges. Only slow moving current-valid steps under load, at
+    # cruise (T_amb <= cruise_temp_c + band) when T_amb is recorded (stable dynamic pressure).
     load_exp = -(aero_gradient_n_per_m * x_b + aero_bias_n)  # N
     load_abs = np.abs(load_exp)
     load_floor = cfg.min_load_fraction * (load_abs.max() if load_abs.size else 0.0)
-    mtel_valid = still & (load_abs > max(load_floor, 1e-9)) & (i_mag_b > cfg.min_current_a)
+    under_load = load_abs > max(load_floor, 1e-9)
+    mtel_valid = current_ok & moving & under_load
     if t_amb_c is not None and len(t_amb_c) >= cut:
         t_amb_b = block_mean(np.asarray(t_amb_c[:cut], dtype=np.float64), d)
         mtel_valid &= t_amb_b <= cfg.cruise_temp_c + cfg.cruise_band_c
-    torque_b = 1.5 * mc.pole_pairs * psi_hat * i_mag_b  # Nm (flux from F_DMD's estimate)
-    tracks["F_MTEL"] = _track(np.c_[torque_b, r_screw * load_abs], mtel_valid, _ratio, alpha,
-                              cfg.min_valid_steps)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # motor torque opposes the load torque r F: a > 0 in both directions
+        app = np.where(under_load, -1.5 * mc.pole_pairs * psi_hat * i_q_b
+                       / (r_screw * np.where(under_load, load_exp, 1.0)), 0.0)
+    against = (np.sign(w_mean) == -np.sign(load_exp)).astype(np.float64)
+    with_ = 1.0 - against
+    mtel_acc = np.c_[app * with_, with_, app * against, against]
+    tracks["F_MTEL"] = _track(mtel_acc, mtel_valid, _mtel_combine, alpha, cfg.min_valid_steps)
+    n_with = int(np.count_nonzero(mtel_valid & (with_ > 0)))
+    if min(n_with, int(np.count_nonzero(mtel_valid)) - n_with) < cfg.min_valid_steps // 2:
+        tracks["F_MTEL"].value = float("nan")  # one direction barely seen: no ratio
 
     # ---- F_MTWEAR: lost motion of x - r theta at reversals ----------------------------------
     pos_b = r_screw * theta_b

@@ -37,6 +37,8 @@ def make_actuator(
     bdo: float = 0.0,
     backlash_m: float = 0.0,
     hold_eta: float = 0.9,
+    eta_d: float = 0.9,
+    eta_b: float = 0.89,
     load_gradient: float = 4.0e4,
     r_ohm: float = R,
     noise_a: float = 0.02,
@@ -47,6 +49,7 @@ def make_actuator(
 
     The rod follows a sequence of smooth moves and holds; motor torque = J alpha + load
     torque; a hold carries ``hold_eta`` x the load torque (back-driving efficiency).
+    Moving against the load the motor torque is ``r F / eta_d``, moving with it ``r F eta_b``.
     ``psi_scale`` < 1 is magnet degradation, ``se_amp`` modulates the flux with the mechanical
     angle, ``tts_i0`` adds a common-node current proportional to the phase-a current,
     ``bdo`` clips the positive half of phase a's voltage, ``backlash_m`` adds a dead zone
@@ -72,7 +75,9 @@ def make_actuator(
     acc = np.gradient(w, 1 / FS)
     load = load_gradient * x_cmd
     moving = np.abs(w) > 0.05
-    t_load = np.where(moving, RS * load / 0.9, hold_eta * RS * load)
+    against = np.sign(w) == np.sign(load)  # moving away from neutral pushes against the load
+    t_move = np.where(against, RS * load / eta_d, RS * load * eta_b)
+    t_load = np.where(moving, t_move, hold_eta * RS * load)
     torque = 1e-4 * acc + t_load
     psi_th = PSI * psi_scale * (1.0 + se_amp * np.cos(theta))
     iq = torque / (1.5 * P * psi_th)
@@ -127,11 +132,12 @@ def synth_actuator() -> Callable[..., dict[str, np.ndarray]]:
 
 
 # --------------------------------------------------------------------------------------------
-# simulated campaigns (generated once per session; PHM_CAMPAIGN_DIR reuses existing ones)
+# simulated campaigns (generated once per session under the shared ``campaign_root`` of
+# tests/conftest.py; PHM_CAMPAIGN_DIR reuses existing ones)
 # --------------------------------------------------------------------------------------------
 
-DESIGN_SEED = 11
-VERIFICATION_SEED = 23
+DESIGN_SEED = 1
+VERIFICATION_SEED = 2
 
 
 def _sim_worker_exe() -> str | None:
@@ -143,6 +149,11 @@ def _sim_worker_exe() -> str | None:
 
 
 def _campaign(kind: str, seed: int, root: Path) -> Path:
+    """``root/<kind>_<seed>``, generated unless present. ``PHM_DESIGN_DIR`` /
+    ``PHM_VERIFICATION_DIR`` point straight at existing campaign directories (e.g. /tmp/cq2)."""
+    direct = os.environ.get(f"PHM_{kind.upper()}_DIR")
+    if direct and (Path(direct) / "manifest.json").exists():
+        return Path(direct)
     out = root / f"{kind}_{seed}"
     if (out / "manifest.json").exists():
         return out
@@ -171,15 +182,6 @@ def _campaign(kind: str, seed: int, root: Path) -> Path:
         timeout=900,
     )
     return out
-
-
-@pytest.fixture(scope="session")
-def campaign_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    env = os.environ.get("PHM_CAMPAIGN_DIR")
-    if env:
-        Path(env).mkdir(parents=True, exist_ok=True)
-        return Path(env)
-    return tmp_path_factory.mktemp("phm_campaigns")
 
 
 @pytest.fixture(scope="session")
