@@ -216,6 +216,12 @@ class FleetBaseline:
             out[name] = float(m.zscore(C, np.array([flight.summaries[name].value]))[0])
         return out
 
+    def residuals(self, flight: FlightFeatures) -> dict[str, float]:
+        """Residual of every feature in its physical unit, ``value - expected(conditions)``
+        (NaN where no valid window): comparable across positions, unlike ``zscores``."""
+        self._check()
+        return {name: z * self.models_[name].scale_ for name, z in self.zscores(flight).items()}
+
     def zscore_matrix(self, flights: Sequence[FlightFeatures]) -> np.ndarray:
         """(n_flights, 19) standardised residuals in ``AIRCRAFT_FEATURES`` order."""
         self._check()

@@ -44,7 +44,11 @@ __all__ = [
     "GENERIC_FEATURES",
     "actuator_feature_names",
     "classifier_vector",
+    "measurement_values",
+    "OWN_FEATURE",
+    "CLASS_EVIDENCE_DECAY",
     "MeasurementSpec",
+    "surface_of",
     "PhmModel",
     "ActuatorHealth",
     "ActuatorOutcome",
@@ -52,8 +56,14 @@ __all__ = [
 ]
 
 MODEL_FORMAT = "ema-phm-model/1"
-HEALTH_FORMAT = "ema-actuator-health/1"
+HEALTH_FORMAT = "ema-actuator-health/2"
 PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
+#: the paper's Table 1: one preferential feature per failure mode (tracked by the filter)
+OWN_FEATURE = {"TTS": "F_TTS", "DMD": "F_DMD", "SE": "F_SE", "BDO": "F_BDO", "MTEL": "F_MTEL",
+               "MTWEAR": "F_MTWEAR", "REWEAR": "F_REWEAR"}
+#: weight of the older flights' class evidence per flight (recent flights, at a larger
+#: severity, are more telling; 0.8 keeps about five flights of memory)
+CLASS_EVIDENCE_DECAY = 0.8
 GENERIC_FEATURES = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR", "F_REWEAR")
 _HISTORY_FLIGHTS = 600  # flights of residuals kept for a filter replay
 
@@ -80,19 +90,49 @@ def classifier_vector(z: Mapping[str, float], position: str) -> np.ndarray:
     return out
 
 
+def measurement_values(residuals: Mapping[str, float], position: str) -> dict[str, float]:
+    """Physical-unit residuals of an actuator's features by generic name (finite ones only)."""
+    out = {}
+    for name in actuator_feature_names(position):
+        v = residuals.get(name, math.nan)
+        if v is not None and math.isfinite(v):
+            out[_generic(name)] = float(v)
+    return out
+
+
 @dataclass(frozen=True)
 class MeasurementSpec:
-    """Which generic feature tracks a progressive mode, and how it depends on severity."""
+    """Which generic feature tracks a progressive mode, how it depends on severity, and the
+    mode's filter configuration (first-trial degradation parameters from the design runs)."""
 
     feature: str
     model: MeasurementModel
+    prognoser: PrognoserConfig | None = None
+    #: surface-specific models ("WL" for the winglet pair, "WT" for the wingtip) where the
+    #: design runs had enough flights: the same wear shows differently on a drive that shares
+    #: its surface with a second drive than on a lone one
+    by_surface: dict[str, MeasurementModel] = field(default_factory=dict)
+
+    def model_for(self, position: str) -> MeasurementModel:
+        return self.by_surface.get(surface_of(position), self.model)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"feature": self.feature, "model": self.model.to_dict()}
+        return {"feature": self.feature, "model": self.model.to_dict(),
+                "prognoser": None if self.prognoser is None else self.prognoser.to_dict(),
+                "by_surface": {k: m.to_dict() for k, m in self.by_surface.items()}}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> MeasurementSpec:
-        return cls(str(d["feature"]), MeasurementModel.from_dict(dict(d["model"])))
+        cfg = d.get("prognoser")
+        return cls(str(d["feature"]), MeasurementModel.from_dict(dict(d["model"])),
+                   None if cfg is None else PrognoserConfig.from_dict(dict(cfg)),
+                   {k: MeasurementModel.from_dict(dict(m))
+                    for k, m in (d.get("by_surface") or {}).items()})
+
+
+def surface_of(position: str) -> str:
+    """``WL`` for the winglet drives, ``WT`` for the wingtip drive."""
+    return "WT" if position == "WT" else "WL"
 
 
 @dataclass
@@ -149,15 +189,18 @@ class ActuatorHealth:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> ActuatorHealth:
-        if d.get("format") != HEALTH_FORMAT:
+        if d.get("format") not in (HEALTH_FORMAT, "ema-actuator-health/1"):
             raise ValueError(f"not a {HEALTH_FORMAT} document")
+        # version 1 kept standardised residuals in the history; they cannot seed a filter that
+        # now tracks physical residuals, so that history is dropped (detection state is kept)
+        keep_history = d.get("format") == HEALTH_FORMAT
         return cls(position=str(d["position"]),
                    detection=DetectionState.from_dict(d["detection"]),
                    flights_seen=int(d["flights_seen"]),
                    class_log_prob=d.get("class_log_prob"), fault_mode=d.get("fault_mode"),
                    prognosis=d.get("prognosis"),
                    history=[(int(i), {k: float(v) for k, v in z.items()})
-                            for i, z in d.get("history", [])])
+                            for i, z in d.get("history", [])] if keep_history else [])
 
 
 @dataclass
@@ -181,13 +224,14 @@ def _finite(v: float) -> float | None:
     return float(v) if v is not None and math.isfinite(v) else None
 
 
-def _replay(model: PhmModel, mode: str, history: list[tuple[int, dict[str, float]]],
-            seed: int) -> PrognoserState | None:
+def _replay(model: PhmModel, mode: str, position: str,
+            history: list[tuple[int, dict[str, float]]], seed: int) -> PrognoserState | None:
     spec = model.measurement.get(mode)
     if spec is None:
         return None
-    pf = ParticleFilterPrognoser(model.prognoser, spec.model)
-    state = ParticleFilterPrognoser.initial_state(model.prognoser, spec.model, seed)
+    config = spec.prognoser or model.prognoser
+    pf = ParticleFilterPrognoser(config, spec.model_for(position))
+    state = ParticleFilterPrognoser.initial_state(config, spec.model_for(position), seed)
     for index, z in history:
         value = z.get(spec.feature)
         if value is not None and math.isfinite(value):
@@ -206,6 +250,7 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     service's case). It must increase strictly from flight to flight.
     """
     z_all = model.baseline.zscores(features)
+    r_all = model.baseline.residuals(features)
     out: dict[str, ActuatorOutcome] = {}
     for position, h in health.items():
         if flight_index is None:
@@ -217,8 +262,7 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
             h.flights_seen = int(flight_index)
         index = h.flights_seen
         det = model.detector.update(h.detection, z_all)
-        generic = {GENERIC_FEATURES[i]: float(v) for i, v in
-                   enumerate(classifier_vector(z_all, position))}
+        generic = measurement_values(r_all, position)
         h.history.append((index, generic))
         del h.history[:-_HISTORY_FLIGHTS]
 
@@ -228,7 +272,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
                 classifier_vector(z_all, position)[np.newaxis, :])[0]
             classes = [str(c) for c in model.classifier.classes_.tolist()]
             acc = h.class_log_prob or dict.fromkeys(classes, 0.0)
-            acc = {c: acc.get(c, 0.0) + float(lp) for c, lp in zip(classes, logp, strict=True)}
+            acc = {c: CLASS_EVIDENCE_DECAY * acc.get(c, 0.0) + float(lp)
+                   for c, lp in zip(classes, logp, strict=True)}
             h.class_log_prob = acc
             top = max(acc.values())
             weights = {c: math.exp(v - top) for c, v in acc.items()}
@@ -242,9 +287,10 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         rul = None
         if det.alarm and h.fault_mode in PROGRESSIVE and h.fault_mode in model.measurement:
             spec = model.measurement[h.fault_mode]
-            pf = ParticleFilterPrognoser(model.prognoser, spec.model)
+            pf = ParticleFilterPrognoser(spec.prognoser or model.prognoser,
+                                         spec.model_for(position))
             if h.prognosis is None:
-                state = _replay(model, h.fault_mode, h.history, seed)
+                state = _replay(model, h.fault_mode, position, h.history, seed)
             else:
                 state = PrognoserState.from_dict(h.prognosis)
                 value = generic.get(spec.feature)

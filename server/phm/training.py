@@ -4,26 +4,38 @@
 2. Baselines and detection bands on the healthy design flights (leave-one-aircraft-out bands,
    see :mod:`server.phm.evaluate_detection`).
 3. Classifier: one seven-residual vector per faulty flight of the faulty actuator, from the
-   flight the fault is established (normalised severity >= ``min_severity`` for progressive
-   modes, every post-onset flight for SE/BDO); split 70/30 by degradation pattern and aircraft.
-4. Measurement models of the particle filter, per progressive mode: the generic feature with
-   the strongest rank correlation to severity on the design flights (chosen here, on design
-   data only), and a monotone polynomial h(severity) with its residual noise.
+   detector's first alarm on (what the classifier sees at run time); split 70/30 by
+   degradation pattern (each pattern is one aircraft's run; the separate verification
+   campaign, on other aircraft, tests generalisation to unseen aircraft).
+4. Measurement models of the particle filter, per progressive mode: the mode's own feature
+   (paper Table 1) as a physical-unit residual, and a monotone polynomial h(severity) with
+   its residual noise.
 
 Nothing of the verification campaign is read here.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from scipy.stats import spearmanr
 
-from .chain import GENERIC_FEATURES, PROGRESSIVE, MeasurementSpec, PhmModel, classifier_vector
+from .chain import (
+    GENERIC_FEATURES,
+    OWN_FEATURE,
+    PROGRESSIVE,
+    MeasurementSpec,
+    PhmModel,
+    classifier_vector,
+    measurement_values,
+    surface_of,
+)
 from .classification import train_classifier
 from .evaluate_detection import Campaign, fit_detection, load_campaign
 from .prognosis import MeasurementModel, PrognoserConfig
@@ -31,21 +43,25 @@ from .prognosis import MeasurementModel, PrognoserConfig
 __all__ = ["training_rows", "fit_measurement_models", "train_phm_model"]
 
 Progress = Callable[[str, float], None]
+_MIN_SURFACE_FLIGHTS = 12  # design flights needed to fit a surface-specific measurement model
 
 
-def training_rows(campaign: Campaign, baseline: Any, *, min_severity: float = 0.2
-                  ) -> dict[str, np.ndarray]:
-    """Classifier rows of a campaign: X (n, 7), mode, pattern, aircraft, severity."""
+def training_rows(campaign: Campaign, model: PhmModel) -> dict[str, np.ndarray]:
+    """Classifier rows as the chain will see them: the faulty actuator's seven residuals on
+    every flight from the detector's first alarm on (the classifier only runs after an alarm).
+    Rows: X (n, 7), mode, pattern, aircraft, severity."""
     X, y, groups, aircraft, sev = [], [], [], [], []
     for p in campaign.patterns:
         if p.mode == "healthy" or p.position is None:
             continue
+        health = model.new_health(p.position)
+        alarmed = False
         for r in p.flights:
-            if p.onset_flight is not None and r.index < int(p.onset_flight):
+            z = model.baseline.zscores(r.features)
+            alarmed = model.detector.update(health.detection, z).alarm or alarmed
+            if not alarmed or (p.onset_flight is not None and r.index < int(p.onset_flight)):
                 continue
-            if p.mode in PROGRESSIVE and r.severity_norm < min_severity:
-                continue
-            X.append(classifier_vector(baseline.zscores(r.features), p.position))
+            X.append(classifier_vector(z, p.position))
             y.append(p.mode)
             groups.append(p.id)
             aircraft.append(p.aircraft)
@@ -55,33 +71,101 @@ def training_rows(campaign: Campaign, baseline: Any, *, min_severity: float = 0.
             "severity": np.asarray(sev, dtype=np.float64)}
 
 
-def fit_measurement_models(campaign: Campaign, baseline: Any) -> tuple[
+def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, float] | None,
+                                                               dict[str, Any]]:
+    """First-trial parameters of the affine growth law dh/dk = a + b h of ``mode`` (paper 4.2:
+    the RLS starts from first-trial values and tunes them online), fitted by least squares on
+    the true severity increments of the design fault-to-failure runs."""
+    xs, ys, gaps = [], [], []
+    for p in campaign.patterns:
+        if p.mode != mode:
+            continue
+        fl = sorted(p.flights, key=lambda r: r.index)
+        for a, b in zip(fl, fl[1:], strict=False):
+            if b.index > a.index:
+                xs.append(a.severity_norm)
+                ys.append((b.severity_norm - a.severity_norm) / (b.index - a.index))
+                gaps.append(b.index - a.index)
+    if len(xs) < 4:
+        return None, {"error": "too few increments"}
+    X = np.column_stack([np.ones(len(xs)), np.asarray(xs)])
+    coef, *_ = np.linalg.lstsq(X, np.asarray(ys), rcond=None)
+    a, b = float(coef[0]), float(coef[1])
+    if b < 0:  # progressive faults do not slow down as they grow: refit a constant rate
+        a, b = float(np.mean(ys)), 0.0
+    a = max(a, 1e-5)
+    return (a, b), {"a_per_flight": a, "b_per_flight": b, "n_increments": len(xs),
+                    "dk": float(np.median(gaps))}
+
+
+def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float) -> float:
+    """Initial RLS covariance P0 that weighs the first-trial parameters against the data.
+
+    The RLS regresses severity increments y = dh/dk on [1, h]; one increment over ``dk``
+    flights has noise about sqrt(2) sigma_h / dk. Patterns of one mode differ in rate by about
+    35 % (fault-to-failure spans of U(170, 360) flights), so sigma_theta = 0.35 x the rate at
+    mid-life. P0 = sigma_theta^2 / sigma_y^2, clipped to [1e-3, 1]: a precise feature (TTS)
+    lets the data re-tune the law at once, a noisy one (wear backlash) leans on the prior.
+    """
+    rate = theta[0] + 0.5 * theta[1]
+    sigma_theta = 0.35 * rate
+    sigma_y = math.sqrt(2.0) * noise_in_severity / max(dk, 1.0)
+    return float(np.clip(sigma_theta**2 / max(sigma_y**2, 1e-30), 1e-3, 1.0))
+
+
+def fit_measurement_models(campaign: Campaign, baseline: Any,
+                           base_config: PrognoserConfig | None = None) -> tuple[
         dict[str, MeasurementSpec], dict[str, Any]]:
-    """Per progressive mode: pick the feature most rank-correlated with severity, fit h."""
+    """Per progressive mode: h(severity) of the mode's own feature (paper Table 1), fitted on
+    the physical-unit residuals of the faulty actuator over its design fault-to-failure runs."""
+    base_config = base_config or PrognoserConfig()
     specs: dict[str, MeasurementSpec] = {}
     report: dict[str, Any] = {}
     for mode in PROGRESSIVE:
-        rows = [(r.severity_norm, classifier_vector(baseline.zscores(r.features), p.position))
-                for p in campaign.patterns if p.mode == mode and p.position
-                for r in p.flights
-                if p.onset_flight is None or r.index >= int(p.onset_flight)]
-        if len(rows) < 6:
+        feature = OWN_FEATURE[mode]
+        triples = [(r.severity_norm, measurement_values(baseline.residuals(r.features),
+                                                        p.position).get(feature),
+                    surface_of(p.position))
+                   for p in campaign.patterns if p.mode == mode and p.position
+                   for r in p.flights
+                   if p.onset_flight is None or r.index >= int(p.onset_flight)]
+        triples = [t for t in triples if t[1] is not None]
+        pairs = [(sn, v) for sn, v, _ in triples]
+        if len(pairs) < 6:
             continue
-        s = np.array([r[0] for r in rows])
-        Z = np.array([r[1] for r in rows])
-        rhos = {}
-        for j, name in enumerate(GENERIC_FEATURES):
-            if np.ptp(Z[:, j]) > 0:
-                rho = spearmanr(s, Z[:, j]).statistic
-                rhos[name] = float(rho) if np.isfinite(rho) else 0.0
-        if not rhos:
+        s = np.array([a for a, _ in pairs])
+        v = np.array([b for _, b in pairs])
+        try:
+            model = MeasurementModel.fit(s, v)
+        except ValueError as exc:  # no monotone relation: no prognosis for this mode
+            report[mode] = {"feature": feature, "error": str(exc)}
             continue
-        best = max(rhos, key=lambda k: abs(rhos[k]))
-        j = GENERIC_FEATURES.index(best)
-        model = MeasurementModel.fit(s, Z[:, j])
-        specs[mode] = MeasurementSpec(best, model)
-        report[mode] = {"feature": best, "spearman": rhos[best], "noise_std": model.noise_std,
-                        "n_flights": len(rows), "all_spearman": rhos}
+        by_surface = {}
+        for surface in ("WL", "WT"):
+            sub = [(sn, v) for sn, v, srf in triples if srf == surface]
+            if len(sub) >= _MIN_SURFACE_FLIGHTS:
+                try:
+                    by_surface[surface] = MeasurementModel.fit([a for a, _ in sub],
+                                                               [b for _, b in sub])
+                except ValueError:
+                    pass
+        theta, prior = _degradation_prior(campaign, mode)
+        noise_sev = float(model.noise_std / max(abs(float(model.derivative(
+            np.array([0.5]))[0])), 1e-12))
+        config = base_config
+        if theta is not None:
+            config = replace(base_config, initial_theta=theta,
+                             rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]))
+            prior["rls_initial_cov"] = config.rls_initial_cov
+        specs[mode] = MeasurementSpec(feature, model, config, by_surface)
+        rho = spearmanr(s, v).statistic
+        report[mode] = {"feature": feature, "spearman": float(rho),
+                        "noise_std": model.noise_std, "n_flights": len(pairs),
+                        "coefficients": list(model.coefficients),
+                        "noise_in_severity": float(model.noise_std / max(
+                            abs(float(model.derivative(np.array([0.5]))[0])), 1e-12)),
+                        "degradation_prior": prior,
+                        "surface_noise_std": {k: m.noise_std for k, m in by_surface.items()}}
     return specs, report
 
 
@@ -102,10 +186,11 @@ def train_phm_model(design_dir: str | os.PathLike[str], *, seed: int = 0,
     detection = fit_detection(campaign)
     t_det = time.perf_counter()
     tick("classifier", 0.6)
-    rows = training_rows(campaign, detection.baseline)
+    bare = PhmModel(detection.baseline, detection.detector, None, {}, PrognoserConfig())
+    rows = training_rows(campaign, bare)
     classifier, clf_report = train_classifier(
         rows["X"], rows["y"], rows["groups"], feature_names=list(GENERIC_FEATURES), seed=seed,
-        aircraft=rows["aircraft"], progress=lambda st, f: tick(f"classifier:{st}", 0.6 + 0.3 * f))
+        progress=lambda st, f: tick(f"classifier:{st}", 0.6 + 0.3 * f))
     t_clf = time.perf_counter()
     tick("measurement", 0.9)
     specs, meas_report = fit_measurement_models(campaign, detection.baseline)

@@ -1,0 +1,223 @@
+"""``hmsm evaluate``: run the PHM chain over a campaign and write the evaluation.
+
+Usage::
+
+    hmsm evaluate --campaign DIR [--design DIR | --model-json FILE | --model-id N]
+                  [--out DIR] [--jobs N] [--seed N] [--no-progress]
+
+Model: ``--model-json`` (a ``ema-phm-model/1`` document, or a model-version export with a
+``payload``), ``--model-id`` (a model version of the database), ``--design`` (train on a design
+campaign, seed ``--seed``), else the active model version of the database.
+
+Writes into ``--out`` (default ``<HMSM_DATA_DIR>/evaluation/<UTC timestamp>/``):
+``evaluation.json``, ``report.html`` (plotly.js embedded once), ``rul_<MODE>.html`` (one page
+per progressive mode, with a local ``plotly.min.js``), ``summary.md``; and copies the JSON to
+``<HMSM_DATA_DIR>/evaluation/latest.json`` (read by the dashboard's evaluation page:
+``prognosis.<MODE>.ph`` nondimensional horizon, ``prognosis.<MODE>.ra`` relative accuracy in %).
+
+Wiring into ``server/cli.py``::
+
+    from server.evaluation.cli import add_evaluate_arguments, run_evaluate
+    ev = sub.add_parser("evaluate", help="evaluate the PHM chain on a campaign")
+    add_evaluate_arguments(ev)
+    ev.set_defaults(func=run_evaluate)
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import shutil
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from server.config import Settings, load_settings
+from server.phm.chain import MODEL_FORMAT, PhmModel
+
+__all__ = ["add_evaluate_arguments", "run_evaluate", "main_evaluate", "load_model",
+           "write_outputs"]
+
+
+def add_evaluate_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("--campaign", required=True, help="campaign directory to evaluate on")
+    src = parser.add_mutually_exclusive_group()
+    src.add_argument("--design", help="train the model on this design campaign first")
+    src.add_argument("--model-json", help="model JSON file (ema-phm-model/1)")
+    src.add_argument("--model-id", type=int, help="model version id in the database")
+    parser.add_argument("--seed", type=int, default=0, help="training seed (with --design)")
+    parser.add_argument("--out", help="output directory (default "
+                        "<HMSM_DATA_DIR>/evaluation/<timestamp>/)")
+    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
+                        help="worker processes over patterns")
+    parser.add_argument("--timing-flights", type=int, default=6,
+                        help="flights re-read to time feature extraction (0: skip)")
+    parser.add_argument("--no-latest", action="store_true",
+                        help="do not update <HMSM_DATA_DIR>/evaluation/latest.json")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    return parser
+
+
+def _model_from_doc(doc: dict[str, Any]) -> PhmModel:
+    if doc.get("format") != MODEL_FORMAT and isinstance(doc.get("payload"), dict):
+        doc = doc["payload"]
+    return PhmModel.from_dict(doc)
+
+
+def load_model(args: argparse.Namespace, settings: Settings
+               ) -> tuple[PhmModel, dict[str, Any]]:
+    """The model to evaluate and a description of where it came from."""
+    if args.model_json:
+        path = Path(args.model_json)
+        return _model_from_doc(json.loads(path.read_text())), {
+            "source": f"file {path.resolve()}"}
+    if args.design:
+        from server.phm.training import train_phm_model
+
+        t0 = time.perf_counter()
+        model, report = train_phm_model(args.design, seed=args.seed, jobs=args.jobs)
+        clf = report.get("classifier") or {}
+        return model, {"source": f"trained on {Path(args.design).resolve()} (seed {args.seed})",
+                       "training_s": time.perf_counter() - t0,
+                       "classifier_accuracy": clf.get("accuracy"),
+                       "measurement": report.get("measurement")}
+    return _model_from_db(settings, args.model_id)
+
+
+def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, dict[str, Any]]:
+    from sqlalchemy import select
+
+    from server.db import make_engine, make_session_factory
+    from server.models import ModelVersion
+
+    if settings.is_sqlite and not (settings.data_dir / "hmsm.sqlite3").exists() \
+            and not settings.database_url:
+        raise ValueError(f"no database under {settings.data_dir}: pass --design, --model-json "
+                         "or set HMSM_DATA_DIR / HMSM_DATABASE_URL")
+    engine = make_engine(settings.effective_database_url)
+    try:
+        with make_session_factory(engine)() as session:
+            if model_id is None:
+                row = session.scalar(select(ModelVersion).where(ModelVersion.active.is_(True)))
+                if row is None:
+                    raise ValueError("no active model version: pass --design or --model-json, "
+                                     "or train one with `hmsm train`")
+            else:
+                row = session.get(ModelVersion, model_id)
+                if row is None:
+                    raise ValueError(f"model version {model_id} does not exist")
+            if row.status != "ready":
+                raise ValueError(f"model version {row.id} is {row.status}")
+            return PhmModel.from_dict(row.payload), {
+                "source": f"model version {row.id} ({row.name})", "model_id": row.id}
+    finally:
+        engine.dispose()
+
+
+def write_outputs(result: dict[str, Any], out_dir: Path, *, latest: Path | None) -> list[Path]:
+    """evaluation.json, report.html, rul_<MODE>.html, summary.md; latest.json if asked."""
+    from .report import markdown_tables, write_html_report, write_rul_pages
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    js = out_dir / "evaluation.json"
+    js.write_text(json.dumps(result, indent=1, allow_nan=False), encoding="utf-8")
+    written = [js, write_html_report(result, out_dir / "report.html")]
+    written += write_rul_pages(result, out_dir)
+    tables = markdown_tables(result)
+    md = out_dir / "summary.md"
+    md.write_text("\n\n".join(tables[k] for k in ("detection", "at_first_alarm",
+                                                   "at_last_flight", "prognosis", "timing"))
+                  + "\n", encoding="utf-8")
+    written.append(md)
+    if latest is not None:
+        latest.parent.mkdir(parents=True, exist_ok=True)
+        tmp = latest.with_suffix(".tmp")
+        shutil.copyfile(js, tmp)
+        tmp.replace(latest)
+        written.append(latest)
+    return written
+
+
+def _sanitise(obj: Any) -> Any:
+    """Non-finite floats to None (strict JSON)."""
+    if isinstance(obj, float):
+        return obj if obj == obj and obj not in (float("inf"), float("-inf")) else None
+    if isinstance(obj, dict):
+        return {str(k): _sanitise(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_sanitise(v) for v in obj]
+    return obj
+
+
+def run_evaluate(args: argparse.Namespace, settings: Settings) -> int:
+    """Body of ``hmsm evaluate`` (see the module docstring)."""
+    from .core import evaluate_campaign
+
+    campaign = Path(args.campaign)
+    if not (campaign / "manifest.json").exists():
+        raise ValueError(f"{campaign}: no manifest.json (not a campaign directory)")
+    model, source = load_model(args, settings)
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    out_dir = Path(args.out) if args.out else settings.data_dir / "evaluation" / stamp
+    bar = None
+    progress = None
+    if not args.no_progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=None, unit="pattern", desc="evaluate", file=sys.stderr)
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+    t0 = time.perf_counter()
+    try:
+        result = evaluate_campaign(model, campaign, jobs=max(int(args.jobs), 1),
+                                   progress=progress, timing_flights=args.timing_flights)
+    finally:
+        if bar is not None:
+            bar.close()
+    result["model"] = source
+    result["created_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+    result["wall_s"] = time.perf_counter() - t0
+    result = _sanitise(result)
+    latest = None if args.no_latest else settings.data_dir / "evaluation" / "latest.json"
+    written = write_outputs(result, out_dir, latest=latest)
+    _print_summary(result)
+    for p in written:
+        print(f"wrote {p}")
+    return 0
+
+
+def _print_summary(result: dict[str, Any]) -> None:
+    from .report import markdown_tables
+
+    t = markdown_tables(result)
+    print(t["detection"])
+    print()
+    print(t["at_first_alarm"])
+    print()
+    print(t["prognosis"])
+    print()
+    print(t["timing"])
+
+
+def main_evaluate(argv: Sequence[str] | None = None) -> int:
+    """Stand-alone entry point (``python -m server.evaluation.cli ...``)."""
+    parser = add_evaluate_arguments(argparse.ArgumentParser(
+        prog="hmsm evaluate", description=(__doc__ or "").split("\n")[0]))
+    args = parser.parse_args(argv)
+    try:
+        return run_evaluate(args, load_settings())
+    except ValueError as exc:
+        print(f"hmsm evaluate: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main_evaluate())

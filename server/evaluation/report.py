@@ -1,0 +1,280 @@
+"""Figures and reports of an evaluation: plotly figures, the HTML report, Markdown tables.
+
+plotly.js is embedded once in the HTML report (from the installed plotly package, never a CDN);
+the per-mode RUL pages reference a local ``plotly.min.js`` written beside them
+(``include_plotlyjs="directory"``) or embed it (stand-alone file).
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import plotly.graph_objects as go
+import plotly.io as pio
+from plotly.subplots import make_subplots
+
+from server.phm.chain import PROGRESSIVE
+
+from .core import ALPHA, PAPER_TABLE2, pattern_prognosis
+
+__all__ = ["trajectories_figure", "rul_band_figure", "write_html_report", "markdown_tables",
+           "write_rul_pages"]
+
+_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
+            "#17becf", "#7f7f7f", "#bcbd22")
+
+
+def trajectories_figure(result: Mapping[str, Any]) -> go.Figure:
+    """The paper's Figure 23: RUL median of every pattern against ground truth, per mode.
+
+    Normalised axes: time (t - onset) / life, RUL / life; ground truth 1 - t and the +-20 %
+    cone; all rendered flights after detection as lines, the (up to) 10 scored predictions as
+    markers.
+    """
+    modes = [m for m in PROGRESSIVE if m in result["prognosis"]]
+    fig = make_subplots(rows=1, cols=max(len(modes), 1), subplot_titles=modes,
+                        shared_yaxes=True)
+    traces = {t["id"]: t for t in result["patterns"]}
+    x = [0.0, 1.0]
+    for c, mode in enumerate(modes, start=1):
+        fig.add_trace(go.Scatter(x=x, y=[1.0, 0.0], mode="lines", line={"color": "black"},
+                                 name="ground truth", showlegend=c == 1), row=1, col=c)
+        for sign in (1 + ALPHA, 1 - ALPHA):
+            fig.add_trace(go.Scatter(x=x, y=[sign, 0.0], mode="lines",
+                                     line={"color": "grey", "dash": "dash"},
+                                     name=f"+-{100 * ALPHA:.0f} % cone",
+                                     showlegend=c == 1 and sign > 1), row=1, col=c)
+        for k, p in enumerate(result["prognosis"][mode]["patterns"]):
+            tr = traces[p["id"]]
+            onset = tr["onset"] or 0
+            life = p["life"]
+            det = p["detected_index"]
+            colour = _COLOURS[k % len(_COLOURS)]
+            if det is None:
+                continue
+            pts = [(f["index"], _point(f, tr)) for f in tr["flights"]
+                   if det <= f["index"] < p["t_eol"]]
+            fig.add_trace(go.Scatter(
+                x=[(i - onset) / life for i, _ in pts],
+                y=[None if v is None else v / life for _, v in pts], mode="lines",
+                line={"color": colour, "width": 1}, opacity=0.6, name=p["id"],
+                legendgroup=p["id"], showlegend=True), row=1, col=c)
+            pr = p["predictions"]
+            fig.add_trace(go.Scatter(
+                x=[(q["flight"] - onset) / life for q in pr],
+                y=[None if q["median"] is None else q["median"] / life for q in pr],
+                mode="markers", marker={"color": colour, "size": 6}, legendgroup=p["id"],
+                name=f"{p['id']} predictions", showlegend=False), row=1, col=c)
+    fig.update_xaxes(title_text="(t - onset) / life [-]", range=[0, 1])
+    fig.update_yaxes(title_text="RUL / life [-]", range=[0, 1.6], row=1, col=1)
+    fig.update_layout(title="RUL median vs ground truth per fault mode (paper Figure 23)",
+                      height=450, width=max(360 * len(modes), 600),
+                      legend={"font": {"size": 9}})
+    return fig
+
+
+def _point(flight: Mapping[str, Any], trace: Mapping[str, Any]) -> float | None:
+    rul = flight.get("rul")
+    if not rul:
+        return None
+    return float(trace.get("horizon", math.inf)) if rul["q50"] is None else float(rul["q50"])
+
+
+def rul_band_figure(traces: Sequence[Mapping[str, Any]], mode: str) -> go.Figure:
+    """RUL median and 5-95 % band against true RUL over the life, one row per pattern."""
+    rows = [t for t in traces if t["mode"] == mode]
+    fig = make_subplots(rows=max(len(rows), 1), cols=1, shared_xaxes=False,
+                        subplot_titles=[f"{t['id']} ({t['aircraft']}/{t['position']})"
+                                        for t in rows], vertical_spacing=0.08)
+    for r, tr in enumerate(rows, start=1):
+        fl = tr["flights"]
+        idx = [f["index"] for f in fl]
+        truth = [f["true_rul"] for f in fl]
+        have = [f for f in fl if f["rul"]]
+        hx = [f["index"] for f in have]
+        q95 = [f["rul"]["q95"] if f["rul"]["q95"] is not None else tr.get("horizon")
+               for f in have]
+        q05 = [f["rul"]["q05"] for f in have]
+        med = [_point(f, tr) for f in have]
+        first = r == 1
+        fig.add_trace(go.Scatter(x=hx, y=q95, mode="lines", line={"width": 0},
+                                 showlegend=False, hoverinfo="skip"), row=r, col=1)
+        fig.add_trace(go.Scatter(x=hx, y=q05, mode="lines", line={"width": 0},
+                                 fill="tonexty", fillcolor="rgba(31,119,180,0.25)",
+                                 name="5-95 % band", showlegend=first), row=r, col=1)
+        fig.add_trace(go.Scatter(x=hx, y=med, mode="lines+markers", line={"color": "#1f77b4"},
+                                 name="RUL median", showlegend=first,
+                                 text=[f["fault_mode"] for f in have],
+                                 hovertemplate="flight %{x}<br>median %{y:.0f}<br>"
+                                 "mode %{text}<extra></extra>"), row=r, col=1)
+        fig.add_trace(go.Scatter(x=idx, y=truth, mode="lines", line={"color": "black"},
+                                 name="true RUL", showlegend=first), row=r, col=1)
+        up = [None if t is None else (1 + ALPHA) * t for t in truth]
+        lo = [None if t is None else (1 - ALPHA) * t for t in truth]
+        for y, nm in ((up, f"+-{100 * ALPHA:.0f} %"), (lo, None)):
+            fig.add_trace(go.Scatter(x=idx, y=y, mode="lines",
+                                     line={"color": "grey", "dash": "dash"},
+                                     name=nm or "", showlegend=first and nm is not None),
+                          row=r, col=1)
+        p = pattern_prognosis(tr) if tr["failure"] is not None else None
+        if p and p["detected_index"] is not None:
+            fig.add_vline(x=p["detected_index"], line={"color": "red", "dash": "dot"},
+                          row=r, col=1)
+        top = max([v for v in truth if v is not None] or [1.0])
+        fig.update_yaxes(title_text="RUL [flights]", range=[0, 1.8 * top], row=r, col=1)
+        fig.update_xaxes(title_text="flight since onset", row=r, col=1)
+    fig.update_layout(title=f"{mode}: RUL median and 5-95 % band vs true RUL "
+                      "(red dotted: detection)", height=320 * max(len(rows), 1) + 80,
+                      width=900)
+    return fig
+
+
+def write_rul_pages(result: Mapping[str, Any], out_dir: Path, *,
+                    include_plotlyjs: bool | str = "directory") -> list[Path]:
+    """One HTML page per progressive mode (``rul_<MODE>.html``)."""
+    paths = []
+    for mode in PROGRESSIVE:
+        if not any(t["mode"] == mode for t in result["patterns"]):
+            continue
+        path = out_dir / f"rul_{mode}.html"
+        rul_band_figure(result["patterns"], mode).write_html(
+            path, include_plotlyjs=include_plotlyjs, full_html=True)
+        paths.append(path)
+    return paths
+
+
+def _f(v: Any, spec: str = ".2f") -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return format(v, spec)
+
+
+def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
+    """Markdown tables: detection, confusion (first alarm, last flight), prognosis, timing."""
+    det = result["detection"]
+    fa = det["false_alarms"]
+    lines = [f"False alarms: {fa['healthy_patterns_with_alarm']} of {fa['healthy_patterns']} "
+             f"healthy cycles with an alarm; {fa['false_alarm_events']} alarm events on "
+             f"{fa['healthy_flights']} healthy flights (incl. pre-onset flights of fault "
+             "patterns) (paper: 0 on 25 healthy cycles).", "",
+             "| mode | patterns | detected | detection time mean / max [% life] | "
+             "flights after onset mean / max | alarms on other actuators |",
+             "|---|---|---|---|---|---|"]
+    for m, r in det["per_mode"].items():
+        lines.append(f"| {m} | {r['patterns']} | {r['detected']} | {_f(r['pct_life_mean'], '.1f')}"
+                     f" / {_f(r['pct_life_max'], '.1f')} | "
+                     f"{_f(r['flights_after_onset_mean'], '.1f')} / "
+                     f"{_f(r['flights_after_onset_max'], '.0f')} | {r['other_unit_alarms']} |")
+    out = {"detection": "\n".join(lines)}
+    for key, title in (("at_first_alarm", "at the first alarm"),
+                       ("at_last_flight", "at the last flight")):
+        c = result["classification"][key]
+        cols = c["columns"]
+        t = [f"Classification {title} (rows: true mode, columns: predicted; accuracy "
+             f"{_f(None if c['accuracy'] is None else 100 * c['accuracy'], '.1f')} %)", "",
+             "| true \\ predicted | " + " | ".join(cols) + " | recall |",
+             "|---|" + "---|" * (len(cols) + 1)]
+        for row, vals in zip(c["rows"], c["matrix"], strict=True):
+            rec = c["per_class"][row]["recall"]
+            t.append(f"| {row} | " + " | ".join(str(v) for v in vals) +
+                     f" | {_f(None if rec is None else 100 * rec, '.0f')} % |")
+        out[key] = "\n".join(t)
+    p = ["| mode | PH [-] ours | PH [-] paper | RA [%] ours | RA [%] paper | PH from detection "
+         "[-] | alpha-lambda (0.2, 0.5) | CRA [%] | convergence [-] | patterns (with "
+         "predictions) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for m, r in result["prognosis"].items():
+        p.append(f"| {m} | {_f(r['ph'])} | {PAPER_TABLE2[m][0]:.2f} | {_f(r['ra'], '.1f')} | "
+                 f"{PAPER_TABLE2[m][1]:.1f} | {_f(r['ph_from_detection'])} | "
+                 f"{_f(r['alpha_lambda'])} | "
+                 f"{_f(None if r['cra'] is None else 100 * r['cra'], '.1f')} | "
+                 f"{_f(r['convergence'])} | {r['n_patterns']} ({r['n_with_predictions']}) |")
+    out["prognosis"] = "\n".join(p)
+    tm = result["timing"]
+    rows = [
+        ("features + detection per 80 Hz step, 3 EMAs, 19 features (amortised over a flight)",
+         tm.get("features_detection_per_step_ms"), "11.3"),
+        ("  of which feature extraction per step", tm.get("features_per_step_ms"), ""),
+        ("  of which z-scores + detection per step", tm.get("detection_per_step_ms"), ""),
+        ("Parquet read per step (not in the paper's figure)", tm.get("read_per_step_ms"), ""),
+        ("feature extraction per flight", (tm.get("features") or {}).get(
+            "features_per_flight_ms"), ""),
+        ("z-scores + detection per flight (3 actuators)", tm.get("detection_per_flight_ms"), ""),
+        ("particle-filter update (200 particles, incl. RLS)", tm.get("pf_update_ms"), ""),
+        ("  RLS step", tm.get("rls_ms"), ""),
+        ("long-term prediction (RUL distribution)", tm.get("pf_predict_ms"), ""),
+        ("update + prediction cycle", tm.get("pf_cycle_ms"), "7.4"),
+        ("RLS share of the cycle [%]", tm.get("rls_share_pct"), "2.25"),
+        ("whole chain per flight (3 actuators, from cached features)",
+         tm.get("chain_per_flight_ms"), ""),
+    ]
+    t = ["| what (mean per call) | ours [ms] | paper [ms] |", "|---|---|---|"]
+    for name, v, paper in rows:
+        t.append(f"| {name} | {_f(v, '.2e' if v is not None and v < 0.01 else '.3f')} | "
+                 f"{paper} |")
+    out["timing"] = "\n".join(t)
+    return out
+
+
+def _md_to_html_table(md: str) -> str:
+    """Tiny Markdown-table-to-HTML conversion (the tables written by :func:`markdown_tables`)."""
+    parts: list[str] = []
+    table: list[list[str]] = []
+
+    def flush() -> None:
+        if not table:
+            return
+        head, *body = table
+        parts.append("<table><thead><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in head)
+                     + "</tr></thead><tbody>" + "".join(
+                         "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>"
+                         for r in body) + "</tbody></table>")
+        table.clear()
+
+    for line in md.splitlines():
+        if line.startswith("|"):
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if all(set(c) <= {"-"} for c in cells):
+                continue
+            table.append(cells)
+        else:
+            flush()
+            if line.strip():
+                parts.append(f"<p>{html.escape(line)}</p>")
+    flush()
+    return "\n".join(parts)
+
+
+def write_html_report(result: Mapping[str, Any], path: Path, *,
+                      extra_figures: Sequence[go.Figure] = ()) -> Path:
+    """The evaluation as one HTML page; plotly.js embedded once (first figure)."""
+    tables = markdown_tables(result)
+    camp = result["campaign"]
+    figs = [trajectories_figure(result), *extra_figures]
+    divs = [pio.to_html(f, include_plotlyjs=(i == 0), full_html=False)
+            for i, f in enumerate(figs)]
+    model = result.get("model", {})
+    body = [
+        "<h1>PHM chain evaluation</h1>",
+        f"<p>Campaign <code>{html.escape(str(camp['dir']))}</code> ({camp['kind']}, seed "
+        f"{camp['seed']}, scale {camp['scale']}, {camp['patterns']} patterns, "
+        f"{camp['flights']} rendered flights, render every {camp['render_every']}). Model: "
+        f"{html.escape(str(model.get('source', '-')))}.</p>",
+        "<h2>Detection</h2>", _md_to_html_table(tables["detection"]),
+        "<h2>Classification</h2>", _md_to_html_table(tables["at_first_alarm"]),
+        _md_to_html_table(tables["at_last_flight"]),
+        "<h2>Prognosis (paper Table 2)</h2>", _md_to_html_table(tables["prognosis"]),
+        divs[0],
+        "<h2>Timing (paper section 5.1)</h2>", _md_to_html_table(tables["timing"]),
+        *divs[1:],
+    ]
+    page = ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>PHM evaluation</title>"
+            "<style>body{font-family:sans-serif;margin:1.5em;max-width:1500px}"
+            "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;"
+            "padding:2px 6px;text-align:right}th{background:#f3f3f3}</style></head><body>"
+            + "\n".join(body) + "</body></html>")
+    path.write_text(page, encoding="utf-8")
+    return path
