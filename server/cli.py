@@ -187,6 +187,13 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     train.set_defaults(func=cmd_train)
 
+    from server.evaluation.cli import add_evaluate_arguments, run_evaluate
+
+    evaluate = sub.add_parser("evaluate", help="evaluate the PHM chain on a verification "
+                              "campaign (paper section 5): JSON + HTML report")
+    add_evaluate_arguments(evaluate)
+    evaluate.set_defaults(func=run_evaluate)
+
     worker = sub.add_parser("worker", help="run analysis workers")
     worker.add_argument("--concurrency", type=int, default=1, help="worker processes")
     worker.add_argument("--lease", type=float, default=120.0, help="job lease [s]")

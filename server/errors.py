@@ -8,7 +8,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from sqlalchemy.exc import DBAPIError, OperationalError
+from sqlalchemy.exc import DataError, DBAPIError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 log = logging.getLogger("hmsm.api")
@@ -24,6 +24,7 @@ __all__ = [
     "Unprocessable",
     "BadRequest",
     "ServiceUnavailable",
+    "StorageUnavailable",
     "error_body",
     "install_error_handlers",
 ]
@@ -78,6 +79,12 @@ class ServiceUnavailable(DomainError):
     status_code, code = 503, "service_unavailable"
 
 
+class StorageUnavailable(DomainError):
+    """The blob store cannot take the file (disk full, read-only, missing directory)."""
+
+    status_code, code = 507, "storage_unavailable"
+
+
 def error_body(code: str, message: str, details: dict[str, Any] | None = None) -> dict[str, Any]:
     return {"error": {"code": code, "message": message, "details": details or {}}}
 
@@ -112,8 +119,17 @@ def install_error_handlers(app: FastAPI) -> None:
                                        "try again shortly."), status_code=503,
                             headers={"Retry-After": "5"})
 
+    @app.exception_handler(OverflowError)
+    async def _overflow(_: Request, exc: OverflowError) -> JSONResponse:
+        # e.g. an id path/query parameter beyond 64 bits reaching the SQLite driver
+        return JSONResponse(error_body("validation_error", "A number in the request is out of "
+                                       "range.", {"error": str(exc)[:200]}), status_code=422)
+
     @app.exception_handler(DBAPIError)
     async def _db_error(_: Request, exc: DBAPIError) -> JSONResponse:
+        if isinstance(exc, DataError):  # PostgreSQL: value out of range for the column type
+            return JSONResponse(error_body("validation_error", "A value in the request is out "
+                                           "of range for the database."), status_code=422)
         if exc.connection_invalidated:
             return JSONResponse(error_body("database_unavailable", "The database connection was "
                                            "lost; try again shortly."), status_code=503,

@@ -7,6 +7,7 @@ disk with a running size check, never held whole in memory beyond the configured
 
 from __future__ import annotations
 
+import logging
 from collections.abc import AsyncIterator
 from typing import Annotated, Any
 
@@ -19,12 +20,19 @@ from starlette.datastructures import UploadFile
 from server.api.deps import BlobsDep, Reader, SessionDep, SettingsDep, Uploader
 from server.api.presenters import flight_read
 from server.blobstore import BlobTooLarge
-from server.errors import BadRequest, PayloadTooLarge, UnsupportedMediaType, error_body
+from server.errors import (
+    BadRequest,
+    PayloadTooLarge,
+    StorageUnavailable,
+    UnsupportedMediaType,
+    error_body,
+)
 from server.models import ApiKey
 from server.schemas import FlightAccepted, FlightRead, Page, SignalsRead
 from server.services import flights as service
 
 router = APIRouter(prefix="/flights", tags=["flights"])
+log = logging.getLogger("hmsm.api")
 
 PARQUET_TYPES = {"application/vnd.apache.parquet", "application/x-parquet"}
 _METADATA_FIELDS = ("format", "aircraft", "flight", "started_at", "block_hours",
@@ -45,6 +53,7 @@ _UPLOAD_DOC = {
         "409": {"description": "Another file exists for this (aircraft, flight)."},
         "413": {"description": "Body over the size limit."},
         "415": {"description": "Unsupported content type or file kind."},
+        "507": {"description": "The blob store cannot take the file; nothing was registered."},
         "422": {"description": "Failed coherence checks; stored as rejected with reasons."},
     },
 }
@@ -100,9 +109,15 @@ async def upload(request: Request, session: SessionDep, blobs: BlobsDep, setting
     except BlobTooLarge:
         raise PayloadTooLarge(f"The upload exceeds {settings.max_upload_bytes} bytes.",
                               details={"limit_bytes": settings.max_upload_bytes}) from None
+    except OSError as exc:
+        raise _storage_unavailable(exc) from None
 
-    flight, duplicate = await run_in_threadpool(_ingest, session, blobs, spooled, kind,
-                                                form_metadata, key)
+    try:
+        flight, duplicate = await run_in_threadpool(_ingest, session, blobs, spooled, kind,
+                                                    form_metadata, key)
+    except OSError as exc:
+        # The blob store failed before the flight row was flushed: nothing was registered.
+        raise _storage_unavailable(exc) from None
     body = FlightAccepted(id=flight.id, status=flight.status,
                           status_url=f"/api/v1/flights/{flight.id}", duplicate=duplicate)
     if flight.status == "rejected":
@@ -112,6 +127,13 @@ async def upload(request: Request, session: SessionDep, blobs: BlobsDep, setting
                             status_code=422, headers={"Location": body.status_url})
     return JSONResponse(body.model_dump(), status_code=200 if duplicate else 202,
                         headers={"Location": body.status_url})
+
+
+def _storage_unavailable(exc: OSError) -> StorageUnavailable:
+    log.error("blob store write failed: %s", exc)
+    return StorageUnavailable("The flight store cannot take the file now (disk full or not "
+                              "writable); nothing was registered. Try again later.",
+                              details={"errno": exc.errno}, headers={"Retry-After": "60"})
 
 
 def _ingest(session, blobs, spooled, kind, form_metadata, key):  # type: ignore[no-untyped-def]

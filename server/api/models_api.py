@@ -16,7 +16,8 @@ from server.services import models as service
 
 router = APIRouter(prefix="/models", tags=["models"])
 
-_NAME = r"^[A-Za-z0-9._-]{1,64}$"
+# No leading dot: "." and ".." would name the campaigns directory or the data directory.
+_NAME = r"^[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}$"
 
 
 class ModelRead(BaseModel):

@@ -1,0 +1,141 @@
+"""The production topology: the compose file is valid, and the same topology runs without
+containers (API process + two worker processes + PostgreSQL on loopback) and analyses every
+uploaded flight exactly once."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import httpx
+import pytest
+from sqlalchemy import create_engine, func, select
+from sqlalchemy.orm import Session
+
+from server.config import Settings
+from server.models import Flight, HealthRecord, Job
+from tests.flightlog_factory import make_parquet, serials_for
+from tests.live_server import running_server
+from tests.production.helpers import (
+    env_of,
+    fresh_pg_database,
+    seed_system,
+    wait_until,
+    worker_process,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+PG_URL = os.environ.get("HMSM_TEST_POSTGRES_URL")
+COMPOSE = shutil.which("docker-compose")
+
+
+def _compose_config(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
+    assert COMPOSE
+    clean = {k: v for k, v in os.environ.items()
+             if not k.startswith(("POSTGRES_", "HMSM_SIM_", "COMPOSE_"))}
+    return subprocess.run([COMPOSE, "-f", str(ROOT / "docker-compose.yml"), *args, "config"],
+                          env={**clean, **env}, capture_output=True, text=True, timeout=60,
+                          cwd=ROOT)
+
+
+@pytest.mark.skipif(COMPOSE is None, reason="docker-compose is not installed "
+                    "(apt-get install -y docker-compose); the compose file is not validated")
+def test_compose_file_is_valid_and_has_the_production_topology() -> None:
+    yaml = pytest.importorskip("yaml")
+    missing = _compose_config({})
+    assert missing.returncode != 0 and "POSTGRES_PASSWORD" in missing.stderr
+
+    done = _compose_config({"POSTGRES_PASSWORD": "s3cret-for-test"}, "--profile", "sim")
+    assert done.returncode == 0, done.stderr
+    config = yaml.safe_load(done.stdout)
+    services = config["services"]
+    assert {"postgres", "migrate", "api", "worker", "sim"} <= set(services)
+
+    pg = services["postgres"]
+    assert "pg_isready" in " ".join(pg["healthcheck"]["test"])
+    assert any(":/var/lib/postgresql/data" in str(v) or
+               (isinstance(v, dict) and v.get("target") == "/var/lib/postgresql/data")
+               for v in pg["volumes"])
+
+    assert services["migrate"]["command"] == ["hmsm", "db", "upgrade"]
+    api = services["api"]
+    assert api["command"][:2] == ["hmsm", "serve"] and "0.0.0.0" in api["command"]
+    assert api["depends_on"]["migrate"]["condition"] == "service_completed_successfully"
+    assert "/api/v1/health/ready" in " ".join(api["healthcheck"]["test"])
+
+    worker = services["worker"]
+    assert worker["command"][:2] == ["hmsm", "worker"]
+    assert "container_name" not in worker and "ports" not in worker  # --scale worker=N works
+    assert worker["depends_on"]["migrate"]["condition"] == "service_completed_successfully"
+
+    sim = services["sim"]
+    assert sim["profiles"] == ["sim"]
+    assert "sim-worker run --api http://api:8000 --key" in " ".join(sim["command"])
+
+    for name in ("migrate", "api", "worker"):
+        env = services[name]["environment"]
+        assert env["HMSM_DATABASE_URL"].startswith("postgresql://hmsm:")
+        assert env["HMSM_DATA_DIR"] == "/data"
+    text = (ROOT / "docker-compose.yml").read_text()
+    assert "s3cret" not in text and "${POSTGRES_PASSWORD:?" in text
+
+
+def test_dockerfile_runs_as_non_root_with_a_liveness_healthcheck() -> None:
+    lines = [ln.strip() for ln in (ROOT / "Dockerfile").read_text().splitlines()
+             if ln.strip() and not ln.strip().startswith("#")]
+    assert lines[0] == "FROM python:3.11-slim"
+    users = [ln.split()[1] for ln in lines if ln.startswith("USER ")]
+    assert users and not users[-1].startswith(("root", "0"))
+    joined = "\n".join(lines)
+    assert "HEALTHCHECK" in joined and "/api/v1/health/live" in joined
+    assert not any(word in joined.lower() for word in ("password=", "hmsm_key", "secret"))
+    ignored = (ROOT / ".dockerignore").read_text().split()
+    assert {".git", ".venv", ".env", "var"} <= set(ignored)
+
+
+@pytest.mark.slow
+@pytest.mark.postgres
+@pytest.mark.skipif(not PG_URL, reason="HMSM_TEST_POSTGRES_URL not set")
+def test_api_and_two_workers_on_postgres_analyse_every_flight_once(tmp_path,
+                                                                   trained_model) -> None:  # type: ignore[no-untyped-def]
+    assert PG_URL
+    tails, per_tail = ("TOPO1", "TOPO2", "TOPO3"), 4
+    with fresh_pg_database(PG_URL) as db_url:
+        settings = Settings(data_dir=tmp_path / "data", database_url=db_url)
+        keys = seed_system(settings, trained_model[0])
+        admin = {"Authorization": f"Bearer {keys['admin']}"}
+        up = {"Authorization": f"Bearer {keys['uploader']}",
+              "Content-Type": "application/vnd.apache.parquet"}
+        with running_server(env_of(settings), "--host", "127.0.0.1") as url, \
+                worker_process(settings, "--concurrency", "2"), \
+                httpx.Client(base_url=url, timeout=60) as http:
+            for tail in tails:
+                assert http.post("/api/v1/aircraft", headers=admin, json={
+                    "tail": tail, "base": "Turin", "actuators": serials_for(tail)}
+                ).status_code == 201
+            for n in range(per_tail):
+                for k, tail in enumerate(tails):
+                    r = http.post("/api/v1/flights", headers=up,
+                                  content=make_parquet(tail, f"F{n + 1:03d}", seed=10 * k + n))
+                    assert r.status_code == 202, r.text
+
+            def analysed() -> bool:
+                page = http.get("/api/v1/flights?status=analyzed&limit=1", headers=admin)
+                return page.json()["total"] == len(tails) * per_tail
+
+            wait_until(analysed, 180, "every flight analysed", every_s=0.5)
+
+        engine = create_engine(settings.effective_database_url)
+        try:
+            with Session(engine) as s:
+                flights = s.scalars(select(Flight)).all()
+                jobs = s.scalars(select(Job)).all()
+                records = s.scalar(select(func.count()).select_from(HealthRecord))
+        finally:
+            engine.dispose()
+        assert len(flights) == len(tails) * per_tail
+        assert {f.status for f in flights} == {"analyzed"}
+        assert len(jobs) == len(flights) and {j.status for j in jobs} == {"done"}
+        assert records == 3 * len(flights)  # one per actuator and flight, none twice
