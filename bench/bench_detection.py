@@ -12,11 +12,11 @@ import argparse
 import datetime as dt
 import os
 import platform
-import re
 import time
 from pathlib import Path
 
 import numpy as np
+from _report import cpu_model, replace_block
 
 from server.phm.baselines import FleetBaseline
 from server.phm.detection import UNITS, FaultDetector
@@ -41,14 +41,6 @@ def _channels(path: str | None) -> dict[str, np.ndarray]:
     return {k: np.asarray(v) for k, v in log.channels.items()}
 
 
-def _cpu() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def main() -> None:
@@ -81,10 +73,9 @@ def main() -> None:
     per_step_ms = 1e3 * med / n_steps
     duration = float(ch["t"][-1] - ch["t"][0])
     block = "\n".join([
-        START,
         "### Fault detection (features + detection), `bench/bench_detection.py`",
         "",
-        f"Machine: {_cpu()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"Machine: {cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
         f"{dt.datetime.now(dt.timezone.utc):%Y-%m-%d %H:%M} UTC.",
         "",
         "| what | figure |",
@@ -95,16 +86,8 @@ def main() -> None:
         f"| amortised per 80 Hz step | **{per_step_ms:.4f} ms** (paper: {PAPER_MS} ms on an "
         f"i9-9880H; target <= 0.1 ms) |",
         f"| real-time factor | {duration / med:.0f}x |",
-        END,
     ])
-    text = DOC.read_text() if DOC.exists() else "# Benchmarks\n"
-    if START in text and END in text:
-        text = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: block, text,
-                      flags=re.S)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    DOC.parent.mkdir(parents=True, exist_ok=True)
-    DOC.write_text(text)
+    replace_block(START, END, block)
     print(block)
 
 

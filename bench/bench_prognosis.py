@@ -18,13 +18,13 @@ import datetime as dt
 import math
 import os
 import platform
-import re
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from _report import replace_block
 
 from server.phm.prognosis import (
     MeasurementModel,
@@ -235,16 +235,7 @@ def render(ours: dict[str, object], theirs: dict[str, object]) -> str:
 
 
 def write_block(text: str) -> None:
-    DOC.parent.mkdir(parents=True, exist_ok=True)
-    block = f"{START}\n{text}\n{END}"
-    old = DOC.read_text() if DOC.exists() else "# Benchmarks\n"
-    pattern = re.compile(re.escape(START) + r".*?" + re.escape(END), re.S)
-    new = (
-        pattern.sub(lambda _m: block, old)
-        if pattern.search(old)
-        else old.rstrip("\n") + "\n\n" + block + "\n"
-    )
-    DOC.write_text(new)
+    replace_block(START, END, text)
 
 
 def main() -> int:

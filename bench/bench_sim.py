@@ -14,12 +14,12 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import re
 import time
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+from _report import cpu_model, replace_block
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
@@ -102,29 +102,10 @@ def bench_gem(steps: int) -> float:
     return steps / STEP_HZ / (time.perf_counter() - t0)
 
 
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def write_block(text: str) -> None:
-    block = f"{START}\n{text.rstrip()}\n{END}"
-    if DOC.exists():
-        doc = DOC.read_text()
-        if START in doc and END in doc:
-            doc = re.sub(re.escape(START) + r".*?" + re.escape(END), lambda _m: block, doc,
-                         flags=re.S)
-        else:
-            doc = doc.rstrip() + "\n\n" + block + "\n"
-    else:
-        DOC.parent.mkdir(parents=True, exist_ok=True)
-        doc = "# Benchmarks\n\n" + block + "\n"
-    DOC.write_text(doc)
+    replace_block(START, END, text)
 
 
 def main() -> None:

@@ -28,6 +28,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import httpx
+from _report import BENCHMARKS, cpu_model, replace_block
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -58,14 +59,6 @@ def _model_payload(campaign_root: Path) -> dict:
     return json.loads(json.dumps(model.to_dict()))
 
 
-def _cpu() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def _pct(values: list[float], q: float) -> float:
@@ -160,14 +153,11 @@ def run(args: argparse.Namespace) -> dict:
 
 
 def write_block(result: dict, command: str) -> None:
-    path = ROOT / "docs" / "BENCHMARKS.md"
-    text = path.read_text() if path.exists() else "# Benchmarks\n"
     now = dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     r = result
-    block = f"""{START}
-## Load test: uploads and analysis on PostgreSQL (API + {r['workers']} workers)
+    block = f"""## Load test: uploads and analysis on PostgreSQL (API + {r['workers']} workers)
 
-`{command}` -- {now}; {_cpu()}, {os.cpu_count()} cores (shared with other jobs), Python
+`{command}` -- {now}; {cpu_model()}, {os.cpu_count()} cores (shared with other jobs), Python
 {platform.python_version()}, PostgreSQL on loopback (fresh database). {r['uploaders']} uploader
 threads x {r['flights_per_uploader']} flights, each a distinct (aircraft, flight), factory-made
 12 s logs of {r['bytes_per_flight'] / 1e6:.2f} MB (Parquet); analysis by `hmsm worker
@@ -183,14 +173,9 @@ threads x {r['flights_per_uploader']} flights, each a distinct (aircraft, flight
 | lost / duplicated | {r['lost']} / {r['duplicated']} (flights {r['flights_in_db']}, distinct {r['distinct_flights']}, jobs {r['jobs']} done {r['jobs_done']}, health records {r['health_records']}) |
 
 Throughput counts from the first upload to the last analysed flight, so uploads and analysis
-overlap; both compete for the same {os.cpu_count()} cores as the uploaders themselves.
-{END}"""
-    if START in text and END in text:
-        text = text[:text.index(START)] + block + text[text.index(END) + len(END):]
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    path.write_text(text)
-    print(f"wrote {path}")
+overlap; both compete for the same {os.cpu_count()} cores as the uploaders themselves."""
+    replace_block(START, END, block)
+    print(f"wrote {BENCHMARKS}")
 
 
 def main() -> int:

@@ -103,6 +103,11 @@ def design_campaign_dir(campaign_root):  # type: ignore[no-untyped-def]
 
 
 @pytest.fixture(scope="session")
+def verification_campaign_dir(campaign_root):  # type: ignore[no-untyped-def]
+    return make_campaign("verification", VERIFICATION_SEED, campaign_root)
+
+
+@pytest.fixture(scope="session")
 def trained_model(design_campaign_dir):  # type: ignore[no-untyped-def]
     """(model JSON, training report) of the PHM chain fitted on the quick design campaign."""
     import json

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from server.api.deps import Operator, Reader, SessionDep
-from server.models import Injection
+from server.models import GroundTruth, Injection
 from server.schemas import Page, Position
 from server.services import test_station as service
 
@@ -84,6 +84,12 @@ def _read(row: Injection, tail: str) -> InjectionRead:
                          failure_flight=row.failure_flight)
 
 
+def _truth_read(row: GroundTruth) -> GroundTruthRead:
+    return GroundTruthRead(injection_id=row.injection_id, flight=row.flight_code,
+                           flight_number=row.flight_number, severity=row.severity,
+                           severity_norm=row.severity_norm, true_rul_flights=row.true_rul_flights)
+
+
 def _tail(session: SessionDep, row: Injection) -> str:
     from server.models import Aircraft
 
@@ -146,16 +152,11 @@ def report(injection_id: int, body: GroundTruthIn, session: SessionDep, _: Opera
                                       severity=body.severity, severity_norm=body.severity_norm,
                                       true_rul_flights=body.true_rul_flights)
     session.commit()
-    return GroundTruthRead(injection_id=injection_id, flight=row.flight_code,
-                           flight_number=row.flight_number, severity=row.severity,
-                           severity_norm=row.severity_norm,
-                           true_rul_flights=row.true_rul_flights)
+    return _truth_read(row)
 
 
 @router.get("/injections/{injection_id}/ground-truth", response_model=list[GroundTruthRead],
             summary="Ground truth of an injection, flight by flight")
 def ground_truth(injection_id: int, session: SessionDep, _: Reader) -> list[GroundTruthRead]:
-    return [GroundTruthRead(injection_id=injection_id, flight=r.flight_code,
-                            flight_number=r.flight_number, severity=r.severity,
-                            severity_norm=r.severity_norm, true_rul_flights=r.true_rul_flights)
-            for r in service.list_ground_truth(session=session, injection_id=injection_id)]
+    return [_truth_read(r) for r in service.list_ground_truth(session=session,
+                                                              injection_id=injection_id)]

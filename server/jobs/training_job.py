@@ -39,13 +39,11 @@ def train_into_version(factory: sessionmaker[Session], version_id: int, design_d
                                  error=traceback.format_exc())
             session.commit()
         raise
-    conf = report["classifier"]["confusion"]
-    metrics = {"accuracy": conf.get("accuracy"), "confusion": conf,
-               "calibration": report["classifier"].get("calibration")}
     with factory() as session:
         service.finish_version(session=session, version_id=version_id,
                                payload=json.loads(json.dumps(model.to_dict())),
-                               training=report, metrics=metrics, make_active=activate)
+                               training=report, metrics=service.metrics_of(report),
+                               make_active=activate)
         session.commit()
     return report
 

@@ -289,16 +289,23 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
             spec = model.measurement[h.fault_mode]
             pf = ParticleFilterPrognoser(spec.prognoser or model.prognoser,
                                          spec.model_for(position))
-            if h.prognosis is None:
+            state = None
+            if h.prognosis is not None:
+                try:
+                    state = PrognoserState.from_dict(h.prognosis)
+                    value = generic.get(spec.feature)
+                    if value is not None and math.isfinite(value):
+                        state = pf.update(state, value, index)
+                    rul = pf.predict(state)
+                except ValueError:
+                    # the stored filter belongs to another model version (a new model was
+                    # activated): start again from this actuator's history
+                    state = None
+            if state is None:
                 state = _replay(model, h.fault_mode, position, h.history, seed)
-            else:
-                state = PrognoserState.from_dict(h.prognosis)
-                value = generic.get(spec.feature)
-                if value is not None and math.isfinite(value):
-                    state = pf.update(state, value, index)
+                rul = None if state is None else pf.predict(state)
             if state is not None:
                 h.prognosis = state.to_dict()
-                rul = pf.predict(state)
 
         feats = {name: features.summaries[name].to_dict()
                  for name in actuator_feature_names(position) if name in features.summaries}

@@ -11,7 +11,7 @@ from server.errors import Conflict, NotFound
 from server.models import ModelVersion, utcnow
 
 __all__ = ["create_version", "finish_version", "fail_version", "activate", "get_version",
-           "list_versions"]
+           "list_versions", "metrics_of", "store_trained"]
 
 
 def create_version(*, session: Session, name: str, training: dict[str, Any]) -> ModelVersion:
@@ -60,3 +60,19 @@ def get_version(*, session: Session, version_id: int) -> ModelVersion:
 
 def list_versions(*, session: Session) -> list[ModelVersion]:
     return list(session.scalars(select(ModelVersion).order_by(ModelVersion.id.desc())))
+
+
+def metrics_of(report: dict[str, Any]) -> dict[str, Any]:
+    """What the models page and API show of a training report: held-out accuracy, confusion."""
+    classifier = report.get("classifier") or {}
+    conf = classifier.get("confusion") or {}
+    return {"accuracy": conf.get("accuracy"), "confusion": conf,
+            "calibration": classifier.get("calibration")}
+
+
+def store_trained(*, session: Session, name: str, payload: dict[str, Any],
+                  report: dict[str, Any], make_active: bool) -> ModelVersion:
+    """A ready model version from a trained model's JSON and its training report."""
+    row = create_version(session=session, name=name, training={})
+    return finish_version(session=session, version_id=row.id, payload=payload, training=report,
+                          metrics=metrics_of(report), make_active=make_active)

@@ -34,13 +34,8 @@ def real_run(tmp_path_factory: pytest.TempPathFactory, trained_model) -> Iterato
     upgrade(settings.effective_database_url)
     engine = create_engine(settings.effective_database_url)
     with session_scope(make_session_factory(engine)) as s:
-        version = model_service.create_version(session=s, name="real-run", training={})
-        model_service.finish_version(session=s, version_id=version.id,
-                                     payload=trained_model[0], training=trained_model[1],
-                                     metrics={"accuracy": trained_model[1]["classifier"][
-                                         "confusion"]["accuracy"],
-                                         "confusion": trained_model[1]["classifier"]["confusion"]},
-                                     make_active=True)
+        model_service.store_trained(session=s, name="real-run", payload=trained_model[0],
+                                    report=trained_model[1], make_active=True)
         keys = {r: create_key(session=s, name=f"eng-{r}", role=r)[1]
                 for r in ("admin", "operator", "viewer")}
     engine.dispose()

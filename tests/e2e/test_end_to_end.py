@@ -48,9 +48,8 @@ def system(settings: Settings, trained_model):  # type: ignore[no-untyped-def]
     factory = make_session_factory(engine)
     payload, report = trained_model
     with session_scope(factory) as s:
-        version = model_service.create_version(session=s, name="e2e", training={})
-        model_service.finish_version(session=s, version_id=version.id, payload=payload,
-                                     training={}, metrics={}, make_active=True)
+        model_service.store_trained(session=s, name="e2e", payload=payload, report=report,
+                                    make_active=True)
         keys = {r: create_key(session=s, name=f"e2e-{r}", role=r)[1]
                 for r in ("admin", "operator", "viewer")}
     yield settings, engine, keys

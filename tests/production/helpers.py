@@ -164,11 +164,8 @@ def seed_system(settings: Settings, model_payload: dict[str, Any] | None = None
     try:
         with session_scope(make_session_factory(engine)) as s:
             if model_payload is not None:
-                version = model_service.create_version(session=s, name="production-tests",
-                                                       training={})
-                model_service.finish_version(session=s, version_id=version.id,
-                                             payload=model_payload, training={}, metrics={},
-                                             make_active=True)
+                model_service.store_trained(session=s, name="production-tests",
+                                            payload=model_payload, report={}, make_active=True)
             return {r: create_key(session=s, name=f"prod-{r}", role=r)[1] for r in ROLES}
     finally:
         engine.dispose()
