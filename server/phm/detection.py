@@ -56,6 +56,8 @@ DETECTOR_FORMAT = "ema-detector/1"
 #: physical direction of each generic feature under its fault: +1 grows, -1 falls, 0 either
 DEFAULT_DIRECTIONS: dict[str, int] = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1,
                                       "F_MTEL": -1, "F_MTWEAR": 1, "F_REWEAR": 1}
+#: shortest alarm window per generic feature (see FaultDetector, ``min_windows``)
+DEFAULT_MIN_WINDOWS: dict[str, int] = {"F_MTEL": 3}
 STATE_FORMAT = "ema-detection-state/1"
 #: monitored units and the prefix of their feature names
 UNITS: tuple[str, ...] = ("WL1", "WL2", "WT", "WL")
@@ -172,12 +174,17 @@ class FaultDetector:
         the statistic is ``direction * S_w`` (one-sided test), ``|S_w|`` for 0 / unknown.
     pool_positions : one band per generic feature, the largest over the positions (more
         healthy flights behind each band, same physics on every actuator).
+    min_windows : generic feature -> shortest window allowed to raise an alarm (flights of
+        evidence). ``F_MTEL`` needs 3: lubricant ageing evolves over hundreds of flights, and
+        its feature has heavy-tailed healthy residuals on flights with few cruise moves in one
+        direction, so a single flight is never enough evidence.
     """
 
     def __init__(self, windows: Sequence[int] = (1, 3, 8), *, alarm_confidence: float = 0.98,
                  band_floor: float = 3.0, band_margin: float = 0.0,
                  directions: Mapping[str, int] | None = None,
-                 pool_positions: bool = True) -> None:
+                 pool_positions: bool = True,
+                 min_windows: Mapping[str, int] | None = None) -> None:
         if not windows or min(windows) < 1:
             raise ValueError("windows must be positive flight counts")
         if not 0.5 < alarm_confidence < 1.0:
@@ -188,6 +195,10 @@ class FaultDetector:
         self.band_margin = float(band_margin)
         self.directions = dict(DEFAULT_DIRECTIONS if directions is None else directions)
         self.pool_positions = bool(pool_positions)
+        self.min_windows = dict(DEFAULT_MIN_WINDOWS if min_windows is None else min_windows)
+
+    def _min_window(self, name: str) -> int:
+        return int(self.min_windows.get(generic_feature(name), 1))
 
     def _dir(self, names: Sequence[str]) -> np.ndarray:
         return np.array([self.directions.get(generic_feature(n), 0) for n in names],
@@ -251,11 +262,14 @@ class FaultDetector:
         idx = [self.feature_names_.index(n) for n in feature_names]
         z = np.asarray(z, dtype=np.float64).reshape(-1, len(idx))
         conf = np.zeros(z.shape)
+        min_w = np.array([self._min_window(n) for n in feature_names])
+        n_seen = np.cumsum(np.isfinite(z), axis=0)
         for k, w in enumerate(self.windows):
             s = self._oriented(running_statistics(z, w),
                                self._dir(feature_names)[np.newaxis, :])
             c = ndtr(s - self.band_[idx, k][np.newaxis, :])
-            conf = np.fmax(conf, np.where(np.isfinite(c), c, 0.0))
+            allowed = (w >= min_w)[np.newaxis, :] & (n_seen >= min_w[np.newaxis, :])
+            conf = np.fmax(conf, np.where(np.isfinite(c) & allowed, c, 0.0))
         return conf
 
     def update(self, state: DetectionState, z: Mapping[str, float]) -> DetectionResult:
@@ -271,10 +285,13 @@ class FaultDetector:
                 del hist[:-keep]
             i = self.feature_names_.index(f)
             d = self.directions.get(generic_feature(f), 0)
+            min_w = self._min_window(f)
             c = 0.0
             for k, w in enumerate(self.windows):
-                if not hist:
+                if len(hist) < min_w:
                     break
+                if w < min_w:
+                    continue
                 last = hist[-w:]
                 s = sum(last) / math.sqrt(len(last))
                 s = abs(s) if d == 0 else d * s
@@ -297,6 +314,7 @@ class FaultDetector:
                 "alarm_confidence": self.alarm_confidence, "band_floor": self.band_floor,
                 "band_margin": self.band_margin, "directions": dict(self.directions),
                 "pool_positions": self.pool_positions,
+                "min_windows": dict(self.min_windows),
                 "feature_names": list(self.feature_names_),
                 "band": self.band_.tolist(),
                 "n_healthy_flights": self.n_healthy_flights_.tolist()}
@@ -308,7 +326,8 @@ class FaultDetector:
         det = cls(d["windows"], alarm_confidence=float(d["alarm_confidence"]),
                   band_floor=float(d["band_floor"]), band_margin=float(d["band_margin"]),
                   directions={k: int(v) for k, v in d.get("directions", {}).items()},
-                  pool_positions=bool(d.get("pool_positions", False)))
+                  pool_positions=bool(d.get("pool_positions", False)),
+                  min_windows={k: int(v) for k, v in d.get("min_windows", {}).items()})
         det.feature_names_ = list(d["feature_names"])
         det.band_ = np.asarray(d["band"], dtype=np.float64).reshape(len(det.feature_names_),
                                                                     len(det.windows))
