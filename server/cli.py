@@ -209,7 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--log-level", default="info" if name == "serve" else "warning")
         if name == "demo":
             p.add_argument("--aircraft", type=int, default=10, help="simulated aircraft")
-            p.add_argument("--rate", type=float, default=30.0, help="flights per minute")
+            p.add_argument("--rate", type=float, default=60.0, help="flights per minute")
             p.add_argument("--seed", type=int, default=1)
         p.set_defaults(func=func)
     return parser
