@@ -18,7 +18,7 @@ import json
 import os
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -88,12 +88,36 @@ def _seed(*key: int) -> int:
     return int(np.random.SeedSequence(list(key)).generate_state(1, dtype=np.uint64)[0] >> 1)
 
 
-def fleet_for(kind: str, seed: int) -> list[Aircraft]:
-    """The ten aircraft of a campaign; verification tails and seeds never equal design ones."""
+def fleet_for(kind: str, seed: int, *, bases: tuple[str, ...] | None = None,
+              noise_scale: float = 1.0) -> list[Aircraft]:
+    """The ten aircraft of a campaign; verification tails and seeds never equal design ones.
+
+    ``bases`` (robustness studies) cycles the given bases over the ten aircraft instead of
+    4 Turin / 3 Vancouver / 3 Abu Dhabi; ``noise_scale`` multiplies every sensor's noise
+    (currents, voltages, resolver, LVDT; offsets and quantisation unchanged). Tails and
+    aircraft seeds do not depend on either.
+    """
     code = _KIND_CODE[kind]
     prefix = "I-DSG" if kind == "design" else "I-VER"
-    return [build_aircraft(f"{prefix}{i + 1:02d}", base, _seed(seed, code, i))
-            for i, base in enumerate(_BASE_ORDER)]
+    order = _BASE_ORDER if not bases else tuple(bases[i % len(bases)]
+                                                 for i in range(len(_BASE_ORDER)))
+    fleet = [build_aircraft(f"{prefix}{i + 1:02d}", base, _seed(seed, code, i))
+             for i, base in enumerate(order)]
+    if noise_scale != 1.0:
+        fleet = [_with_noise(a, noise_scale) for a in fleet]
+    return fleet
+
+
+def _with_noise(aircraft: Aircraft, factor: float) -> Aircraft:
+    def scaled(p: Any) -> Any:
+        sen = p.sensors
+        return p.with_(sensors=replace(
+            sen, current_noise_a=sen.current_noise_a * factor,
+            voltage_noise_v=sen.voltage_noise_v * factor,
+            resolver_noise_rad=sen.resolver_noise_rad * factor,
+            lvdt_noise_m=sen.lvdt_noise_m * factor))
+
+    return replace(aircraft, ema={pos: scaled(p) for pos, p in aircraft.ema.items()})
 
 
 @dataclass(frozen=True)
@@ -185,12 +209,13 @@ def _flight_entry(flight_id: str, rel: str, index: int, fault: FaultState, summa
     }
 
 
-def run_pattern(args: tuple[str, str, int, str, PatternSpec]) -> dict[str, Any]:
+def run_pattern(args: tuple[str, str, int, str, PatternSpec, dict[str, Any]]
+                ) -> dict[str, Any]:
     """Run one pattern (a task of the pool); returns its manifest entry."""
-    out_dir_s, kind, seed, scale, spec = args
+    out_dir_s, kind, seed, scale, spec, options = args
     out_dir = Path(out_dir_s)
     cfg = SCALES[scale][kind]
-    aircraft = fleet_for(kind, seed)[spec.aircraft_index]
+    aircraft = fleet_for(kind, seed, **options)[spec.aircraft_index]
     flights: list[dict[str, Any]] = []
     threshold: float | None = None
     failure: int | None = None
@@ -247,7 +272,9 @@ def _map(tasks: list[Any], workers: int) -> Iterator[dict[str, Any]]:
 
 
 def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "quick",
-                 workers: int | None = None, progress: bool = True) -> dict[str, Any]:
+                 workers: int | None = None, progress: bool = True,
+                 bases: tuple[str, ...] | None = None, noise_scale: float = 1.0
+                 ) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
@@ -261,6 +288,10 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     """
     if scale not in SCALES:
         raise ValueError(f"scale must be one of {sorted(SCALES)}")
+    if bases and not set(bases) <= set(BASES):
+        raise ValueError(f"bases must be among {sorted(BASES)}")
+    if not noise_scale > 0:
+        raise ValueError("noise_scale must be positive")
     from tqdm import tqdm
 
     from .kernel import warm_up
@@ -269,8 +300,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     out.mkdir(parents=True, exist_ok=True)
     warm_up()  # compile (or load the cache) once before forking workers
     specs = plan_campaign(kind, seed, scale)
-    fleet = fleet_for(kind, seed)
-    tasks = [(str(out), kind, seed, scale, s) for s in specs]
+    options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale)}
+    fleet = fleet_for(kind, seed, **options)
+    tasks = [(str(out), kind, seed, scale, s, options) for s in specs]
     # longest tasks first improves load balance; results are re-ordered by pattern number
     order = sorted(range(len(tasks)), key=lambda i: (specs[i].mode not in PROGRESSIVE, i))
     n_workers = workers or os.cpu_count() or 1
@@ -287,6 +319,8 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
         "scale": scale,
         "duration_s": SCALES[scale][kind].duration_s,
         "render_every": SCALES[scale][kind].render_every,
+        "noise_scale": float(noise_scale),
+        "bases": list(bases) if bases else None,
         "aircraft": [{"tail": a.tail, "base": a.base, "climate": BASES[a.base],
                       "serials": dict(a.serials), "params": a.params_summary()} for a in fleet],
         "patterns": [results[i] for i in range(len(tasks))],

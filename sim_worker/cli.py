@@ -26,6 +26,10 @@ def build_parser() -> argparse.ArgumentParser:
     camp.add_argument("--workers", type=int, default=None,
                       help="worker processes (default: all cores); results do not depend on it")
     camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    camp.add_argument("--bases", default=None, help="robustness: comma-separated bases to fly "
+                      "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
+    camp.add_argument("--noise-scale", type=float, default=1.0,
+                      help="robustness: multiply every sensor's noise by this factor")
     camp.set_defaults(func=_cmd_campaign)
 
     run = sub.add_parser("run", help="fly the simulated fleet against a running HMSM")
@@ -74,8 +78,10 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     from .campaign import run_campaign
 
     t0 = time.perf_counter()
+    bases = tuple(b.strip() for b in args.bases.split(",")) if args.bases else None
     manifest = run_campaign(args.kind, args.out, seed=args.seed, scale=args.scale,
-                            workers=args.workers, progress=not args.no_progress)
+                            workers=args.workers, progress=not args.no_progress, bases=bases,
+                            noise_scale=args.noise_scale)
     n = sum(len(p["flights"]) for p in manifest["patterns"])
     print(f"{args.kind} campaign: {len(manifest['patterns'])} patterns, {n} flights written to "
           f"{args.out} in {time.perf_counter() - t0:.1f} s")
@@ -84,7 +90,11 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return int(args.func(args))
+    try:
+        return int(args.func(args))
+    except ValueError as exc:
+        print(f"sim-worker: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":
