@@ -67,7 +67,7 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
     # flights on 10 aircraft, >= 3 patterns per mode), small enough for ~1 min per campaign.
     "quick": {
         "design": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=12,
-                              patterns_per_mode=4, render_every=20, apriori_flights=6,
+                              patterns_per_mode=6, render_every=20, apriori_flights=6,
                               apriori_onset=2),
         "verification": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=25,
                                     patterns_per_mode=3, render_every=20, apriori_flights=6,
