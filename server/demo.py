@@ -53,7 +53,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     if has_model is None:
         design = campaign_dir_for(settings.data_dir, "demo-design")
         if not (design / "manifest.json").exists():
-            print("simulating a quick design campaign (about a minute on 2 cores)...",
+            print("simulating a quick design campaign (about a minute and a half on 2 cores)...",
                   flush=True)
             from sim_worker import run_campaign
 
