@@ -76,12 +76,15 @@ def claim_next(factory: sessionmaker[Session], *, worker_id: str, lease_s: float
                 update(Job)
                 .where(Job.id == _eligible(now, postgres))
                 .values(status="running", attempts=Job.attempts + 1, locked_by=worker_id,
-                        lease_until=now + timedelta(seconds=lease_s), updated_at=now,
-                        started_at=now)
+                        lease_until=now + timedelta(seconds=lease_s), updated_at=now)
                 .returning(Job.id, Job.kind, Job.flight_id, Job.lock_key, Job.attempts,
                            Job.max_attempts, Job.payload)
             )
             row = session.execute(stmt).first()
+            if row is not None:
+                # stamped after the claim saw the previous job of this key finished, so that
+                # started_at never precedes that job's finished_at (``now`` above may)
+                session.execute(update(Job).where(Job.id == row[0]).values(started_at=utcnow()))
             session.commit()
             return None if row is None else ClaimedJob(*row)
         except OperationalError as exc:

@@ -9,6 +9,7 @@ No console errors anywhere. Screenshots at 1280x800 and 768 px go to ``test-arti
 
 from __future__ import annotations
 
+import re
 import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -118,8 +119,8 @@ def test_admin_flow_live_alarm_acknowledge_figures_inject(live: Live, browser) -
 
     # an alarm raised while the inbox is open arrives through SSE, without a reload
     page.goto(f"{url}/alarms")
-    page.wait_for_function(
-        "document.getElementById('live-status').textContent.startsWith('live')")
+    # a locator wait, not wait_for_function: the page's CSP forbids eval of predicates
+    page.locator("#live-status", has_text=re.compile(r"^live")).wait_for(timeout=10_000)
     page.evaluate("window.__noReload = 'still here'")
     new_id = add_alarm(live.factory, tail=live.tails[1], position="WT")  # type: ignore[arg-type]
     row = page.locator(f"#alarm-{new_id}")
