@@ -114,11 +114,13 @@ def test_concurrent_workers_never_share_a_job_or_a_key(factory) -> None:  # type
                 running[job.lock_key] = name
                 claimed.append(job.id)
                 order.setdefault(job.lock_key, []).append(job.id)
+            # released just before the completion commits: from the commit on, another worker
+            # may rightly claim the key's next job (releasing after it made this check racy)
+            with guard:
+                del running[job.lock_key]
             with factory() as s:
                 queue.complete(s, job_id=job.id, worker_id=name)
                 s.commit()
-            with guard:  # released only once the job is done in the database
-                del running[job.lock_key]
 
     threads = [threading.Thread(target=work, args=(f"w{i}",)) for i in range(4)]
     for t in threads:
