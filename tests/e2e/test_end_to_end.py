@@ -27,6 +27,7 @@ from server.migrate import upgrade
 from server.models import HealthRecord, Job
 from server.services import models as model_service
 from sim_worker.service import Api, SimFleetRunner
+from tests.conftest import BACKENDS
 from tests.live_server import running_server
 
 pytestmark = pytest.mark.slow
@@ -152,10 +153,11 @@ def test_worker_killed_mid_job_loses_and_duplicates_nothing(system) -> None:  # 
             assert indices == sorted([i for i in range(1, 7) for _ in range(3)])
 
 
+# several workers share a queue on PostgreSQL (SKIP LOCKED): this test has no SQLite variant
+@pytest.mark.parametrize("backend", [p for p in BACKENDS if getattr(p, "values", ("",))[0]
+                                     == "postgres"])
 def test_two_workers_never_analyse_one_aircraft_at_once(system) -> None:  # type: ignore[no-untyped-def]
     settings, engine, keys = system
-    if settings.is_sqlite:
-        pytest.skip("several workers share a queue on PostgreSQL (SKIP LOCKED)")
     with running_server(_env(settings)) as url:
         api = Api(url, keys["admin"])
         runner = SimFleetRunner(api, n_aircraft=3, rate_per_min=1e6, seed=11, duration_s=30)
