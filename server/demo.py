@@ -45,6 +45,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     from server.services import models as model_service
     from sim_worker.service import fleet_plan
 
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
     engine = make_engine(settings.effective_database_url)
     ensure_schema(engine, settings.effective_database_url, auto_upgrade=True)
     factory = make_session_factory(engine)
