@@ -115,7 +115,7 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
     children: list[subprocess.Popen[bytes]] = []
 
     def start(name: str, argv: list[str]) -> None:
-        out = open(logs / f"{name}.log", "ab")  # noqa: SIM115 - closed with the process
+        out = open(logs / f"{name}.log", "ab")  # the child keeps it open for its lifetime
         children.append(subprocess.Popen(argv, env=env, stdout=out, stderr=subprocess.STDOUT))
 
     def stop_children(*_: object) -> None:
@@ -141,7 +141,10 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
           + ", ".join(f"{t}/{p} {m}" for t, p, m, _, _ in DEMO_INJECTIONS
                       if int(t[3:]) <= n_aircraft))
     print("  Ctrl-C stops everything.\n", flush=True)
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    def _terminate(*_: object) -> None:
+        raise KeyboardInterrupt  # uvicorn stops, then the finally block stops the children
+
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         uvicorn.run(app, host=host, port=port, log_level=log_level)
     finally:

@@ -7,7 +7,6 @@ from typing import Any
 
 from fastapi import APIRouter
 from pydantic import BaseModel, ConfigDict, Field
-from sqlalchemy import select
 
 from server.api.deps import Admin, Reader, SessionDep, SettingsDep
 from server.errors import NotFound, Unprocessable
@@ -114,6 +113,5 @@ def train(body: TrainRequest, session: SessionDep, settings: SettingsDep, key: A
                        "version_id": version.id, "activate": body.activate})
     session.add(job)
     session.commit()
-    existing = session.scalar(select(Job.id).where(Job.id == job.id))
-    return TrainAccepted(model_id=version.id, job_id=int(existing or job.id),
+    return TrainAccepted(model_id=version.id, job_id=job.id,
                          status_url=f"/api/v1/models/{version.id}")

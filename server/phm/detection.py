@@ -20,7 +20,8 @@ band is
 and the unit alarms when ``c`` of any of its features reaches ``alarm_confidence`` (0.98, the
 paper's value), i.e. ``|S_w| >= b_w + 2.05``. The short window reacts within one flight to
 step faults (SE, BDO); the long window accumulates evidence of slow drifts. The alarm latches
-until :meth:`DetectionState.reset` (a maintenance action).
+until maintenance: replacing an actuator gives it a fresh state
+(:meth:`DetectionState.reset` does the same in place).
 
 The test is one-sided along each fault's physical direction (``DEFAULT_DIRECTIONS``: F_MTEL
 falls, every other feature grows), ``|S_w|`` being replaced by ``direction * S_w``, and one

@@ -60,7 +60,6 @@ __all__ = [
 ]
 
 PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
-STEP_FAULTS = ("SE", "BDO")
 
 
 @dataclass
