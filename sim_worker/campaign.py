@@ -7,9 +7,11 @@ Determinism: every aircraft seed, pattern seed and flight seed derives from the 
 ``numpy.random.SeedSequence`` with a fixed key (kind, aircraft, pattern, flight), never from the
 worker that runs it; results are identical for any number of workers.
 
-Fault-to-failure runs advance the progression law every flight; only every ``render_every``-th
-flight (and the failure flight) is simulated at 12 kHz and written; the others use the
-quasi-static :func:`~sim_worker.flight.estimate_summary` of the same flight conditions.
+Fault-to-failure runs start with ``lead_flights`` healthy flights (the actuator's service before
+the fault, every one rendered), then advance the progression law every flight from the onset;
+only every ``render_every``-th flight after the onset (and the failure flight) is simulated at
+12 kHz and written; the others use the quasi-static :func:`~sim_worker.flight.estimate_summary`
+of the same flight conditions.
 """
 
 from __future__ import annotations
@@ -60,6 +62,9 @@ class ScaleConfig:
     render_every: int  # render every k-th flight of a fault-to-failure run
     apriori_flights: int  # flights per SE / BDO pattern
     apriori_onset: int  # index of the first faulty flight of an SE / BDO pattern
+    #: healthy flights (all rendered) before a progressive fault starts: the actuator's
+    #: in-service history after installation, from which detection learns its own reference
+    lead_flights: int = 8
 
 
 SCALES: dict[str, dict[str, ScaleConfig]] = {
@@ -158,7 +163,7 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
             if mode in A_PRIORI:
                 add(mode, pos, ai, cfg.apriori_flights, cfg.apriori_onset, j)
             else:
-                add(mode, pos, ai, 0, 0, j)
+                add(mode, pos, ai, 0, cfg.lead_flights, j)
     return specs
 
 
@@ -236,9 +241,12 @@ def run_pattern(args: tuple[str, str, int, str, PatternSpec, dict[str, Any]]
                           reference=ref)
         threshold = fault.threshold
         rendered: list[tuple[int, str, str, FaultState, Any]] = []
-        for index in range(_MAX_FLIGHTS):
+        for index in range(spec.onset):
+            fid, rel, summ = _render(out_dir, aircraft, spec, healthy(), index, cfg.duration_s)
+            rendered.append((index, fid, rel, healthy(), summ))
+        for index in range(spec.onset, spec.onset + _MAX_FLIGHTS):
             is_fail = fault.failed
-            if is_fail or index % cfg.render_every == 0:
+            if is_fail or (index - spec.onset) % cfg.render_every == 0:
                 fid, rel, summ = _render(out_dir, aircraft, spec, fault, index, cfg.duration_s)
                 rendered.append((index, fid, rel, fault, summ))
             else:

@@ -11,6 +11,12 @@ outliers). The residual scale is a robust standard deviation (1.4826 x MAD). A f
 *standardised residual* ``z = (value - expected(conditions)) / scale`` is what detection uses,
 so that hot and cold aircraft, heavy and light flights share one healthy distribution.
 
+A flight value resting on fewer than ``min_evidence`` (25 %) of the median number of valid
+windows of the healthy design flights gets no residual (NaN): its sampling noise is at least
+twice the usual (variance ~ 1 / windows), and on the design campaign these few flights (slow
+flights, 2 % of them for the current features) carried most healthy residuals beyond 10
+standard deviations of ``F_SE`` and ``F_BDO``.
+
 Scikit-learn manner: ``__init__`` stores hyper-parameters, ``fit`` returns ``self``, learned
 attributes end in ``_``. Persisted as JSON (``to_dict`` / ``from_dict``), never pickle.
 """
@@ -170,16 +176,25 @@ class FleetBaseline:
     covariates : condition names used by every feature (``CONDITION_NAMES`` subset);
         ``F_DMD`` and ``F_MTEL`` also use the estimated winding temperature.
     ridge, outlier_k : passed to each :class:`LinearBaseline`.
+    min_evidence : fraction of the healthy median number of valid windows a flight value
+        needs to get a residual (module docstring).
     """
 
     def __init__(self, covariates: Sequence[str] = DEFAULT_COVARIATES, *, ridge: float = 1.0,
-                 outlier_k: float = 6.0) -> None:
+                 outlier_k: float = 6.0, min_evidence: float = 0.25) -> None:
         unknown = set(covariates) - set(CONDITION_NAMES)
         if unknown:
             raise ValueError(f"unknown covariates {sorted(unknown)}")
         self.covariates = tuple(covariates)
         self.ridge = ridge
         self.outlier_k = outlier_k
+        self.min_evidence = float(min_evidence)
+
+    def _values(self, flights: Sequence[FlightFeatures], name: str) -> np.ndarray:
+        """Feature values, NaN where the flight has too little evidence."""
+        need = self.min_valid_.get(name, 0.0) if hasattr(self, "min_valid_") else 0.0
+        return np.array([f.summaries[name].value if f.summaries[name].n_valid >= need
+                         else np.nan for f in flights], dtype=np.float64)
 
     @staticmethod
     def _cond_matrix(flights: Sequence[FlightFeatures], name: str,
@@ -193,9 +208,14 @@ class FleetBaseline:
         if len(flights) < 3:
             raise ValueError("need at least three healthy flights")
         self.models_: dict[str, LinearBaseline] = {}
+        self.min_valid_: dict[str, float] = {}
         for name in AIRCRAFT_FEATURES:
+            n_valid = np.array([f.summaries[name].n_valid for f in flights
+                                if np.isfinite(f.summaries[name].value)], dtype=np.float64)
+            self.min_valid_[name] = (self.min_evidence * float(np.median(n_valid))
+                                     if n_valid.size else 0.0)
             cov = _covariates_for(name, self.covariates)
-            y = np.array([f.summaries[name].value for f in flights], dtype=np.float64)
+            y = self._values(flights, name)
             C = self._cond_matrix(flights, name, cov)
             self.models_[name] = LinearBaseline(cov, ridge=self.ridge,
                                                 outlier_k=self.outlier_k).fit(C, y)
@@ -213,14 +233,19 @@ class FleetBaseline:
         out: dict[str, float] = {}
         for name, m in self.models_.items():
             C = self._cond_matrix([flight], name, m.covariates)
-            out[name] = float(m.zscore(C, np.array([flight.summaries[name].value]))[0])
+            out[name] = float(m.zscore(C, self._values([flight], name))[0])
         return out
 
     def residuals(self, flight: FlightFeatures) -> dict[str, float]:
         """Residual of every feature in its physical unit, ``value - expected(conditions)``
         (NaN where no valid window): comparable across positions, unlike ``zscores``."""
+        return self.to_physical(self.zscores(flight))
+
+    def to_physical(self, z: Mapping[str, float]) -> dict[str, float]:
+        """Standardised residuals (or offsets) back in each feature's physical unit."""
         self._check()
-        return {name: z * self.models_[name].scale_ for name, z in self.zscores(flight).items()}
+        return {name: v * self.models_[name].scale_ for name, v in z.items()
+                if name in self.models_}
 
     def zscore_matrix(self, flights: Sequence[FlightFeatures]) -> np.ndarray:
         """(n_flights, 19) standardised residuals in ``AIRCRAFT_FEATURES`` order."""
@@ -229,21 +254,23 @@ class FleetBaseline:
         for name in AIRCRAFT_FEATURES:
             m = self.models_[name]
             C = self._cond_matrix(flights, name, m.covariates)
-            y = np.array([f.summaries[name].value for f in flights], dtype=np.float64)
-            cols.append(m.zscore(C, y))
+            cols.append(m.zscore(C, self._values(flights, name)))
         return np.column_stack(cols) if cols else np.zeros((len(flights), 0))
 
     def to_dict(self) -> dict[str, Any]:
         self._check()
         return {"format": BASELINE_FORMAT, "covariates": list(self.covariates),
                 "ridge": self.ridge, "outlier_k": self.outlier_k, "n_flights": self.n_flights_,
+                "min_evidence": self.min_evidence, "min_valid": dict(self.min_valid_),
                 "models": {k: m.to_dict() for k, m in self.models_.items()}}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> FleetBaseline:
         if d.get("format") != BASELINE_FORMAT:
             raise ValueError(f"not a {BASELINE_FORMAT} document")
-        b = cls(d["covariates"], ridge=float(d["ridge"]), outlier_k=float(d["outlier_k"]))
+        b = cls(d["covariates"], ridge=float(d["ridge"]), outlier_k=float(d["outlier_k"]),
+                min_evidence=float(d.get("min_evidence", 0.0)))
+        b.min_valid_ = {k: float(v) for k, v in (d.get("min_valid") or {}).items()}
         b.models_ = {k: LinearBaseline.from_dict(v) for k, v in d["models"].items()}
         b.feature_names_ = tuple(b.models_)
         b.n_flights_ = int(d["n_flights"])

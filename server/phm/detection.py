@@ -5,11 +5,33 @@ its six features, or the winglet pair ``WL`` with ``F_REWEAR``). Inputs are the 
 residuals ``z`` of :class:`server.phm.baselines.FleetBaseline` (dimensionless, N(0, 1) on
 healthy flights by construction).
 
+Self-reference: each actuator against its own healthy start
+-----------------------------------------------------------
+Production tolerances (magnet flux, friction, gear play) give every actuator its own offset
+from the fleet baseline; for ``F_DMD`` this offset is four to five times the flight-to-flight
+scatter (design campaign: between-actuator sd 1.2-1.4, within 0.2-0.4, in ``z`` units). The
+residual is therefore modelled as ``z = u + e`` with an actuator offset ``u ~ N(0, tau^2)`` and
+flight noise ``e ~ N(0, sigma^2)``; ``tau`` and ``sigma`` are estimated per generic feature on
+the healthy design sequences. The first ``reference_flights`` valid residuals of each actuator
+after installation (or maintenance) form its reference; every flight is tested against the
+flights *before* it::
+
+    n = reference flights so far,  n_eff = n (n <= 2) or n / 1.57 (median of n),
+    u_hat = n_eff tau^2 / (n_eff tau^2 + sigma^2) * median(reference),
+    var_u = tau^2 sigma^2 / (n_eff tau^2 + sigma^2),
+    z_self = (z - u_hat) / sqrt(sigma^2 + var_u)
+
+(the empirical-Bayes posterior of ``u``; unit variance on healthy flights). With no reference
+this is the fleet test, ``z / sqrt(sigma^2 + tau^2)``. The detector below runs on ``z_self``.
+A fault already present during the reference flights is partly absorbed into the reference:
+the first flight of an actuator is always judged against the fleet alone.
+
 Running distribution and separation confidence
 ----------------------------------------------
-For each feature the state keeps the residuals of the last ``max(windows)`` flights with a
-valid value. For each window length ``w`` (default 1, 3 and 8 flights) the running mean of the
-last ``n = min(w, available)`` residuals, scaled to unit variance, is ``S_w = sqrt(n) mean(z)``.
+For each feature the state keeps the self-referenced residuals of the last ``max(windows)``
+flights with a valid value. For each window length ``w`` (default 1, 3 and 8 flights) the
+running mean of the last ``n = min(w, available)`` residuals, scaled to unit variance, is
+``S_w = sqrt(n) mean(z)``.
 On healthy flights ``|S_w|`` stays inside a band ``b_w`` learned on the healthy flights of the
 *design* campaign (the largest ``|S_w|`` seen there, never less than ``band_floor``). Because
 ``S_w`` has unit standard error, the confidence that the running mean lies outside the healthy
@@ -17,7 +39,13 @@ band is
 
     c_w = Phi(|S_w| - b_w),      c = max over w of c_w  in [0, 1],
 
-and the unit alarms when ``c`` of any of its features reaches ``alarm_confidence`` (0.98, the
+Flights whose residual is beyond ``window_clip`` (6 flight-scatter units) enter the windows
+longer than one flight clipped to it: a single odd flight (heavy-tailed features, e.g. a
+flight with few cruise moves) then moves ``S_3`` or ``S_8`` by at most ``6 / sqrt(w)`` and
+no longer widens the long windows' bands, while a sustained drift is untouched. The one-flight
+window keeps the raw value, for step faults.
+
+The unit alarms when ``c`` of any of its features reaches ``alarm_confidence`` (0.98, the
 paper's value), i.e. ``|S_w| >= b_w + 2.05``. The short window reacts within one flight to
 step faults (SE, BDO); the long window accumulates evidence of slow drifts. The alarm latches
 until maintenance: replacing an actuator gives it a fresh state
@@ -51,6 +79,8 @@ __all__ = [
     "DetectionResult",
     "FaultDetector",
     "running_statistics",
+    "self_referenced_sequence",
+    "offset_components",
 ]
 
 DETECTOR_FORMAT = "ema-detector/1"
@@ -58,8 +88,11 @@ DETECTOR_FORMAT = "ema-detector/1"
 DEFAULT_DIRECTIONS: dict[str, int] = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1,
                                       "F_MTEL": -1, "F_MTWEAR": 1, "F_REWEAR": 1}
 #: shortest alarm window per generic feature (see FaultDetector, ``min_windows``)
-DEFAULT_MIN_WINDOWS: dict[str, int] = {"F_MTEL": 3}
-STATE_FORMAT = "ema-detection-state/1"
+DEFAULT_MIN_WINDOWS: dict[str, int] = {"F_MTEL": 3, "F_DMD": 3}
+STATE_FORMAT = "ema-detection-state/2"
+_STATE_FORMATS = (STATE_FORMAT, "ema-detection-state/1")  # /1 had no reference
+#: variance of a sample median over that of the mean (normal samples, large n)
+_MEDIAN_VARIANCE_FACTOR = math.pi / 2
 #: monitored units and the prefix of their feature names
 UNITS: tuple[str, ...] = ("WL1", "WL2", "WT", "WL")
 
@@ -104,13 +137,81 @@ def running_statistics(z: np.ndarray, window: int) -> np.ndarray:
     return out
 
 
+def _reference_posterior(ref: np.ndarray, n: np.ndarray, sigma: np.ndarray,
+                         tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Offset estimate ``u_hat`` and the total residual sd ``sqrt(sigma^2 + var_u)`` from the
+    median ``ref`` of ``n`` reference residuals (arrays broadcast; ``n == 0`` -> fleet test)."""
+    n = np.asarray(n, dtype=np.float64)
+    n_eff = np.where(n > 2, n / _MEDIAN_VARIANCE_FACTOR, n)
+    s2, t2 = sigma**2, tau**2
+    denom = n_eff * t2 + s2
+    u_hat = np.where(n > 0, n_eff * t2 / denom * np.nan_to_num(ref), 0.0)
+    var_u = t2 * s2 / denom
+    return u_hat, np.sqrt(s2 + var_u)
+
+
+def self_referenced_sequence(z: np.ndarray, sigma: np.ndarray, tau: np.ndarray,
+                             reference_flights: int) -> tuple[np.ndarray, np.ndarray]:
+    """Self-referenced residuals of a flight sequence (n_flights, n_features), each flight
+    against the median of the first ``reference_flights`` valid residuals *before* it; also
+    the offset ``u_hat`` used for every flight. NaN stays NaN."""
+    z = np.asarray(z, dtype=np.float64)
+    z = z[:, np.newaxis] if z.ndim == 1 else z
+    out = np.full(z.shape, np.nan)
+    offsets = np.zeros(z.shape)
+    for j in range(z.shape[1]):
+        col = z[:, j]
+        ok = np.flatnonzero(np.isfinite(col))
+        first = col[ok[:reference_flights]]
+        # reference median and count seen by each flight (flights before it only)
+        n_before = np.minimum(np.searchsorted(ok, np.arange(col.size)), reference_flights)
+        medians = np.array([np.median(first[:k]) if k else 0.0
+                            for k in range(min(reference_flights, first.size) + 1)])
+        ref = medians[n_before]
+        u_hat, sd = _reference_posterior(ref, n_before, sigma[j], tau[j])
+        out[:, j] = (col - u_hat) / sd
+        offsets[:, j] = u_hat
+    return out, offsets
+
+
+def offset_components(healthy_sequences: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Within-actuator sd ``sigma`` and between-actuator sd ``tau`` of each column, from
+    healthy sequences (one per actuator history): robust within scatter (1.4826 MAD of the
+    deviations from each sequence's median), ``tau^2`` = variance of the sequence medians less
+    their sampling variance (``pi/2 sigma^2 / n``), floored at 0."""
+    seqs = [np.asarray(q, dtype=np.float64) for q in healthy_sequences]
+    n_feat = seqs[0].shape[1]
+    sigma = np.ones(n_feat)
+    tau = np.zeros(n_feat)
+    for j in range(n_feat):
+        cols = [q[:, j][np.isfinite(q[:, j])] for q in seqs]
+        cols = [c for c in cols if c.size >= 2]
+        if len(cols) < 2:
+            continue
+        dev = np.concatenate([c - np.median(c) for c in cols])
+        n = np.array([c.size for c in cols], dtype=np.float64)
+        # the deviations from a sample's own median shrink by about (n - 1) / n
+        mad = float(np.median(np.abs(dev))) * 1.4826 * math.sqrt(float(np.mean(n / (n - 1))))
+        if not mad > 0:
+            continue
+        sigma[j] = mad
+        medians = np.array([np.median(c) for c in cols])
+        t2 = float(np.var(medians, ddof=1)) - _MEDIAN_VARIANCE_FACTOR * mad**2 * float(
+            np.mean(1.0 / n))
+        tau[j] = math.sqrt(max(t2, 0.0))
+    return sigma, tau
+
+
 @dataclass
 class DetectionState:
     """Per-unit state carried from flight to flight (JSON-serialisable)."""
 
     unit: str
     features: list[str]
-    history: dict[str, list[float]] = field(default_factory=dict)  # last residuals, oldest first
+    #: last self-referenced residuals, oldest first
+    history: dict[str, list[float]] = field(default_factory=dict)
+    #: the first valid residuals ``z`` since installation: the actuator's own reference
+    reference: dict[str, list[float]] = field(default_factory=dict)
     n_flights: int = 0  # flights seen since the last reset
     alarm: bool = False
     alarm_flight: int | None = None  # n_flights count at which the alarm was raised
@@ -121,11 +222,13 @@ class DetectionState:
     def new(cls, unit: str, features: Iterable[str]) -> DetectionState:
         feats = list(features)
         return cls(unit=unit, features=feats, history={f: [] for f in feats},
-                   confidence={f: 0.0 for f in feats})
+                   reference={f: [] for f in feats}, confidence={f: 0.0 for f in feats})
 
     def reset(self) -> None:
-        """Forget the history and clear the alarm (after maintenance)."""
+        """Forget the history and the reference, clear the alarm (after maintenance: a new
+        actuator learns its own reference)."""
         self.history = {f: [] for f in self.features}
+        self.reference = {f: [] for f in self.features}
         self.n_flights = 0
         self.alarm = False
         self.alarm_flight = None
@@ -135,16 +238,20 @@ class DetectionState:
     def to_dict(self) -> dict[str, Any]:
         return {"format": STATE_FORMAT, "unit": self.unit, "features": list(self.features),
                 "history": {k: [float(x) for x in v] for k, v in self.history.items()},
+                "reference": {k: [float(x) for x in v] for k, v in self.reference.items()},
                 "n_flights": self.n_flights, "alarm": self.alarm,
                 "alarm_flight": self.alarm_flight, "alarm_features": list(self.alarm_features),
                 "confidence": {k: float(v) for k, v in self.confidence.items()}}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> DetectionState:
-        if d.get("format") != STATE_FORMAT:
+        if d.get("format") not in _STATE_FORMATS:
             raise ValueError(f"not a {STATE_FORMAT} document")
+        # a /1 state has no reference: the actuator learns one from its next flights
         return cls(unit=str(d["unit"]), features=list(d["features"]),
                    history={k: [float(x) for x in v] for k, v in d["history"].items()},
+                   reference={k: [float(x) for x in v]
+                              for k, v in (d.get("reference") or {}).items()},
                    n_flights=int(d["n_flights"]), alarm=bool(d["alarm"]),
                    alarm_flight=None if d["alarm_flight"] is None else int(d["alarm_flight"]),
                    alarm_features=list(d["alarm_features"]),
@@ -160,6 +267,10 @@ class DetectionResult:
     alarm: bool  # latched alarm state after this flight
     new_alarm: bool  # raised by this flight
     alarm_features: list[str]
+    #: self-referenced residual of each feature with a valid value this flight
+    z_self: dict[str, float] = field(default_factory=dict)
+    #: the actuator's own offset ``u_hat`` (``z`` units) removed from each feature
+    offset: dict[str, float] = field(default_factory=dict)
 
 
 class FaultDetector:
@@ -178,14 +289,23 @@ class FaultDetector:
     min_windows : generic feature -> shortest window allowed to raise an alarm (flights of
         evidence). ``F_MTEL`` needs 3: lubricant ageing evolves over hundreds of flights, and
         its feature has heavy-tailed healthy residuals on flights with few cruise moves in one
-        direction, so a single flight is never enough evidence.
+        direction, so a single flight is never enough evidence. ``F_DMD`` needs 3 too: thermal
+        demagnetisation also builds up over many flights, and single healthy flights stray
+        by up to 9 flight-scatter units when the magnet temperature estimate is off.
+    window_clip : residuals are clipped to +-``window_clip`` in windows longer than one
+        flight (module docstring); ``inf`` disables it.
+    reference_flights : valid flights of each actuator that form its own reference (module
+        docstring). 6 keeps the offset's uncertainty at about 1/4 of the flight scatter's
+        variance and leaves most design healthy flights to learn the bands on; 0 disables the
+        self-reference (pure fleet test).
     """
 
     def __init__(self, windows: Sequence[int] = (1, 3, 8), *, alarm_confidence: float = 0.98,
                  band_floor: float = 3.0, band_margin: float = 0.0,
                  directions: Mapping[str, int] | None = None,
                  pool_positions: bool = True,
-                 min_windows: Mapping[str, int] | None = None) -> None:
+                 min_windows: Mapping[str, int] | None = None,
+                 reference_flights: int = 6, window_clip: float = 6.0) -> None:
         if not windows or min(windows) < 1:
             raise ValueError("windows must be positive flight counts")
         if not 0.5 < alarm_confidence < 1.0:
@@ -197,6 +317,12 @@ class FaultDetector:
         self.directions = dict(DEFAULT_DIRECTIONS if directions is None else directions)
         self.pool_positions = bool(pool_positions)
         self.min_windows = dict(DEFAULT_MIN_WINDOWS if min_windows is None else min_windows)
+        if reference_flights < 0:
+            raise ValueError("reference_flights must be >= 0")
+        self.reference_flights = int(reference_flights)
+        if not window_clip > 0:
+            raise ValueError("window_clip must be positive")
+        self.window_clip = float(window_clip)
 
     def _min_window(self, name: str) -> int:
         return int(self.min_windows.get(generic_feature(name), 1))
@@ -216,16 +342,31 @@ class FaultDetector:
 
         ``healthy_sequences``: one (n_flights_i, n_features) array of standardised residuals per
         monitored actuator history (flights in order), columns in ``feature_names`` order.
+        First the offset components (``sigma``, ``tau``) per generic feature, then the bands
+        on the self-referenced residuals of the same sequences.
         """
         names = list(feature_names)
+        seqs = [np.asarray(q, dtype=np.float64).reshape(-1, len(names))
+                for q in healthy_sequences]
+        sigma, tau = offset_components(seqs)
+        if self.pool_positions:  # one actuator population per generic feature
+            gen = [generic_feature(n) for n in names]
+            for g in set(gen):
+                idx = [i for i, x in enumerate(gen) if x == g]
+                sigma[idx] = np.sqrt(np.mean(sigma[idx] ** 2))
+                tau[idx] = np.sqrt(np.mean(tau[idx] ** 2))
+        if self.reference_flights == 0:
+            sigma, tau = np.ones(len(names)), np.zeros(len(names))
+        self.within_std_, self.between_std_ = sigma, tau
         dirs = self._dir(names)
         band = np.full((len(names), len(self.windows)), self.band_floor)
         seen = np.zeros(len(names), dtype=np.int64)
-        for seq in healthy_sequences:
-            seq = np.asarray(seq, dtype=np.float64).reshape(-1, len(names))
+        for seq in seqs:
             seen += np.isfinite(seq).sum(axis=0)
+            seq = self.self_referenced(seq)
             for k, w in enumerate(self.windows):
-                s = self._oriented(running_statistics(seq, w), dirs[np.newaxis, :])
+                s = self._oriented(running_statistics(self._clipped(seq, w), w),
+                                   dirs[np.newaxis, :])
                 with np.errstate(invalid="ignore"):
                     m = np.nanmax(np.where(np.isfinite(s), s, -np.inf), axis=0)
                 band[:, k] = np.maximum(band[:, k], m + self.band_margin)
@@ -248,6 +389,23 @@ class FaultDetector:
         self._check()
         return {n: self.band_[i].tolist() for i, n in enumerate(self.feature_names_)}
 
+    def _clipped(self, z: np.ndarray, window: int) -> np.ndarray:
+        return z if window == 1 else np.clip(z, -self.window_clip, self.window_clip)
+
+    def self_referenced(self, z: np.ndarray) -> np.ndarray:
+        """Self-referenced residuals of one actuator history (n_flights, all features)."""
+        return self_referenced_sequence(z, self.within_std_, self.between_std_,
+                                        self.reference_flights)[0]
+
+    def _self_one(self, state: DetectionState, f: str, i: int,
+                  v: float) -> tuple[float, float]:
+        """``(z_self, u_hat)`` of one feature value against the state's reference."""
+        ref = state.reference.get(f, [])
+        med = float(np.median(ref)) if ref else 0.0
+        u_hat, sd = _reference_posterior(np.array(med), np.array(len(ref)),
+                                         self.within_std_[i], self.between_std_[i])
+        return (v - float(u_hat)) / float(sd), float(u_hat)
+
     @property
     def z_alarm(self) -> float:
         """Standard errors beyond the band at which the confidence reaches the alarm level."""
@@ -258,15 +416,18 @@ class FaultDetector:
         return DetectionState.new(unit, unit_features(unit, self.feature_names_))
 
     def confidence_sequence(self, z: np.ndarray, feature_names: Sequence[str]) -> np.ndarray:
-        """Confidence of every flight of a sequence, (n_flights, n_features), vectorised."""
+        """Confidence of every flight of one actuator history (n_flights, n_features) of
+        standardised residuals ``z`` (self-referenced here), vectorised over flights."""
         self._check()
         idx = [self.feature_names_.index(n) for n in feature_names]
         z = np.asarray(z, dtype=np.float64).reshape(-1, len(idx))
+        z = self_referenced_sequence(z, self.within_std_[idx], self.between_std_[idx],
+                                     self.reference_flights)[0]
         conf = np.zeros(z.shape)
         min_w = np.array([self._min_window(n) for n in feature_names])
         n_seen = np.cumsum(np.isfinite(z), axis=0)
         for k, w in enumerate(self.windows):
-            s = self._oriented(running_statistics(z, w),
+            s = self._oriented(running_statistics(self._clipped(z, w), w),
                                self._dir(feature_names)[np.newaxis, :])
             c = ndtr(s - self.band_[idx, k][np.newaxis, :])
             allowed = (w >= min_w)[np.newaxis, :] & (n_seen >= min_w[np.newaxis, :])
@@ -278,13 +439,19 @@ class FaultDetector:
         self._check()
         keep = max(self.windows)
         conf: dict[str, float] = {}
+        z_self: dict[str, float] = {}
+        offset: dict[str, float] = {}
         for f in state.features:
             hist = state.history.setdefault(f, [])
+            ref = state.reference.setdefault(f, [])
+            i = self.feature_names_.index(f)
             v = z.get(f, math.nan)
             if v is not None and math.isfinite(v):
-                hist.append(float(v))
+                z_self[f], offset[f] = self._self_one(state, f, i, float(v))
+                if len(ref) < self.reference_flights:
+                    ref.append(float(v))
+                hist.append(z_self[f])
                 del hist[:-keep]
-            i = self.feature_names_.index(f)
             d = self.directions.get(generic_feature(f), 0)
             min_w = self._min_window(f)
             c = 0.0
@@ -294,6 +461,8 @@ class FaultDetector:
                 if w < min_w:
                     continue
                 last = hist[-w:]
+                if w > 1:
+                    last = [min(max(x, -self.window_clip), self.window_clip) for x in last]
                 s = sum(last) / math.sqrt(len(last))
                 s = abs(s) if d == 0 else d * s
                 c = max(c, float(ndtr(s - self.band_[i, k])))
@@ -307,7 +476,7 @@ class FaultDetector:
             state.alarm_flight = state.n_flights
             state.alarm_features = firing
         return DetectionResult(conf, max(conf.values(), default=0.0), state.alarm, new_alarm,
-                               list(state.alarm_features))
+                               list(state.alarm_features), z_self, offset)
 
     def to_dict(self) -> dict[str, Any]:
         self._check()
@@ -316,6 +485,10 @@ class FaultDetector:
                 "band_margin": self.band_margin, "directions": dict(self.directions),
                 "pool_positions": self.pool_positions,
                 "min_windows": dict(self.min_windows),
+                "reference_flights": self.reference_flights,
+                "window_clip": self.window_clip if math.isfinite(self.window_clip) else None,
+                "within_std": self.within_std_.tolist(),
+                "between_std": self.between_std_.tolist(),
                 "feature_names": list(self.feature_names_),
                 "band": self.band_.tolist(),
                 "n_healthy_flights": self.n_healthy_flights_.tolist()}
@@ -328,8 +501,14 @@ class FaultDetector:
                   band_floor=float(d["band_floor"]), band_margin=float(d["band_margin"]),
                   directions={k: int(v) for k, v in d.get("directions", {}).items()},
                   pool_positions=bool(d.get("pool_positions", False)),
-                  min_windows={k: int(v) for k, v in d.get("min_windows", {}).items()})
+                  min_windows={k: int(v) for k, v in d.get("min_windows", {}).items()},
+                  reference_flights=int(d.get("reference_flights", 0)),
+                  window_clip=math.inf if d.get("window_clip") is None
+                  else float(d["window_clip"]))
         det.feature_names_ = list(d["feature_names"])
+        n = len(det.feature_names_)
+        det.within_std_ = np.asarray(d.get("within_std", np.ones(n)), dtype=np.float64)
+        det.between_std_ = np.asarray(d.get("between_std", np.zeros(n)), dtype=np.float64)
         det.band_ = np.asarray(d["band"], dtype=np.float64).reshape(len(det.feature_names_),
                                                                     len(det.windows))
         det.n_healthy_flights_ = np.asarray(d["n_healthy_flights"], dtype=np.int64)

@@ -211,15 +211,16 @@ def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
     seqs = healthy_flights(design)
     all_flights = [f for _, s in seqs for f in s]
     proto = baseline or FleetBaseline()
-    final = FleetBaseline(proto.covariates, ridge=proto.ridge,
-                          outlier_k=proto.outlier_k).fit(all_flights)
+    final = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
+                          min_evidence=proto.min_evidence).fit(all_flights)
     tails = sorted({a for a, _ in seqs})
     oof: list[np.ndarray] = []
     for tail in tails:
         train = [f for a, s in seqs if a != tail for f in s]
         if len(train) < 3:
             continue
-        b = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k)
+        b = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
+                          min_evidence=proto.min_evidence)
         b.fit(train)
         oof += [b.zscore_matrix(s) for a, s in seqs if a == tail]
     det = detector or FaultDetector()

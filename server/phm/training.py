@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Any
 
@@ -30,14 +30,17 @@ from .chain import (
     GENERIC_FEATURES,
     OWN_FEATURE,
     PROGRESSIVE,
+    ActuatorHealth,
     MeasurementSpec,
     PhmModel,
     classifier_vector,
     measurement_values,
+    self_residuals,
     surface_of,
 )
 from .classification import train_classifier
-from .evaluate_detection import Campaign, fit_detection, load_campaign
+from .detection import DetectionResult
+from .evaluate_detection import Campaign, FlightRecord, Pattern, fit_detection, load_campaign
 from .prognosis import MeasurementModel, PrognoserConfig
 
 __all__ = ["training_rows", "fit_measurement_models", "train_phm_model"]
@@ -50,22 +53,34 @@ _MIN_SURFACE_FLIGHTS = 12  # design flights needed to fit a surface-specific mea
 PROCESS_NOISE_STD = 0.01
 
 
+def _faulty_history(model: PhmModel, p: Pattern
+                    ) -> Iterator[tuple[FlightRecord, DetectionResult, dict[str, float],
+                                        ActuatorHealth]]:
+    """The faulty actuator's detection, flight by flight from installation as in service, with
+    its physical residuals less its own offset and its state after the flight; only flights
+    from the onset are yielded."""
+    health = model.new_health(str(p.position))
+    for r in p.flights:
+        z = model.baseline.zscores(r.features)
+        det = model.detector.update(health.detection, z)
+        if p.onset_flight is not None and r.index < int(p.onset_flight):
+            continue
+        yield r, det, self_residuals(model.baseline, z, det), health
+
+
 def training_rows(campaign: Campaign, model: PhmModel) -> dict[str, np.ndarray]:
-    """Classifier rows as the chain will see them: the faulty actuator's seven residuals on
-    every flight from the detector's first alarm on (the classifier only runs after an alarm).
-    Rows: X (n, 7), mode, pattern, aircraft, severity."""
+    """Classifier rows as the chain will see them: the faulty actuator's classifier input
+    (:func:`~server.phm.chain.classifier_vector`) on every flight from the detector's first
+    alarm on (the classifier only runs after an alarm). Rows: X (n, 7), mode, pattern,
+    aircraft, severity."""
     X, y, groups, aircraft, sev = [], [], [], [], []
     for p in campaign.patterns:
         if p.mode == "healthy" or p.position is None:
             continue
-        health = model.new_health(p.position)
-        alarmed = False
-        for r in p.flights:
-            z = model.baseline.zscores(r.features)
-            alarmed = model.detector.update(health.detection, z).alarm or alarmed
-            if not alarmed or (p.onset_flight is not None and r.index < int(p.onset_flight)):
+        for r, det, _, health in _faulty_history(model, p):
+            if not det.alarm:
                 continue
-            X.append(classifier_vector(z, p.position))
+            X.append(classifier_vector(health.detection, p.position))
             y.append(p.mode)
             groups.append(p.id)
             aircraft.append(p.aircraft)
@@ -78,28 +93,36 @@ def training_rows(campaign: Campaign, model: PhmModel) -> dict[str, np.ndarray]:
 def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, float] | None,
                                                                dict[str, Any]]:
     """First-trial parameters of the affine growth law dh/dk = a + b h of ``mode`` (paper 4.2:
-    the RLS starts from first-trial values and tunes them online), fitted by least squares on
-    the true severity increments of the design fault-to-failure runs."""
-    xs, ys, gaps = [], [], []
+    the RLS starts from first-trial values and tunes them online), from the true severity
+    increments of the design fault-to-failure runs: a least-squares fit *per run*, then the
+    median over runs. (One fit pooled over runs is biased towards b < 0: slow runs contribute
+    many small increments at high severity, fast runs few large ones.)"""
+    fits, gaps = [], []
     for p in campaign.patterns:
         if p.mode != mode:
             continue
-        fl = sorted(p.flights, key=lambda r: r.index)
+        fl = [r for r in sorted(p.flights, key=lambda r: r.index)
+              if p.onset_flight is None or r.index >= int(p.onset_flight)]
+        xs, ys = [], []
         for a, b in zip(fl, fl[1:], strict=False):
             if b.index > a.index:
                 xs.append(a.severity_norm)
                 ys.append((b.severity_norm - a.severity_norm) / (b.index - a.index))
                 gaps.append(b.index - a.index)
-    if len(xs) < 4:
-        return None, {"error": "too few increments"}
-    X = np.column_stack([np.ones(len(xs)), np.asarray(xs)])
-    coef, *_ = np.linalg.lstsq(X, np.asarray(ys), rcond=None)
-    a, b = float(coef[0]), float(coef[1])
+        if len(xs) >= 3:
+            X = np.column_stack([np.ones(len(xs)), np.asarray(xs)])
+            coef, *_ = np.linalg.lstsq(X, np.asarray(ys), rcond=None)
+            fits.append(coef)
+    if len(fits) < 2:
+        return None, {"error": "too few fault-to-failure runs"}
+    a, b = (float(v) for v in np.median(np.asarray(fits), axis=0))
     if b < 0:  # progressive faults do not slow down as they grow: refit a constant rate
-        a, b = float(np.mean(ys)), 0.0
+        a, b = float(np.median([f[0] + 0.5 * f[1] for f in fits])), 0.0
     a = max(a, 1e-5)
-    return (a, b), {"a_per_flight": a, "b_per_flight": b, "n_increments": len(xs),
-                    "dk": float(np.median(gaps))}
+    mid = [f[0] + 0.5 * f[1] for f in fits]
+    bounds = (max(min(mid) / 1.5, 1e-5), max(mid) * 1.5)
+    return (a, b), {"a_per_flight": a, "b_per_flight": b, "n_runs": len(fits),
+                    "dk": float(np.median(gaps)), "mid_rate_bounds": list(bounds)}
 
 
 def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float) -> float:
@@ -120,22 +143,21 @@ def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: floa
     return float(np.clip(sigma_theta**2 / max(sigma_y**2, 1e-30), 1e-2, 1.0))
 
 
-def fit_measurement_models(campaign: Campaign, baseline: Any,
+def fit_measurement_models(campaign: Campaign, phm: PhmModel,
                            base_config: PrognoserConfig | None = None) -> tuple[
         dict[str, MeasurementSpec], dict[str, Any]]:
     """Per progressive mode: h(severity) of the mode's own feature (paper Table 1), fitted on
-    the physical-unit residuals of the faulty actuator over its design fault-to-failure runs."""
+    the physical-unit residuals of the faulty actuator, less its own offset, over its design
+    fault-to-failure runs (``phm`` supplies baseline and detector)."""
     base_config = base_config or PrognoserConfig()
     specs: dict[str, MeasurementSpec] = {}
     report: dict[str, Any] = {}
     for mode in PROGRESSIVE:
         feature = OWN_FEATURE[mode]
-        triples = [(r.severity_norm, measurement_values(baseline.residuals(r.features),
-                                                        p.position).get(feature),
-                    surface_of(p.position))
+        triples = [(r.severity_norm, measurement_values(res, str(p.position)).get(feature),
+                    surface_of(str(p.position)))
                    for p in campaign.patterns if p.mode == mode and p.position
-                   for r in p.flights
-                   if p.onset_flight is None or r.index >= int(p.onset_flight)]
+                   for r, _, res, _ in _faulty_history(phm, p)]
         triples = [t for t in triples if t[1] is not None]
         pairs = [(sn, v) for sn, v, _ in triples]
         if len(pairs) < 6:
@@ -162,7 +184,8 @@ def fit_measurement_models(campaign: Campaign, baseline: Any,
         config = base_config
         if theta is not None:
             config = replace(base_config, initial_theta=theta,
-                             rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]))
+                             rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]),
+                             rate_bounds=tuple(prior["mid_rate_bounds"]))
             prior["rls_initial_cov"] = config.rls_initial_cov
         specs[mode] = MeasurementSpec(feature, model, config, by_surface)
         rho = spearmanr(s, v).statistic
@@ -201,7 +224,7 @@ def train_phm_model(design_dir: str | os.PathLike[str], *, seed: int = 0,
     t_clf = time.perf_counter()
     tick("measurement", 0.9)
     specs, meas_report = fit_measurement_models(
-        campaign, detection.baseline, PrognoserConfig(process_noise_std=PROCESS_NOISE_STD))
+        campaign, bare, PrognoserConfig(process_noise_std=PROCESS_NOISE_STD))
     model = PhmModel(detection.baseline, detection.detector, classifier, specs,
                      PrognoserConfig(process_noise_std=PROCESS_NOISE_STD))
     t_end = time.perf_counter()

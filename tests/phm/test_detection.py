@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from server.phm.baselines import FleetBaseline, LinearBaseline
-from server.phm.detection import DetectionState, FaultDetector, running_statistics
+from server.phm.detection import (
+    DetectionState,
+    FaultDetector,
+    offset_components,
+    running_statistics,
+)
 from server.phm.evaluate_detection import DetectionModel, summarise
 from server.phm.features import AIRCRAFT_FEATURES, FeatureSummary, FlightFeatures
 
@@ -101,6 +106,63 @@ def test_detector_quiet_on_healthy_and_fast_on_steps() -> None:
     assert first is not None and 40 < first < 200
 
 
+def _offset_population(rng: np.random.Generator, n_actuators: int, n_flights: int,
+                       tau: float = 2.0, sigma: float = 0.3) -> list[np.ndarray]:
+    """Actuator histories z = u + e of one feature: production offset u, flight scatter e."""
+    return [rng.normal(rng.normal(0, tau), sigma, (n_flights, 1)) for _ in range(n_actuators)]
+
+
+def test_offset_components_recover_within_and_between_scatter() -> None:
+    rng = np.random.default_rng(10)
+    sigma, tau = offset_components(_offset_population(rng, 60, 12))
+    assert sigma[0] == pytest.approx(0.3, rel=0.15)
+    assert tau[0] == pytest.approx(2.0, rel=0.25)
+    # no offsets at all: tau estimated near 0, never negative
+    sigma0, tau0 = offset_components([rng.normal(0, 1, (12, 1)) for _ in range(60)])
+    assert sigma0[0] == pytest.approx(1.0, rel=0.15) and 0.0 <= tau0[0] < 0.35
+
+
+def test_self_reference_sees_a_shift_smaller_than_the_production_scatter() -> None:
+    """A shift of 2 flight-scatter units is invisible against the fleet (offsets sd 2.0 /
+    0.3 = 6.7 units) and obvious against the actuator's own first flights."""
+    rng = np.random.default_rng(11)
+    names = ["WT.F_DMD"]
+    train = _offset_population(rng, 40, 12)
+    self_ref = FaultDetector(reference_flights=6).fit(train, names)
+    fleet = FaultDetector(reference_flights=0).fit(train, names)
+    assert self_ref.within_std_[0] == pytest.approx(0.3, rel=0.2)
+    healthy = _offset_population(rng, 40, 30)
+    for det in (self_ref, fleet):
+        assert max(det.confidence_sequence(q, names).max() for q in healthy) < 0.98
+    caught = {"self": 0, "fleet": 0}
+    for q in _offset_population(rng, 40, 30):
+        q[10:] += 2.5 * 0.3  # 2.5 flight-scatter units from flight 10 on
+        caught["self"] += self_ref.confidence_sequence(q, names).max() >= 0.98
+        caught["fleet"] += fleet.confidence_sequence(q, names).max() >= 0.98
+    assert caught["self"] >= 36 and caught["fleet"] <= 8, caught
+
+
+def test_update_matches_the_vectorised_sequence_and_reset_forgets_the_reference() -> None:
+    rng = np.random.default_rng(12)
+    names = ["WT.F_DMD", "WT.F_TTS"]
+    det = FaultDetector().fit([np.c_[q, rng.normal(0, 1, (12, 1))]
+                               for q in _offset_population(rng, 30, 12)], names)
+    seq = np.c_[rng.normal(1.5, 0.3, 25), rng.normal(0, 1, 25)]
+    seq[4, 1] = np.nan
+    seq[18:, 0] += 1.0
+    want = det.confidence_sequence(seq, names)
+    st = DetectionState.new("WT", names)
+    got = [det.update(st, dict(zip(names, row.tolist(), strict=True))) for row in seq]
+    assert np.allclose([[r.confidence[n] for n in names] for r in got], want)
+    assert len(st.reference["WT.F_DMD"]) == det.reference_flights == 6
+    assert len(st.reference["WT.F_TTS"]) == 6  # the NaN flight does not enter it
+    assert got[-1].offset["WT.F_DMD"] == pytest.approx(1.5, abs=0.3)
+    # the first flight is judged against the fleet alone (no offset removed)
+    assert got[0].offset["WT.F_DMD"] == 0.0
+    st.reset()
+    assert all(not r for r in st.reference.values())
+
+
 def test_state_and_detector_round_trip_through_json() -> None:
     rng = np.random.default_rng(4)
     names = list(AIRCRAFT_FEATURES)
@@ -139,8 +201,6 @@ def test_fleet_baseline_and_model_round_trip() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="target not reached: 1 false alarm / 250 healthy "
-                   "flights on the seed-2 verification campaign (docs/RESULTS.md, Detection)")
 def test_no_false_alarm_on_healthy_verification_flights(verification_campaign,
                                                         verification_outcomes) -> None:
     healthy = [o for o in verification_outcomes if o.mode == "healthy"]
@@ -153,13 +213,13 @@ def test_no_false_alarm_on_healthy_verification_flights(verification_campaign,
     assert n_flights >= 250, f"only {n_flights} healthy verification flights in the campaign"
 
 
-_LATE = pytest.mark.xfail(strict=True, reason="target not reached: detected after half "
-                          "life (docs/RESULTS.md, Detection: signature below the fleet scatter)")
+_LATE = pytest.mark.xfail(strict=True, reason="target not reached: F_MTEL only leaves its "
+                          "healthy band at 75-90 % of life (docs/RESULTS.md, Detection)")
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mode", ["TTS", pytest.param("DMD", marks=_LATE),
-                                  pytest.param("MTEL", marks=_LATE), "MTWEAR", "REWEAR"])
+@pytest.mark.parametrize("mode", ["TTS", "DMD", pytest.param("MTEL", marks=_LATE), "MTWEAR",
+                                  "REWEAR"])
 def test_progressive_faults_detected_before_half_life(verification_outcomes, mode) -> None:
     prog = [o for o in verification_outcomes if o.mode == mode]
     assert prog
@@ -170,14 +230,11 @@ def test_progressive_faults_detected_before_half_life(verification_outcomes, mod
 
 @pytest.mark.slow
 def test_reached_levels_do_not_regress(verification_outcomes) -> None:
-    """What the unmet targets above reach today: at most 1 false alarm in the healthy
-    verification flights, and every DMD and MTEL pattern detected before its failure."""
-    healthy = [o for o in verification_outcomes if o.mode == "healthy"]
-    assert sum(o.false_alarms + o.other_unit_alarms for o in healthy) <= 1
-    for mode in ("DMD", "MTEL"):
-        prog = [o for o in verification_outcomes if o.mode == mode]
-        assert prog and all(o.detected_index is not None and o.detection_pct_life <= 100.0
-                            for o in prog), mode
+    """What the unmet target above reaches today: every MTEL pattern detected before its
+    failure."""
+    prog = [o for o in verification_outcomes if o.mode == "MTEL"]
+    assert prog and all(o.detected_index is not None and o.detection_pct_life < 100.0
+                        for o in prog)
 
 
 @pytest.mark.slow

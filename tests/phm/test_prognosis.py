@@ -158,6 +158,31 @@ def test_predict_is_pure_and_repeatable() -> None:
     assert d1.histogram_mass.sum() + d1.p_beyond_horizon == pytest.approx(1.0)
 
 
+def test_rate_bounds_keep_the_tuned_law_plausible() -> None:
+    """A flat, noisy stretch drives the unbounded RLS towards a near-zero rate (RUL beyond the
+    horizon); bounded, the mid-life rate of the law and of every particle stays in range."""
+    rng = np.random.default_rng(7)
+    z = MODEL.predict(np.full(60, 0.2)) + MODEL.noise_std * rng.standard_normal(60)
+    lo, hi = 1.0 / 400, 1.0 / 100
+    free_cfg = PrognoserConfig(initial_theta=(0.004, 0.002))
+    bounded_cfg = PrognoserConfig(initial_theta=(0.004, 0.002), rate_bounds=(lo, hi))
+    meds = {}
+    for name, cfg in (("free", free_cfg), ("bounded", bounded_cfg)):
+        pf = ParticleFilterPrognoser(cfg, MODEL)
+        st = pf.initial_state(cfg, MODEL, 3)
+        for k in range(60):
+            st = pf.update(st, z[k], k)
+        meds[name] = pf.predict(st).median
+        if name == "bounded":
+            mid = st.theta @ np.array([1.0, 0.5])
+            assert lo - 1e-12 <= mid <= hi + 1e-12
+            samples = pf.parameter_samples(st, np.random.default_rng(0))
+            assert np.all(samples @ np.array([1.0, 0.5]) <= hi * (1 + 1e-9))
+            assert np.all(samples @ np.array([1.0, 0.5]) >= lo * (1 - 1e-9))
+    # from severity ~0.2 at the slowest plausible rate the RUL is at most ~0.8 / lo flights
+    assert meds["bounded"] <= 1.1 * 0.8 / lo < meds["free"]
+
+
 def test_config_validation() -> None:
     bad = [
         {"n_particles": 1},
@@ -170,11 +195,14 @@ def test_config_validation() -> None:
         {"quantile_levels": (0.5, 0.05)},
         {"pof_horizons_flights": (0,)},
         {"max_horizon_flights": 0},
+        {"rate_bounds": (0.01, 0.001)},
+        {"rate_bounds": (0.0, 0.01)},
     ]
     for kwargs in bad:
         with pytest.raises(ValueError):
             PrognoserConfig(**kwargs)
-    cfg = PrognoserConfig(rate_basis="quadratic", initial_theta=(0.004, 0.0, 0.001))
+    cfg = PrognoserConfig(rate_basis="quadratic", initial_theta=(0.004, 0.0, 0.001),
+                          rate_bounds=(0.002, 0.01))
     assert PrognoserConfig.from_json(cfg.to_json()) == cfg
     with pytest.raises(ValueError):
         PrognoserConfig.from_dict({**cfg.to_dict(), "version": 2})

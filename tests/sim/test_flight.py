@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from server.flightlog import OPTIONAL_CHANNELS, check_coherence, read_parquet, write_parquet
 from sim_worker import advance_fault, build_aircraft, healthy, new_fault, simulate_flight
@@ -93,7 +94,7 @@ def test_tiny_campaign_manifest(tmp_path, monkeypatch):
     from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
 
     cfg = ScaleConfig(duration_s=12.0, healthy_patterns=1, healthy_flights=2, patterns_per_mode=1,
-                      render_every=10_000, apriori_flights=2, apriori_onset=1)
+                      render_every=10_000, apriori_flights=2, apriori_onset=1, lead_flights=2)
     monkeypatch.setitem(SCALES, "tiny", {"design": cfg, "verification": cfg})
     run_campaign("design", tmp_path, seed=5, scale="tiny", workers=1, progress=False)
     m = json.loads((tmp_path / "manifest.json").read_text())
@@ -111,5 +112,10 @@ def test_tiny_campaign_manifest(tmp_path, monkeypatch):
             assert last["index"] == p["failure_flight"] and last["true_rul_flights"] == 0
             assert last["severity_norm"] >= 1.0 > p["flights"][0]["severity_norm"]
             assert 100 <= p["failure_flight"] <= 500
+            # the healthy lead: two rendered healthy flights, then the fault at onset
+            assert p["onset_flight"] == 2
+            assert [f["index"] for f in p["flights"][:3]] == [0, 1, 2]
+            assert [f["severity_norm"] for f in p["flights"][:2]] == [0.0, 0.0]
+            assert p["flights"][2]["severity_norm"] == pytest.approx(0.05)
         if p["mode"] == "healthy":
             assert all(f["severity_norm"] == 0.0 for f in p["flights"])

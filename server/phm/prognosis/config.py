@@ -85,6 +85,12 @@ class PrognoserConfig:
         Horizons [flight] for the probability of failure within k flights.
     histogram_bins:
         Number of bins of the RUL histogram [-].
+    rate_bounds:
+        Plausible range ``(low, high)`` of the growth rate at mid-life, ``g(0.5; theta)``
+        [1/flight], or None. The RLS estimate and every particle's parameter sample are scaled
+        into it: early in a life the increments of the filtered severity are mostly noise and
+        can drive the tuned law to an implausibly slow or fast rate (training sets it from the
+        slowest and fastest design runs, with a 50 % margin).
     """
 
     n_particles: int = 200
@@ -105,6 +111,7 @@ class PrognoserConfig:
     quantile_levels: tuple[float, ...] = (0.05, 0.25, 0.5, 0.75, 0.95)
     pof_horizons_flights: tuple[int, ...] = (10, 25, 50)
     histogram_bins: int = 30
+    rate_bounds: tuple[float, float] | None = None
     _version: int = field(default=_CONFIG_VERSION, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -153,6 +160,11 @@ class PrognoserConfig:
         if any(isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in horizons):
             raise ValueError("pof_horizons_flights must be positive ints")
         object.__setattr__(self, "pof_horizons_flights", horizons)
+        if self.rate_bounds is not None:
+            lo, hi = (float(v) for v in self.rate_bounds)
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi):
+                raise ValueError("rate_bounds must be finite with 0 < low < high")
+            object.__setattr__(self, "rate_bounds", (lo, hi))
         if self._version != _CONFIG_VERSION:
             raise ValueError(f"unsupported config version {self._version}")
 
@@ -174,6 +186,7 @@ class PrognoserConfig:
         data["initial_theta"] = None if self.initial_theta is None else list(self.initial_theta)
         data["quantile_levels"] = list(self.quantile_levels)
         data["pof_horizons_flights"] = list(self.pof_horizons_flights)
+        data["rate_bounds"] = None if self.rate_bounds is None else list(self.rate_bounds)
         return {"version": _CONFIG_VERSION, "kind": "pf_prognoser_config", **data}
 
     def to_json(self) -> str:
@@ -190,7 +203,7 @@ class PrognoserConfig:
         unknown = set(data) - known
         if unknown:
             raise ValueError(f"unknown config fields {sorted(unknown)}")
-        for key in ("initial_theta", "quantile_levels", "pof_horizons_flights"):
+        for key in ("initial_theta", "quantile_levels", "pof_horizons_flights", "rate_bounds"):
             if data.get(key) is not None:
                 data[key] = tuple(data[key])
         return cls(**data)

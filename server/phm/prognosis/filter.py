@@ -365,6 +365,7 @@ class ParticleFilterPrognoser:
         theta, cov, resid_var = rls_update(
             state.theta, state.cov, state.resid_var, phi, y, cfg.rls_forgetting, cfg.rls_max_trace
         )
+        theta = self._bounded(theta)
         return PrognoserState(
             severity=h,
             log_weights=log_w,
@@ -408,7 +409,26 @@ class ParticleFilterPrognoser:
             powers = h_ref ** np.arange(1, cfg.n_params)
             theta[:, 0] += (theta[:, 1:] - clipped) @ powers
             theta[:, 1:] = clipped
-        return theta
+        return self._bounded(theta)
+
+    def _bounded(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Scale parameter vectors (p,) or (N, p) so that the mid-life rate g(0.5) lies in
+        ``config.rate_bounds`` (the shape of the law is kept)."""
+        bounds = self.config.rate_bounds
+        if bounds is None:
+            return theta
+        mid = regressor(0.5, self.config.n_params)
+        rate = theta @ mid
+        safe = np.where(rate > 0, rate, bounds[0])
+        factor = np.where(rate > 0, np.clip(safe, *bounds) / safe, 1.0)
+        out = theta * np.asarray(factor)[..., np.newaxis]
+        # a non-positive mid-life rate: the slowest plausible constant rate
+        bad = np.asarray(rate <= 0)
+        if bad.any():
+            fallback = np.zeros(self.config.n_params)
+            fallback[0] = bounds[0]
+            out = np.where(bad[..., np.newaxis], fallback, out)
+        return out
 
     def predict(self, state: PrognoserState, *, threshold: float = 1.0) -> RulDistribution:
         """Long-term prediction: RUL distribution from the state (does not modify it)."""
