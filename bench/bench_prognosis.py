@@ -64,7 +64,8 @@ def _time(fn: Callable[[], object], *, min_time: float = 0.4, min_runs: int = 5)
 
 
 def _warm(n: int, z: np.ndarray) -> tuple[ParticleFilterPrognoser, object]:
-    cfg = PrognoserConfig(n_particles=n)
+    # rate bounds on, as the trained chain configures the filter (life 300 -> rate ~1/300)
+    cfg = PrognoserConfig(n_particles=n, rate_bounds=(1.0 / 900.0, 1.0 / 100.0))
     pf = ParticleFilterPrognoser(cfg, MODEL)
     state = pf.initial_state(cfg, MODEL, 1)
     for k in range(MID):

@@ -23,12 +23,14 @@ __all__ = ["DEMO_INJECTIONS", "prepare_demo", "run_demo"]
 # design campaign's 170-360 flights (the range the model's degradation priors were fitted on):
 # at the default 60 flights a minute (6 per aircraft) alarms come within minutes, RUL cones
 # right after, and failures -- which reveal the true RUL in hindsight -- in about half an hour.
+# Onsets come after the 6 reference flights from which detection learns each actuator's own
+# healthy offsets (server/phm/detection.py), as in the campaigns (8 healthy flights first).
 DEMO_INJECTIONS = [
-    ("SIM01", "WL1", "MTWEAR", 3, 170),
-    ("SIM02", "WT", "DMD", 3, 180),
-    ("SIM04", "WL2", "REWEAR", 2, 160),
-    ("SIM06", "WT", "BDO", 4, None),
-    ("SIM08", "WL1", "TTS", 3, 170),
+    ("SIM01", "WL1", "MTWEAR", 9, 170),
+    ("SIM02", "WT", "DMD", 9, 180),
+    ("SIM04", "WL2", "REWEAR", 8, 160),
+    ("SIM06", "WT", "BDO", 10, None),
+    ("SIM08", "WL1", "TTS", 9, 170),
 ]
 
 
@@ -54,7 +56,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     if has_model is None:
         design = campaign_dir_for(settings.data_dir, "demo-design")
         if not (design / "manifest.json").exists():
-            print("simulating a quick design campaign (about a minute and a half on 2 cores)...",
+            print("simulating a quick design campaign (about two and a half minutes on 2 cores)...",
                   flush=True)
             from sim_worker import run_campaign
 

@@ -287,7 +287,8 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
     out: dict[str, Any] = {"id": trace["id"], "aircraft": trace["aircraft"],
                            "position": trace["position"], "t_eol": t_eol, "life": life,
                            "detected_index": det, "predictions": [], "ph": 0.0,
-                           "ph_flights": 0.0, "ph_from_detection": 0.0, "ra": None,
+                           "ph_flights": 0.0, "ph_from_detection": 0.0, "ph_band": 0.0,
+                           "ra": None,
                            "alpha_lambda": False, "cra": None, "convergence": None}
     if det is None:
         return out
@@ -311,6 +312,9 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
     ph = metrics.prognostic_horizon(times, med, t_eol, alpha=alpha, bounds="relative", stay=True)
     out["ph_flights"] = ph
     out["ph"] = ph / life
+    # Saxena's constant-width bounds, +-alpha x life around the true RUL (time from onset)
+    out["ph_band"] = metrics.prognostic_horizon(times - onset, med, life, alpha=alpha,
+                                                bounds="eol", stay=True) / life
     out["ph_from_detection"] = ph / (t_eol - det)
     out["alpha_lambda"] = metrics.alpha_lambda(times, med, t_eol, alpha=alpha, lam=lam,
                                                t_p=float(det))
@@ -358,6 +362,7 @@ def summarise_prognosis(traces: Sequence[Mapping[str, Any]], *, alpha: float = A
             "ra_median_pattern": None if not [p for p in pats if p["ra"] is not None] else
             100.0 * float(np.median([p["ra"] for p in pats if p["ra"] is not None])),
             "ph_from_detection": _mean([p["ph_from_detection"] for p in pats]),
+            "ph_band": _mean([p["ph_band"] for p in pats]),
             "alpha_lambda": _mean([float(p["alpha_lambda"]) for p in pats]),
             "cra": _mean([p["cra"] for p in pats]),
             "convergence": _mean([p["convergence"] for p in pats]),

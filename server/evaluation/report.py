@@ -184,12 +184,13 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
                      f" | {_f(None if rec is None else 100 * rec, '.0f')} % |")
         out[key] = "\n".join(t)
     p = ["| mode | PH [-] ours | PH [-] paper | RA [%] ours | RA [%] paper | PH from detection "
-         "[-] | alpha-lambda (0.2, 0.5) | CRA [%] | convergence [-] | patterns (with "
-         "predictions) |", "|---|---|---|---|---|---|---|---|---|---|"]
+         "[-] | PH, +-20 % of life band [-] | alpha-lambda (0.2, 0.5) | CRA [%] | "
+         "convergence [-] | patterns (with predictions) |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
     for m, r in result["prognosis"].items():
         p.append(f"| {m} | {_f(r['ph'])} | {PAPER_TABLE2[m][0]:.2f} | {_f(r['ra'], '.1f')} | "
                  f"{PAPER_TABLE2[m][1]:.1f} | {_f(r['ph_from_detection'])} | "
-                 f"{_f(r['alpha_lambda'])} | "
+                 f"{_f(r.get('ph_band'))} | {_f(r['alpha_lambda'])} | "
                  f"{_f(None if r['cra'] is None else 100 * r['cra'], '.1f')} | "
                  f"{_f(r['convergence'])} | {r['n_patterns']} ({r['n_with_predictions']}) |")
     out["prognosis"] = "\n".join(p)

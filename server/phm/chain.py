@@ -197,6 +197,9 @@ class ActuatorHealth:
     position: str
     detection: DetectionState
     flights_seen: int = 0
+    #: flight index of the first alarm: the filter starts there (the fault was not known
+    #: before; replaying the healthy flights since installation drags the tuned law down)
+    alarm_index: int | None = None
     class_log_prob: dict[str, float] | None = None
     fault_mode: str | None = None
     prognosis: dict[str, Any] | None = None
@@ -205,6 +208,7 @@ class ActuatorHealth:
     def to_dict(self) -> dict[str, Any]:
         return {"format": HEALTH_FORMAT, "position": self.position,
                 "detection": self.detection.to_dict(), "flights_seen": self.flights_seen,
+                "alarm_index": self.alarm_index,
                 "class_log_prob": self.class_log_prob, "fault_mode": self.fault_mode,
                 "prognosis": self.prognosis,
                 "history": [[i, z] for i, z in self.history]}
@@ -219,6 +223,7 @@ class ActuatorHealth:
         return cls(position=str(d["position"]),
                    detection=DetectionState.from_dict(d["detection"]),
                    flights_seen=int(d["flights_seen"]),
+                   alarm_index=None if d.get("alarm_index") is None else int(d["alarm_index"]),
                    class_log_prob=d.get("class_log_prob"), fault_mode=d.get("fault_mode"),
                    prognosis=d.get("prognosis"),
                    history=[(int(i), {k: float(v) for k, v in z.items()})
@@ -283,6 +288,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
             h.flights_seen = int(flight_index)
         index = h.flights_seen
         det = model.detector.update(h.detection, z_all)
+        if det.new_alarm:
+            h.alarm_index = index
         generic = measurement_values(self_residuals(model.baseline, z_all, det), position)
         h.history.append((index, generic))
         del h.history[:-_HISTORY_FLIGHTS]
@@ -323,7 +330,9 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
                     # activated): start again from this actuator's history
                     state = None
             if state is None:
-                state = _replay(model, h.fault_mode, position, h.history, seed)
+                since = h.alarm_index if h.alarm_index is not None else -1
+                state = _replay(model, h.fault_mode, position,
+                                [(i, v) for i, v in h.history if i >= since], seed)
                 rul = None if state is None else pf.predict(state)
             if state is not None:
                 h.prognosis = state.to_dict()

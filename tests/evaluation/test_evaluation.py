@@ -73,6 +73,9 @@ def test_ph_and_ra_match_hand_computation() -> None:
     assert p["ph_flights"] == pytest.approx(60.0)
     assert p["ph"] == pytest.approx(0.6)
     assert p["ph_from_detection"] == pytest.approx(60.0 / 80.0)
+    # Saxena's constant band, +-0.2 x life = +-20 flights: 120 vs 80 and 105 vs 70 are out,
+    # 66 vs 60 on are in -> the same 60 flights here
+    assert p["ph_band"] == pytest.approx(0.6)
     true = np.array([80, 70, 60, 50, 40, 30, 20, 10], dtype=float)
     pred = np.array([rul[i] for i in range(20, 100, 10)])
     assert p["ra"] == pytest.approx(float(np.mean(1 - np.abs(pred - true) / true)))
@@ -87,6 +90,11 @@ def test_ph_requires_staying_in_the_cone_and_missing_predictions_count_outside()
     rul = {20: 80.0, 30: 70.0, 40: 60.0, 50: 50.0, 60: 40.0, 70: 30.0, 80: 40.0, 90: 10.0}
     p = pattern_prognosis(_progressive(rul))
     assert p["ph_flights"] == pytest.approx(10.0)  # only the last one stays inside
+    # the constant band (+-0.2 x life = +-20 flights) keeps 40 vs 20 at flight 80 (on its
+    # edge): every prediction from detection on is inside -> 80 flights
+    assert p["ph_band"] == pytest.approx(0.8)
+    p_b = pattern_prognosis(_progressive({**rul, 80: 45.0}))  # 25 off: outside both
+    assert p_b["ph_flights"] == pytest.approx(10.0) and p_b["ph_band"] == pytest.approx(0.1)
     del rul[90]
     p = pattern_prognosis(_progressive(rul))
     assert p["ph"] == 0.0

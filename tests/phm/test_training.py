@@ -9,6 +9,7 @@ import pytest
 
 from server.phm.chain import PhmModel, analyze_flight
 from server.phm.evaluate_detection import load_campaign
+from server.phm.prognosis import PrognoserState
 from server.phm.training import train_phm_model
 
 pytestmark = pytest.mark.slow
@@ -45,3 +46,10 @@ def test_model_from_json_analyses_flights_exactly_as_trained(design_campaign_dir
         if oa.rul is not None:
             assert oa.rul.quantiles == ob.rul.quantiles
     assert oa.alarm and oa.fault_mode == "TTS" and oa.rul is not None
+    # the filter starts at the alarm: the healthy flights before it are not fused
+    health = ha[pattern.position]
+    onset = int(pattern.onset_flight)
+    assert health.alarm_index is not None and health.alarm_index > onset
+    since_alarm = [r for r in pattern.flights if r.index + 1 >= health.alarm_index]
+    state = PrognoserState.from_dict(health.prognosis)
+    assert 1 <= state.n_updates <= len(since_alarm) <= len(pattern.flights) - onset
