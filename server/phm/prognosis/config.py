@@ -87,10 +87,11 @@ class PrognoserConfig:
         Number of bins of the RUL histogram [-].
     rate_bounds:
         Plausible range ``(low, high)`` of the growth rate at mid-life, ``g(0.5; theta)``
-        [1/flight], or None. The RLS estimate and every particle's parameter sample are scaled
-        into it: early in a life the increments of the filtered severity are mostly noise and
-        can drive the tuned law to an implausibly slow or fast rate (training sets it from the
-        slowest and fastest design runs, with a 50 % margin).
+        [1/flight], or None. Where the law is used (propagation, and every particle's parameter
+        sample of the prediction) it is scaled into this range; the RLS estimate itself is left
+        free. Early in a life the increments of the filtered severity are mostly noise and can
+        drive the tuned law to an implausibly slow or fast rate (training sets the range from
+        the slowest and fastest design runs, with a 50 % margin).
     """
 
     n_particles: int = 200

@@ -341,7 +341,10 @@ class ParticleFilterPrognoser:
 
         dk = float(k - state.flight_index)
         # 1. propagate
-        h = state.severity + dk * growth_rate(state.severity, state.theta, cfg.min_rate)
+        # the law is bounded where it is used (propagation, prediction), not inside the RLS:
+        # rescaling the RLS estimate itself fed back into the regression and let it drift
+        h = state.severity + dk * growth_rate(state.severity, self._bounded(state.theta),
+                                              cfg.min_rate)
         h += (cfg.process_noise_std * math.sqrt(dk)) * rng.standard_normal(n)
         np.maximum(h, 0.0, out=h)
         # 2. weight (log domain, max subtracted before exponentiating)
@@ -365,7 +368,6 @@ class ParticleFilterPrognoser:
         theta, cov, resid_var = rls_update(
             state.theta, state.cov, state.resid_var, phi, y, cfg.rls_forgetting, cfg.rls_max_trace
         )
-        theta = self._bounded(theta)
         return PrognoserState(
             severity=h,
             log_weights=log_w,
