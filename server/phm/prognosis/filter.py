@@ -419,17 +419,21 @@ class ParticleFilterPrognoser:
         bounds = self.config.rate_bounds
         if bounds is None:
             return theta
-        mid = regressor(0.5, self.config.n_params)
+        lo, hi = bounds
+        mid = 0.5 ** np.arange(self.config.n_params)
+        if theta.ndim == 1:  # the filter's own law, once per update: no array temporaries
+            rate = float(theta @ mid)
+            if lo <= rate <= hi:
+                return theta
+            if rate <= 0:  # not a growth law: the slowest plausible constant rate
+                out = np.zeros_like(theta)
+                out[0] = lo
+                return out
+            return theta * (min(max(rate, lo), hi) / rate)
         rate = theta @ mid
-        safe = np.where(rate > 0, rate, bounds[0])
-        factor = np.where(rate > 0, np.clip(safe, *bounds) / safe, 1.0)
-        out = theta * np.asarray(factor)[..., np.newaxis]
-        # a non-positive mid-life rate: the slowest plausible constant rate
-        bad = np.asarray(rate <= 0)
-        if bad.any():
-            fallback = np.zeros(self.config.n_params)
-            fallback[0] = bounds[0]
-            out = np.where(bad[..., np.newaxis], fallback, out)
+        safe = np.where(rate > 0, rate, lo)
+        out = theta * (np.clip(safe, lo, hi) / safe)[:, np.newaxis]
+        out[rate <= 0] = np.eye(1, self.config.n_params)[0] * lo
         return out
 
     def predict(self, state: PrognoserState, *, threshold: float = 1.0) -> RulDistribution:
