@@ -7,6 +7,7 @@ the API, one analysis worker and the sim worker together, and prints the URL and
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -43,6 +44,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     from server.jobs.training_job import campaign_dir_for, train_into_version
     from server.migrate import ensure_schema
     from server.models import Aircraft, ModelVersion
+    from server.phm.chain import MODEL_FORMAT
     from server.services import fleet, test_station
     from server.services import models as model_service
     from sim_worker.service import fleet_plan
@@ -52,10 +54,14 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     ensure_schema(engine, settings.effective_database_url, auto_upgrade=True)
     factory = make_session_factory(engine)
     with factory() as session:
-        has_model = session.scalar(select(ModelVersion.id).where(ModelVersion.active.is_(True)))
-    if has_model is None:
+        active = session.scalar(select(ModelVersion).where(ModelVersion.active.is_(True)))
+        # a model of an older chain format cannot analyse flights: train a current one
+        usable = active is not None and (active.payload or {}).get("format") == MODEL_FORMAT
+    if not usable:
         design = campaign_dir_for(settings.data_dir, "demo-design")
-        if not (design / "manifest.json").exists():
+        manifest = design / "manifest.json"
+        # campaigns of older simulators lack the healthy lead flights the detector needs
+        if not manifest.exists() or "lead_flights" not in json.loads(manifest.read_text()):
             print("simulating a quick design campaign (about two and a half minutes on 2 cores)...",
                   flush=True)
             from sim_worker import run_campaign

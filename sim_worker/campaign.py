@@ -327,6 +327,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
         "scale": scale,
         "duration_s": SCALES[scale][kind].duration_s,
         "render_every": SCALES[scale][kind].render_every,
+        "lead_flights": SCALES[scale][kind].lead_flights,
         "noise_scale": float(noise_scale),
         "bases": list(bases) if bases else None,
         "aircraft": [{"tail": a.tail, "base": a.base, "climate": BASES[a.base],

@@ -53,3 +53,11 @@ def test_model_from_json_analyses_flights_exactly_as_trained(design_campaign_dir
     since_alarm = [r for r in pattern.flights if r.index + 1 >= health.alarm_index]
     state = PrognoserState.from_dict(health.prognosis)
     assert 1 <= state.n_updates <= len(since_alarm) <= len(pattern.flights) - onset
+
+
+def test_a_model_of_the_older_chain_format_is_refused(trained_model) -> None:
+    """A /1 model was trained on single-flight fleet residuals; the chain now feeds
+    self-referenced 3-flight means, so it must be retrained, not silently misused."""
+    doc = {**trained_model[0], "format": "ema-phm-model/1"}
+    with pytest.raises(ValueError, match="hmsm train"):
+        PhmModel.from_dict(doc)
