@@ -123,7 +123,7 @@ def test_offset_components_recover_within_and_between_scatter() -> None:
 
 
 def test_self_reference_sees_a_shift_smaller_than_the_production_scatter() -> None:
-    """A shift of 2 flight-scatter units is invisible against the fleet (offsets sd 2.0 /
+    """A shift of 3 flight-scatter units is invisible against the fleet (offsets sd 2.0 /
     0.3 = 6.7 units) and obvious against the actuator's own first flights."""
     rng = np.random.default_rng(11)
     names = ["WT.F_DMD"]
@@ -136,10 +136,27 @@ def test_self_reference_sees_a_shift_smaller_than_the_production_scatter() -> No
         assert max(det.confidence_sequence(q, names).max() for q in healthy) < 0.98
     caught = {"self": 0, "fleet": 0}
     for q in _offset_population(rng, 40, 30):
-        q[10:] += 2.5 * 0.3  # 2.5 flight-scatter units from flight 10 on
+        q[10:] += 3.0 * 0.3  # 3 flight-scatter units from flight 10 on
         caught["self"] += self_ref.confidence_sequence(q, names).max() >= 0.98
         caught["fleet"] += fleet.confidence_sequence(q, names).max() >= 0.98
     assert caught["self"] >= 36 and caught["fleet"] <= 8, caught
+
+
+def test_a_few_odd_flights_do_not_make_an_eight_flight_alarm() -> None:
+    """Three odd flights among eight move the running mean past the band; the running median
+    (the default for the 8-flight window) does not move, and a sustained shift still alarms."""
+    rng = np.random.default_rng(13)
+    names = ["WT.F_A"]
+    train = [rng.standard_normal((40, 1)) for _ in range(20)]
+    robust = FaultDetector((1, 3, 8), reference_flights=0).fit(train, names)
+    plain = FaultDetector((1, 3, 8), reference_flights=0, median_from=0).fit(train, names)
+    odd = np.zeros((20, 1))
+    odd[[8, 11, 14]] = 5.0  # three odd flights, three apart
+    assert plain.confidence_sequence(odd, names).max() >= 0.98
+    assert robust.confidence_sequence(odd, names).max() < 0.98
+    drift = np.zeros((20, 1))
+    drift[8:] = 3.0
+    assert robust.confidence_sequence(drift, names).max() >= 0.98
 
 
 def test_update_matches_the_vectorised_sequence_and_reset_forgets_the_reference() -> None:
