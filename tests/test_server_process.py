@@ -48,7 +48,7 @@ def test_twenty_concurrent_uploads_none_lost_or_duplicated(settings: Settings) -
         with ThreadPoolExecutor(max_workers=20) as pool:
             codes = list(pool.map(send, files + files[:5]))  # five sent twice, concurrently
         assert codes[:20].count(202) + codes[:20].count(200) == 20
-        assert all(c in (200, 202) for c in codes)
+        assert all(c in (200, 202) for c in codes), codes
         with Session(engine) as s:
             assert s.scalar(select(func.count()).select_from(Flight)) == 20
             assert s.scalar(select(func.count(func.distinct(Flight.flight_code)))) == 20

@@ -72,6 +72,9 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
             Flight.status != "rejected"))
         if clash is not None:
             upload.discard()
+            if clash.sha256 == upload.sha256:
+                # the same bytes, committed by a concurrent upload since the check above
+                return clash, True
             raise Conflict(f"Flight '{code}' of '{tail}' was already uploaded with other content.",
                            code="flight_exists", details={"flight_id": clash.id})
     if log is not None:
