@@ -236,13 +236,9 @@ class FleetBaseline:
             out[name] = float(m.zscore(C, self._values([flight], name))[0])
         return out
 
-    def residuals(self, flight: FlightFeatures) -> dict[str, float]:
-        """Residual of every feature in its physical unit, ``value - expected(conditions)``
-        (NaN where no valid window): comparable across positions, unlike ``zscores``."""
-        return self.to_physical(self.zscores(flight))
-
     def to_physical(self, z: Mapping[str, float]) -> dict[str, float]:
-        """Standardised residuals (or offsets) back in each feature's physical unit."""
+        """Standardised residuals (or offsets) back in each feature's physical unit,
+        ``value - expected(conditions)``: comparable across positions, unlike ``zscores``."""
         self._check()
         return {name: v * self.models_[name].scale_ for name, v in z.items()
                 if name in self.models_}

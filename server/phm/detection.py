@@ -170,14 +170,13 @@ def _reference_posterior(ref: np.ndarray, n: np.ndarray, sigma: np.ndarray,
 
 
 def self_referenced_sequence(z: np.ndarray, sigma: np.ndarray, tau: np.ndarray,
-                             reference_flights: int) -> tuple[np.ndarray, np.ndarray]:
+                             reference_flights: int) -> np.ndarray:
     """Self-referenced residuals of a flight sequence (n_flights, n_features), each flight
-    against the median of the first ``reference_flights`` valid residuals *before* it; also
-    the offset ``u_hat`` used for every flight. NaN stays NaN."""
+    against the median of the first ``reference_flights`` valid residuals *before* it. NaN
+    stays NaN."""
     z = np.asarray(z, dtype=np.float64)
     z = z[:, np.newaxis] if z.ndim == 1 else z
     out = np.full(z.shape, np.nan)
-    offsets = np.zeros(z.shape)
     for j in range(z.shape[1]):
         col = z[:, j]
         ok = np.flatnonzero(np.isfinite(col))
@@ -189,8 +188,13 @@ def self_referenced_sequence(z: np.ndarray, sigma: np.ndarray, tau: np.ndarray,
         ref = medians[n_before]
         u_hat, sd = _reference_posterior(ref, n_before, sigma[j], tau[j])
         out[:, j] = (col - u_hat) / sd
-        offsets[:, j] = u_hat
-    return out, offsets
+    return out
+
+
+def _generic_groups(names: Sequence[str]) -> list[list[int]]:
+    """Column indices of each generic feature (``WL1.F_TTS``, ``WT.F_TTS`` -> one group)."""
+    gen = [generic_feature(n) for n in names]
+    return [[i for i, x in enumerate(gen) if x == g] for g in dict.fromkeys(gen)]
 
 
 def offset_components(healthy_sequences: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -374,15 +378,14 @@ class FaultDetector:
         names = list(feature_names)
         seqs = [np.asarray(q, dtype=np.float64).reshape(-1, len(names))
                 for q in healthy_sequences]
-        sigma, tau = offset_components(seqs)
-        if self.pool_positions:  # one actuator population per generic feature
-            gen = [generic_feature(n) for n in names]
-            for g in set(gen):
-                idx = [i for i, x in enumerate(gen) if x == g]
-                sigma[idx] = np.sqrt(np.mean(sigma[idx] ** 2))
-                tau[idx] = np.sqrt(np.mean(tau[idx] ** 2))
-        if self.reference_flights == 0:
+        if self.reference_flights == 0:  # the fleet test: z as it is
             sigma, tau = np.ones(len(names)), np.zeros(len(names))
+        else:
+            sigma, tau = offset_components(seqs)
+            if self.pool_positions:  # one actuator population per generic feature
+                for idx in _generic_groups(names):
+                    sigma[idx] = np.sqrt(np.mean(sigma[idx] ** 2))
+                    tau[idx] = np.sqrt(np.mean(tau[idx] ** 2))
         self.within_std_, self.between_std_ = sigma, tau
         dirs = self._dir(names)
         band = np.full((len(names), len(self.windows)), self.band_floor)
@@ -398,9 +401,7 @@ class FaultDetector:
                     m = np.nanmax(np.where(np.isfinite(s), s, -np.inf), axis=0)
                 band[:, k] = np.maximum(band[:, k], m + self.band_margin)
         if self.pool_positions:
-            gen = [generic_feature(n) for n in names]
-            for g in set(gen):
-                idx = [i for i, x in enumerate(gen) if x == g]
+            for idx in _generic_groups(names):
                 band[idx] = band[idx].max(axis=0)
         self.feature_names_ = names
         self.band_ = band
@@ -425,7 +426,7 @@ class FaultDetector:
     def self_referenced(self, z: np.ndarray) -> np.ndarray:
         """Self-referenced residuals of one actuator history (n_flights, all features)."""
         return self_referenced_sequence(z, self.within_std_, self.between_std_,
-                                        self.reference_flights)[0]
+                                        self.reference_flights)
 
     def _self_one(self, state: DetectionState, f: str, i: int,
                   v: float) -> tuple[float, float]:
@@ -452,7 +453,7 @@ class FaultDetector:
         idx = [self.feature_names_.index(n) for n in feature_names]
         z = np.asarray(z, dtype=np.float64).reshape(-1, len(idx))
         z = self_referenced_sequence(z, self.within_std_[idx], self.between_std_[idx],
-                                     self.reference_flights)[0]
+                                     self.reference_flights)
         conf = np.zeros(z.shape)
         min_w = np.array([self._min_window(n) for n in feature_names])
         n_seen = np.cumsum(np.isfinite(z), axis=0)
