@@ -37,7 +37,9 @@ from server.phm.features import flight_features
 __all__ = ["analyze_flight_job", "load_active_model"]
 
 
-_MODEL_CACHE: dict[int, PhmModel] = {}
+#: the decoded active model, keyed by (database URL, model version id): a version id alone
+#: names another model in another database served by the same process
+_MODEL_CACHE: dict[tuple[str, int], PhmModel] = {}
 _CACHE_LOCK = threading.Lock()
 
 
@@ -45,12 +47,13 @@ def load_active_model(session: Any) -> tuple[int, PhmModel] | None:
     row = session.scalar(select(ModelVersion.id).where(ModelVersion.active.is_(True)))
     if row is None:
         return None
+    key = (str(session.get_bind().url), int(row))
     with _CACHE_LOCK:
-        if row not in _MODEL_CACHE:
+        if key not in _MODEL_CACHE:
             payload = session.get(ModelVersion, row).payload
             _MODEL_CACHE.clear()
-            _MODEL_CACHE[row] = PhmModel.from_dict(payload)
-        return row, _MODEL_CACHE[row]
+            _MODEL_CACHE[key] = PhmModel.from_dict(payload)
+        return row, _MODEL_CACHE[key]
 
 
 def _reject(ctx: JobContext, flight_id: int, reasons: list[dict[str, Any]]) -> None:
@@ -98,7 +101,10 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
         blob_path, sha, kind, meta = (flight.blob_path, flight.sha256, flight.content_kind,
                                       dict(flight.flight_metadata))
         aircraft_id = flight.aircraft_id
-        active = load_active_model(session)
+        try:
+            active = load_active_model(session)
+        except ValueError as exc:  # e.g. a model of an older chain format: wait, lose nothing
+            raise Deferred(f"The active model cannot analyse flights: {exc}.") from exc
         if active is None:
             raise Deferred("No active model version: train one with `hmsm train` or "
                            "POST /api/v1/models/train.")

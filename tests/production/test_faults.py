@@ -194,3 +194,31 @@ def test_corrupted_blob_is_rejected_as_blob_corrupt_at_analysis(tmp_path, traine
         assert [reason["code"] for reason in flight["reasons"]] == ["blob_corrupt"]
         with Session(create_engine(settings.effective_database_url)) as s:
             assert s.scalars(select(Job.status)).all() == ["done"]  # no retries of a lost cause
+
+
+# ---------------------------------------------------------------------------- stale model
+
+@pytest.mark.slow
+def test_active_model_of_an_older_chain_defers_analysis_and_loses_nothing(
+        tmp_path, trained_model) -> None:  # type: ignore[no-untyped-def]
+    """A model version trained by the previous chain format must not analyse flights (its
+    classifier expects other inputs), nor burn their jobs' attempts: the jobs wait."""
+    settings = Settings(data_dir=tmp_path / "data")
+    keys = seed_system(settings, {**trained_model[0], "format": "ema-phm-model/1"})
+    with TestClient(create_app(settings)) as client:
+        assert client.post("/api/v1/aircraft", json=_aircraft("OLD1"),
+                           headers=_auth(keys["admin"])).status_code == 201
+        r = client.post("/api/v1/flights", content=make_parquet("OLD1", "F1"),
+                        headers=_auth(keys["uploader"], **PARQUET))
+        assert r.status_code == 202, r.text
+        worker = Worker(settings, lease_s=30)
+        try:
+            assert worker.run_once()
+        finally:
+            worker.engine.dispose()
+        flight = client.get(r.headers["location"], headers=_auth(keys["viewer"])).json()
+        assert flight["status"] == "queued"
+        with Session(create_engine(settings.effective_database_url)) as s:
+            job = s.scalars(select(Job)).one()
+            assert job.status == "queued" and job.attempts == 0
+            assert "hmsm train" in (job.last_error or "")
