@@ -214,12 +214,11 @@ def _flight_entry(flight_id: str, rel: str, index: int, fault: FaultState, summa
     }
 
 
-def run_pattern(args: tuple[str, str, int, str, PatternSpec, dict[str, Any]]
+def run_pattern(args: tuple[str, str, int, ScaleConfig, PatternSpec, dict[str, Any]]
                 ) -> dict[str, Any]:
     """Run one pattern (a task of the pool); returns its manifest entry."""
-    out_dir_s, kind, seed, scale, spec, options = args
+    out_dir_s, kind, seed, cfg, spec, options = args
     out_dir = Path(out_dir_s)
-    cfg = SCALES[scale][kind]
     aircraft = fleet_for(kind, seed, **options)[spec.aircraft_index]
     flights: list[dict[str, Any]] = []
     threshold: float | None = None
@@ -281,8 +280,8 @@ def _map(tasks: list[Any], workers: int) -> Iterator[dict[str, Any]]:
 
 def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "quick",
                  workers: int | None = None, progress: bool = True,
-                 bases: tuple[str, ...] | None = None, noise_scale: float = 1.0
-                 ) -> dict[str, Any]:
+                 bases: tuple[str, ...] | None = None, noise_scale: float = 1.0,
+                 render_every: int | None = None) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
@@ -293,6 +292,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                        "failure_flight", "flights": [{"flight", "index", "file", "severity",
                        "severity_norm", "true_rul_flights", "block_hours", "ground_temp_c",
                        "measured_summary"}]}]}
+
+    ``render_every`` overrides the scale's rendering step of fault-to-failure runs (1 renders
+    every flight, as a fleet in service downloads every one); the manifest records the step used.
     """
     if scale not in SCALES:
         raise ValueError(f"scale must be one of {sorted(SCALES)}")
@@ -300,6 +302,12 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
         raise ValueError(f"bases must be among {sorted(BASES)}")
     if not noise_scale > 0:
         raise ValueError("noise_scale must be positive")
+    cfg = SCALES[scale][kind]
+    if render_every is not None:
+        if isinstance(render_every, bool) or not isinstance(render_every, int) \
+                or render_every < 1:
+            raise ValueError("render_every must be a positive int")
+        cfg = replace(cfg, render_every=render_every)
     from tqdm import tqdm
 
     from .kernel import warm_up
@@ -310,7 +318,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     specs = plan_campaign(kind, seed, scale)
     options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale)}
     fleet = fleet_for(kind, seed, **options)
-    tasks = [(str(out), kind, seed, scale, s, options) for s in specs]
+    tasks = [(str(out), kind, seed, cfg, s, options) for s in specs]
     # longest tasks first improves load balance; results are re-ordered by pattern number
     order = sorted(range(len(tasks)), key=lambda i: (specs[i].mode not in PROGRESSIVE, i))
     n_workers = workers or os.cpu_count() or 1
@@ -325,9 +333,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
         "kind": kind,
         "seed": int(seed),
         "scale": scale,
-        "duration_s": SCALES[scale][kind].duration_s,
-        "render_every": SCALES[scale][kind].render_every,
-        "lead_flights": SCALES[scale][kind].lead_flights,
+        "duration_s": cfg.duration_s,
+        "render_every": cfg.render_every,
+        "lead_flights": cfg.lead_flights,
         "noise_scale": float(noise_scale),
         "bases": list(bases) if bases else None,
         "aircraft": [{"tail": a.tail, "base": a.base, "climate": BASES[a.base],

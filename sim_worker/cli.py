@@ -25,6 +25,9 @@ def build_parser() -> argparse.ArgumentParser:
     camp.add_argument("--scale", choices=("quick", "paper"), default="quick")
     camp.add_argument("--workers", type=int, default=None,
                       help="worker processes (default: all cores); results do not depend on it")
+    camp.add_argument("--render-every", type=int, default=None,
+                      help="render every k-th flight of a fault-to-failure run (default: the "
+                      "scale's; 1 renders every flight, as a fleet in service downloads them)")
     camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     camp.add_argument("--bases", default=None, help="robustness: comma-separated bases to fly "
                       "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
@@ -81,7 +84,7 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     bases = tuple(b.strip() for b in args.bases.split(",")) if args.bases else None
     manifest = run_campaign(args.kind, args.out, seed=args.seed, scale=args.scale,
                             workers=args.workers, progress=not args.no_progress, bases=bases,
-                            noise_scale=args.noise_scale)
+                            noise_scale=args.noise_scale, render_every=args.render_every)
     n = sum(len(p["flights"]) for p in manifest["patterns"])
     print(f"{args.kind} campaign: {len(manifest['patterns'])} patterns, {n} flights written to "
           f"{args.out} in {time.perf_counter() - t0:.1f} s")

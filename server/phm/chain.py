@@ -93,7 +93,7 @@ def classifier_vector(detection: DetectionState, position: str) -> np.ndarray:
     compressed as ``sign(x) log(1 + |x|)``; missing features count as 0.
 
     The short mean bridges flights on which an intermittent signature does not show (backlash
-    only shows on flights whose load reverses); the compression lets the linear SVM weigh
+    only shows on flights whose load changes sign); the compression lets the linear SVM weigh
     *which* features left their band rather than by how much (residuals span 0 to 100+).
     On design seed 1 (held-out 30 %) these two took the accuracy from 93 % to 99 %.
     """
@@ -329,7 +329,7 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
                     value = generic.get(spec.feature)
                     if value is not None and math.isfinite(value):
                         state = pf.update(state, value, index)
-                    rul = pf.predict(state)
+                    rul = pf.predict(state, at_flight=index)
                 except ValueError:
                     # the stored filter belongs to another model version (a new model was
                     # activated): start again from this actuator's history
@@ -338,7 +338,7 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
                 since = h.alarm_index if h.alarm_index is not None else -1
                 state = _replay(model, h.fault_mode, position,
                                 [(i, v) for i, v in h.history if i >= since], seed)
-                rul = None if state is None else pf.predict(state)
+                rul = None if state is None else pf.predict(state, at_flight=index)
             if state is not None:
                 h.prognosis = state.to_dict()
 

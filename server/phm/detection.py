@@ -93,7 +93,8 @@ DETECTOR_FORMAT = "ema-detector/1"
 DEFAULT_DIRECTIONS: dict[str, int] = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1,
                                       "F_MTEL": -1, "F_MTWEAR": 1, "F_REWEAR": 1}
 #: shortest alarm window per generic feature (see FaultDetector, ``min_windows``)
-DEFAULT_MIN_WINDOWS: dict[str, int] = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_REWEAR": 3}
+DEFAULT_MIN_WINDOWS: dict[str, int] = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3,
+                                       "F_REWEAR": 3}
 STATE_FORMAT = "ema-detection-state/2"
 _STATE_FORMATS = (STATE_FORMAT, "ema-detection-state/1")  # /1 had no reference
 #: variance of a sample median over that of the mean (normal samples, large n)
@@ -310,14 +311,14 @@ class FaultDetector:
     pool_positions : one band per generic feature, the largest over the positions (more
         healthy flights behind each band, same physics on every actuator).
     min_windows : generic feature -> shortest window allowed to raise an alarm (flights of
-        evidence). The features of the progressive faults TTS, DMD, MTEL and REWEAR need 3:
+        evidence). The features of the five progressive faults need 3:
         these faults build up over hundreds of flights, while single healthy flights stray far
         (F_MTEL on flights with few cruise moves in one direction, F_DMD when the magnet
         temperature estimate is off, and in the live demo one healthy flight at 13 units of
-        F_TTS); with the clip, one odd flight then moves ``S_3`` by at most ``6 / sqrt(3)``.
-        One flight suffices for F_SE and F_BDO, whose faults are steps, and for F_MTWEAR,
-        whose signature is intermittent (the screw gap shows only on flights whose load
-        reverses; on seed 5, requiring 3 flights left 2 of 6 MTWEAR runs undetected).
+        F_TTS; F_MTWEAR at 9 to 14 units on a flight that barely pressed one screw flank);
+        with the clip, one odd flight then moves ``S_3`` by at most ``6 / sqrt(3)``. F_MTWEAR
+        has a value only on flights that pressed both flanks, so its 3 flights are the last
+        3 such flights. One flight suffices for F_SE and F_BDO, whose faults are steps.
     window_clip : residuals are clipped to +-``window_clip`` in windows longer than one
         flight (module docstring); ``inf`` disables it.
     median_from : windows of at least this many flights use the running median instead of
@@ -488,8 +489,8 @@ class FaultDetector:
             min_w = self._min_window(f)
             c = 0.0
             for k, w in enumerate(self.windows):
-                if len(hist) < min_w:
-                    break
+                if len(hist) < max(w, min_w):
+                    break  # a window is judged once it is full (its band is a full one's)
                 if w < min_w:
                     continue
                 last = hist[-w:]

@@ -33,7 +33,8 @@ Features (formulas and validity rules are in ``docs/FEATURES.md``):
 ``F_BDO``  imbalance of the three phase-voltage RMS values (std / mean over phases) [-].
 ``F_MTEL`` sqrt of the ratio of apparent efficiencies moving with / against the design aero
            load ``-(k x + bias)`` (~ sqrt(eta_d eta_b)) [-]; the load scale cancels.
-``F_MTWEAR`` lost motion of ``x - r theta`` across motion reversals [m].
+``F_MTWEAR`` screw gap [m]: the step of ``x - r theta`` between the two flanks of the screw,
+           the flank read from the sign of the motor torque (``i_q``).
 ``F_REWEAR`` lost motion of ``x_WL1 - x_WL2`` across reversals of the winglet tab [m].
 """
 
@@ -67,7 +68,7 @@ __all__ = [
 ]
 
 #: bumped whenever a feature formula changes (invalidates cached campaign features)
-FEATURE_VERSION = "features/3"
+FEATURE_VERSION = "features/4"
 ACTUATOR_FEATURES: tuple[str, ...] = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR")
 POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
 WINGLET_PAIR: tuple[str, str] = ("WL1", "WL2")
@@ -133,7 +134,15 @@ class FeatureConfig:
     min_load_fraction: float = 0.15  # of the largest expected |load| in the flight, for F_MTEL
     min_r_estimate_blocks: int = 20  # still steps needed to trust the resistance estimate
     min_valid_steps: int = 40  # steps a flight needs for a feature value (else NaN)
-    min_events: int = 3  # reversals a flight needs for F_MTWEAR / F_REWEAR (else NaN)
+    min_events: int = 3  # reversals a flight needs for F_REWEAR (else NaN)
+    #: A of |i_q| above which the motor torque tells the flank the screw bears on: above the
+    #: largest drag it may have to overcome (Coulomb 0.04 N m x 1.3 breakaway x 3 with aged
+    #: grease = 0.16 N m = 0.43 A at 0.366 N m/A), so the torque sign is the link-force sign.
+    #: 0.6 A and 40 steps (0.5 s) per flank: on design seed 5, 60 % of flights give a value,
+    #: healthy values stay within 2.4 um of their actuator's median (1 A / 80 steps: 33 %
+    #: and 6 um; 20 steps let a 13 um outlier through)
+    flank_current_a: float = 0.6
+    min_flank_steps: int = 40  # steps a flight needs on each flank for F_MTWEAR (else NaN)
     electrical_offset_rad: float = 0.0  # rad, resolver zero to d axis (drive commissioning)
     reversal_speed_m_s: float = 1.0e-3  # m/s of r*omega, "moving" for reversals
     reversal_skip_m: float = 0.5e-3  # m of travel skipped after a reversal (> largest gap)
@@ -327,8 +336,17 @@ def _lost_motion_events(e: np.ndarray, pos_m: np.ndarray, vel_m_s: np.ndarray,
     return first_sel_step[b][good], vals[good]
 
 
-def _se_combine(f: np.ndarray) -> np.ndarray:
-    """Relative 1/rev modulation from the 3x3 normal equations (6 upper entries, 3 rhs)."""
+def _normal_accumulators(xs: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Per-step terms of the 3x3 normal equations of ``y`` on ``xs`` (n, 3): the 6 upper
+    entries of ``xs xs'`` then the 3 entries of ``xs y`` (see :func:`_solve_normal3`)."""
+    iu = np.triu_indices(3)
+    return np.c_[(xs[:, :, np.newaxis] * xs[:, np.newaxis, :])[:, iu[0], iu[1]],
+                 xs * y[:, np.newaxis]]
+
+
+def _solve_normal3(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares coefficients (n, 3) from (filtered) normal-equation accumulators, and
+    whether each system was well posed."""
     n = f.shape[0]
     iu = np.triu_indices(3)
     A = np.zeros((n, 3, 3))
@@ -338,8 +356,21 @@ def _se_combine(f: np.ndarray) -> np.ndarray:
     ok = np.isfinite(det) & (np.abs(det) > 1e-12 * np.abs(A[:, 0, 0]) ** 3)
     A[~ok] = np.eye(3)
     coef = np.linalg.solve(A, np.where(ok[:, np.newaxis], f[:, 6:9], 0.0)[..., np.newaxis])[..., 0]
+    return coef, ok
+
+
+def _se_combine(f: np.ndarray) -> np.ndarray:
+    """Relative 1/rev modulation from the 3x3 normal equations (6 upper entries, 3 rhs)."""
+    coef, ok = _solve_normal3(f)
     out = np.hypot(coef[:, 1], coef[:, 2]) / coef[:, 0]
     return np.where(ok, out, np.nan)
+
+
+def _flank_combine(f: np.ndarray) -> np.ndarray:
+    """Screw gap [m] from the regression of ``x - r theta`` on [1, i_q, sign(i_q)]: the rod
+    sits half a gap behind the nut on either flank, ``-(gap / 2) sign(force)``."""
+    coef, ok = _solve_normal3(f)
+    return np.where(ok, -2.0 * coef[:, 2], np.nan)
 
 
 def _tts_combine(f: np.ndarray) -> np.ndarray:
@@ -514,9 +545,7 @@ def actuator_features(
     cos_b = blk(np.cos(theta)).mean(axis=1)
     sin_b = blk(np.sin(theta)).mean(axis=1)
     xs = np.c_[we_b, we_b * cos_b, we_b * sin_b]
-    iu = np.triu_indices(3)
-    se_acc = np.c_[(xs[:, :, np.newaxis] * xs[:, np.newaxis, :])[:, iu[0], iu[1]],
-                   xs * emf_b[:, np.newaxis]]
+    se_acc = _normal_accumulators(xs, emf_b)
     tracks["F_SE"] = _track(se_acc, se_valid, _se_combine, alpha, cfg.min_valid_steps)
 
     # ---- F_BDO: imbalance of per-phase voltage RMS ----------------------------------------
@@ -560,11 +589,21 @@ def actuator_features(
     if min(n_with, int(np.count_nonzero(mtel_valid)) - n_with) < cfg.min_valid_steps // 2:
         tracks["F_MTEL"].value = float("nan")  # one direction barely seen: no ratio
 
-    # ---- F_MTWEAR: lost motion of x - r theta at reversals ----------------------------------
-    pos_b = r_screw * theta_b
-    vel_b = r_screw * w_mean
-    steps, vals = _lost_motion_events(x_b - pos_b, pos_b, vel_b, cfg)
-    tracks["F_MTWEAR"] = _event_track(n, steps, vals, alpha, min_events=cfg.min_events)
+    # ---- F_MTWEAR: screw gap between the two flanks --------------------------------------
+    # The rod (LVDT) sits behind the nut (r theta) by the screw's compliance and half its gap
+    # on the flank the link force presses: x - r theta = c - F / k_s - (gap / 2) sign(F).
+    # The screw changes flank only when the link force changes sign, which a motion reversal
+    # under a one-sided aerodynamic load does not do (reversal lost motion then saw about
+    # 10 % of the gap); the motor torque (i_q) gives the force's sign and, to first order, its
+    # size. Least squares of x - r theta on [1, i_q, sign(i_q)] over steps with |i_q| above
+    # the largest drag; a flight that did not press both flanks has no value.
+    flank = np.abs(i_q_b) > cfg.flank_current_a
+    side = np.sign(i_q_b)
+    wear_acc = _normal_accumulators(np.c_[np.ones(n), i_q_b, side], x_b - r_screw * theta_b)
+    tracks["F_MTWEAR"] = _track(wear_acc, flank, _flank_combine, alpha, cfg.min_valid_steps)
+    if min(np.count_nonzero(flank & (side > 0)),
+           np.count_nonzero(flank & (side < 0))) < cfg.min_flank_steps:
+        tracks["F_MTWEAR"].value = float("nan")  # one flank only: the gap was not crossed
 
     extras = {
         "psi_hat_wb": float(psi_hat),

@@ -36,10 +36,12 @@ def make_actuator(
     tts_i0: float = 0.0,
     bdo: float = 0.0,
     backlash_m: float = 0.0,
+    backlash_follows: str = "torque",
     hold_eta: float = 0.9,
     eta_d: float = 0.9,
     eta_b: float = 0.89,
     load_gradient: float = 4.0e4,
+    load_bias_n: float = 0.0,
     r_ohm: float = R,
     noise_a: float = 0.02,
     noise_v: float = 0.2,
@@ -53,7 +55,8 @@ def make_actuator(
     ``psi_scale`` < 1 is magnet degradation, ``se_amp`` modulates the flux with the mechanical
     angle, ``tts_i0`` adds a common-node current proportional to the phase-a current,
     ``bdo`` clips the positive half of phase a's voltage, ``backlash_m`` adds a dead zone
-    between shaft and rod.
+    between shaft and rod: the rod sits on the flank the torque presses, or with
+    ``backlash_follows="motion"`` on the side of the last motion (a damping-dominated link).
     """
     rng = np.random.default_rng(seed)
     n = int(seconds * FS)
@@ -73,7 +76,7 @@ def make_actuator(
     theta = x_cmd / RS
     w = np.gradient(theta, 1 / FS)
     acc = np.gradient(w, 1 / FS)
-    load = load_gradient * x_cmd
+    load = load_gradient * x_cmd + load_bias_n
     moving = np.abs(w) > 0.05
     against = np.sign(w) == np.sign(load)  # moving away from neutral pushes against the load
     t_move = np.where(against, RS * load / eta_d, RS * load * eta_b)
@@ -102,16 +105,18 @@ def make_actuator(
         va = np.where(va > 0, va * (1 - bdo), va)
     x_rod = x_cmd.copy()
     if backlash_m:
-        # rod lags the screw by half the gap in the direction of motion (hold keeps last side)
-        sgn = np.sign(w)
-        sgn[~moving] = 0
+        # the rod sits half the gap behind the screw on the flank the load torque presses
+        # (the side is kept while the torque is too small to tell)
+        if backlash_follows == "torque":
+            sgn = np.sign(torque)
+            sgn[np.abs(torque) < 0.05] = 0
+        else:  # a link whose force follows the motion (damping-dominated, rod-end-like)
+            sgn = np.sign(w)
+            sgn[~moving] = 0
         idx = np.maximum.accumulate(np.where(sgn != 0, np.arange(n), 0))
         side = sgn[idx]
         side[side == 0] = 1
         x_rod = x_cmd - side * backlash_m / 2
-        from scipy.signal import lfilter
-
-        x_rod = lfilter([0.05], [1, -0.95], x_rod - x_rod[0]) + x_rod[0]
     out = {
         "ia": ia + noise_a * rng.standard_normal(n),
         "ib": ib + noise_a * rng.standard_normal(n),

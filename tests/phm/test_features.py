@@ -90,7 +90,17 @@ def test_mtel_tracks_transmission_efficiency() -> None:
 def test_mtwear_grows_with_backlash() -> None:
     vals = [_feats(backlash_m=b)["F_MTWEAR"] for b in (0.0, 1e-4, 2e-4, 4e-4)]
     assert np.all(np.diff(vals) > 0)
-    assert vals[0] < 2e-5
+    # the flank step is the gap itself, not a fraction of it
+    assert vals == pytest.approx([0.0, 1e-4, 2e-4, 4e-4], abs=5e-6)
+
+
+def test_mtwear_needs_both_flanks() -> None:
+    """A flight whose load never changes sign keeps the screw on one flank: no gap value."""
+    both = make_actuator(seed=2, backlash_m=2e-4)
+    one_sided = make_actuator(seed=2, backlash_m=2e-4, load_bias_n=2000.0)
+    assert np.isfinite(actuator_features(both, aero_gradient_n_per_m=4e4)[0]["F_MTWEAR"].value)
+    tracks, _ = actuator_features(one_sided, aero_gradient_n_per_m=4e4)
+    assert np.isnan(tracks["F_MTWEAR"].value)
 
 
 def test_current_features_ignore_fast_windows() -> None:
@@ -112,8 +122,9 @@ def test_current_features_ignore_fast_windows() -> None:
 
 def test_rewear_sees_lost_motion_between_winglet_rods() -> None:
     a = make_actuator(seed=3)
-    b = make_actuator(seed=3, backlash_m=3e-4)
-    c = make_actuator(seed=3, backlash_m=6e-4)
+    # the rod end's gap is crossed at reversals when its load follows the motion
+    b = make_actuator(seed=3, backlash_m=3e-4, backlash_follows="motion")
+    c = make_actuator(seed=3, backlash_m=6e-4, backlash_follows="motion")
     base = rewear_feature(a["x"], a["x"], a["theta"], a["theta"]).value
     v1 = rewear_feature(a["x"], b["x"], a["theta"], b["theta"]).value
     v2 = rewear_feature(a["x"], c["x"], a["theta"], c["theta"]).value

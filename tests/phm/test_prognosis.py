@@ -158,6 +158,24 @@ def test_predict_is_pure_and_repeatable() -> None:
     assert d1.histogram_mass.sum() + d1.p_beyond_horizon == pytest.approx(1.0)
 
 
+def test_prediction_at_a_flight_without_measurement_counts_the_flights_since() -> None:
+    """Flights that bring no value of the feature still use up life: the RUL seen at a later
+    flight is the last update's RUL less the flights since, floored at 0."""
+    cfg = PrognoserConfig(n_particles=100)
+    pf = ParticleFilterPrognoser(cfg, MODEL)
+    state = pf.initial_state(cfg, MODEL, 1)
+    for k, s in enumerate(np.linspace(0.2, 0.4, 20)):
+        state = pf.update(state, float(MODEL.predict(s)), k)
+    now = pf.predict(state)
+    later = pf.predict(state, at_flight=19 + 30)
+    assert later.flight_index == 49 and now.flight_index == 19
+    np.testing.assert_allclose(later.samples, np.maximum(now.samples - 30, 0.0))
+    assert later.median == pytest.approx(max(now.median - 30, 0.0), abs=1.0)
+    assert later.p_fail_within[10] >= now.p_fail_within[10]
+    with pytest.raises(ValueError, match="before the last update"):
+        pf.predict(state, at_flight=10)
+
+
 def test_rate_bounds_keep_the_tuned_law_plausible() -> None:
     """A flat, noisy stretch drives the RLS towards a near-zero rate (RUL beyond the horizon);
     bounded, the mid-life rate of every particle's law in the prediction stays in range."""

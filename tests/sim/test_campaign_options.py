@@ -32,3 +32,9 @@ def test_bases_replace_the_climate_mix() -> None:
 def test_unknown_base_is_refused(tmp_path) -> None:
     with pytest.raises(ValueError, match="bases"):
         run_campaign("design", tmp_path, seed=1, bases=("Atlantis",), progress=False)
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, True])
+def test_render_every_must_be_a_positive_int(tmp_path, bad) -> None:
+    with pytest.raises(ValueError, match="render_every"):
+        run_campaign("design", tmp_path, seed=1, render_every=bad, progress=False)

@@ -436,19 +436,33 @@ class ParticleFilterPrognoser:
         out[rate <= 0] = np.eye(1, self.config.n_params)[0] * lo
         return out
 
-    def predict(self, state: PrognoserState, *, threshold: float = 1.0) -> RulDistribution:
-        """Long-term prediction: RUL distribution from the state (does not modify it)."""
+    def predict(self, state: PrognoserState, *, threshold: float = 1.0,
+                at_flight: int | None = None) -> RulDistribution:
+        """Long-term prediction: RUL distribution from the state (does not modify it).
+
+        ``at_flight`` (>= the state's flight) asks for the RUL as seen at a later flight that
+        brought no measurement: every particle's trajectory goes on from the last update,
+        so its RUL is shortened by the flights since (0 if it would have reached the
+        threshold already). Without it the RUL counts from the last update.
+        """
         self._check(state)
         bit_gen = getattr(np.random, state.rng_state["bit_generator"])()
         bit_gen.state = state.rng_state
         rng = np.random.Generator(bit_gen.jumped())
         theta = self.parameter_samples(state, rng)
         rul = propagate_to_threshold(state.severity, theta, self.config, rng, threshold=threshold)
+        flight = state.flight_index
+        if at_flight is not None and flight is not None:
+            elapsed = int(at_flight) - flight
+            if elapsed < 0:
+                raise ValueError(f"at_flight {at_flight} is before the last update {flight}")
+            rul = np.maximum(rul - elapsed, 0.0)
+            flight = int(at_flight)
         return summarise_rul(
             rul,
             state.weights,
             state.severity,
             self.config,
-            flight_index=state.flight_index,
+            flight_index=flight,
             hours_per_flight=state.hours_per_flight,
         )
