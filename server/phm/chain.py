@@ -61,7 +61,10 @@ __all__ = [
 
 #: /2: self-referenced detection and classifier input (3-flight means); a /1 model (trained
 #: on single-flight fleet residuals) would be fed inputs it was not trained on
-MODEL_FORMAT = "ema-phm-model/2"
+MODEL_FORMAT = "ema-phm-model/3"
+#: formats of older chains: their baselines were fitted on other feature definitions
+#: (/2: F_MTWEAR was the reversal lost motion, features/3), so they are refused, not misread
+_OLD_MODEL_FORMATS = ("ema-phm-model/1", "ema-phm-model/2")
 HEALTH_FORMAT = "ema-actuator-health/2"
 PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
 #: the paper's Table 1: one preferential feature per failure mode (tracked by the filter)
@@ -178,9 +181,9 @@ class PhmModel:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> PhmModel:
-        if d.get("format") == "ema-phm-model/1":
-            raise ValueError("this model version was trained by an older chain "
-                             "(ema-phm-model/1); train a new one (hmsm train)")
+        if d.get("format") in _OLD_MODEL_FORMATS:
+            raise ValueError(f"this model version was trained by an older chain "
+                             f"({d.get('format')}); train a new one (hmsm train)")
         if d.get("format") != MODEL_FORMAT:
             raise ValueError(f"not a {MODEL_FORMAT} document")
         clf = d.get("classifier")

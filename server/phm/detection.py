@@ -31,7 +31,8 @@ Running distribution and separation confidence
 For each feature the state keeps the self-referenced residuals of the last ``max(windows)``
 flights with a valid value. For each window length ``w`` (default 1, 3 and 8 flights) the
 running mean of the last ``n = min(w, available)`` residuals, scaled to unit variance, is
-``S_w = sqrt(n) mean(z)``.
+``S_w = sqrt(n) mean(z)``; a window raises no alarm until it holds ``w`` residuals (a median of
+3 values judged against the band of 8 had alarmed healthy drives on their first flights).
 On healthy flights ``|S_w|`` stays inside a band ``b_w`` learned on the healthy flights of the
 *design* campaign (the largest ``|S_w|`` seen there, never less than ``band_floor``). Because
 ``S_w`` has unit standard error, the confidence that the running mean lies outside the healthy
@@ -463,7 +464,8 @@ class FaultDetector:
                                                   median=self._median(w)),
                                self._dir(feature_names)[np.newaxis, :])
             c = ndtr(s - self.band_[idx, k][np.newaxis, :])
-            allowed = (w >= min_w)[np.newaxis, :] & (n_seen >= min_w[np.newaxis, :])
+            # judged once full, as in :meth:`update`
+            allowed = (w >= min_w)[np.newaxis, :] & (n_seen >= np.maximum(w, min_w)[np.newaxis, :])
             conf = np.fmax(conf, np.where(np.isfinite(c) & allowed, c, 0.0))
         return conf
 
