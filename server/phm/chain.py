@@ -59,8 +59,9 @@ __all__ = [
     "analyze_flight",
 ]
 
-#: /2: self-referenced detection and classifier input (3-flight means); a /1 model (trained
-#: on single-flight fleet residuals) would be fed inputs it was not trained on
+#: /3: features/4 (F_MTWEAR is the screw gap between flanks); /2 added self-referenced
+#: detection and classifier input (3-flight means). An older model would be fed inputs it was
+#: not trained on
 MODEL_FORMAT = "ema-phm-model/3"
 #: formats of older chains: their baselines were fitted on other feature definitions
 #: (/2: F_MTWEAR was the reversal lost motion, features/3), so they are refused, not misread
