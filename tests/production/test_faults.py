@@ -63,6 +63,24 @@ def _counts(url: str) -> tuple[int, int]:
         engine.dispose()
 
 
+def _register_and_upload(client: TestClient, keys: dict[str, str], tail: str) -> str:
+    """Register ``tail`` and upload its flight F1; returns the flight's URL."""
+    assert client.post("/api/v1/aircraft", json=_aircraft(tail),
+                       headers=_auth(keys["admin"])).status_code == 201
+    r = client.post("/api/v1/flights", content=make_parquet(tail, "F1"),
+                    headers=_auth(keys["uploader"], **PARQUET))
+    assert r.status_code == 202, r.text
+    return r.headers["location"]
+
+
+def _run_worker_once(settings: Settings) -> None:
+    worker = Worker(settings, lease_s=30)
+    try:
+        assert worker.run_once()
+    finally:
+        worker.engine.dispose()
+
+
 # --------------------------------------------------------------------------- database outage
 
 @pytest.mark.postgres
@@ -171,12 +189,8 @@ def test_corrupted_blob_is_rejected_as_blob_corrupt_at_analysis(tmp_path, traine
     settings = Settings(data_dir=tmp_path / "data")
     keys = seed_system(settings, trained_model[0])
     with TestClient(create_app(settings)) as client:
-        assert client.post("/api/v1/aircraft", json=_aircraft("CORR1"),
-                           headers=_auth(keys["admin"])).status_code == 201
-        r = client.post("/api/v1/flights", content=make_parquet("CORR1", "F1"),
-                        headers=_auth(keys["uploader"], **PARQUET))
-        assert r.status_code == 202, r.text
-        flight = client.get(r.headers["location"], headers=_auth(keys["viewer"])).json()
+        location = _register_and_upload(client, keys, "CORR1")
+        flight = client.get(location, headers=_auth(keys["viewer"])).json()
         stored = settings.blob_dir / flight["sha256"][:2] / flight["sha256"][2:4] / flight[
             "sha256"]
         data = bytearray(stored.read_bytes())
@@ -184,12 +198,8 @@ def test_corrupted_blob_is_rejected_as_blob_corrupt_at_analysis(tmp_path, traine
         data[middle:middle + 8] = bytes(b ^ 0xFF for b in data[middle:middle + 8])
         stored.write_bytes(bytes(data))
 
-        worker = Worker(settings, lease_s=30)
-        try:
-            assert worker.run_once()
-        finally:
-            worker.engine.dispose()
-        flight = client.get(r.headers["location"], headers=_auth(keys["viewer"])).json()
+        _run_worker_once(settings)
+        flight = client.get(location, headers=_auth(keys["viewer"])).json()
         assert flight["status"] == "rejected"
         assert [reason["code"] for reason in flight["reasons"]] == ["blob_corrupt"]
         with Session(create_engine(settings.effective_database_url)) as s:
@@ -204,19 +214,11 @@ def test_active_model_of_an_older_chain_defers_analysis_and_loses_nothing(
     """A model version trained by the previous chain format must not analyse flights (its
     classifier expects other inputs), nor burn their jobs' attempts: the jobs wait."""
     settings = Settings(data_dir=tmp_path / "data")
-    keys = seed_system(settings, {**trained_model[0], "format": "ema-phm-model/1"})
+    keys = seed_system(settings, {**trained_model[0], "format": "ema-phm-model/2"})
     with TestClient(create_app(settings)) as client:
-        assert client.post("/api/v1/aircraft", json=_aircraft("OLD1"),
-                           headers=_auth(keys["admin"])).status_code == 201
-        r = client.post("/api/v1/flights", content=make_parquet("OLD1", "F1"),
-                        headers=_auth(keys["uploader"], **PARQUET))
-        assert r.status_code == 202, r.text
-        worker = Worker(settings, lease_s=30)
-        try:
-            assert worker.run_once()
-        finally:
-            worker.engine.dispose()
-        flight = client.get(r.headers["location"], headers=_auth(keys["viewer"])).json()
+        location = _register_and_upload(client, keys, "OLD1")
+        _run_worker_once(settings)
+        flight = client.get(location, headers=_auth(keys["viewer"])).json()
         assert flight["status"] == "queued"
         with Session(create_engine(settings.effective_database_url)) as s:
             job = s.scalars(select(Job)).one()
