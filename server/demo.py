@@ -41,10 +41,10 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
 
     from server.auth import create_key
     from server.db import make_engine, make_session_factory, session_scope
+    from server.jobs.pipeline import load_active_model
     from server.jobs.training_job import campaign_dir_for, train_into_version
     from server.migrate import ensure_schema
-    from server.models import Aircraft, ModelVersion
-    from server.phm.chain import MODEL_FORMAT
+    from server.models import Aircraft
     from server.services import fleet, test_station
     from server.services import models as model_service
     from sim_worker.service import fleet_plan
@@ -54,9 +54,11 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     ensure_schema(engine, settings.effective_database_url, auto_upgrade=True)
     factory = make_session_factory(engine)
     with factory() as session:
-        active = session.scalar(select(ModelVersion).where(ModelVersion.active.is_(True)))
-        # a model of an older chain format cannot analyse flights: train a current one
-        usable = active is not None and (active.payload or {}).get("format") == MODEL_FORMAT
+        # a model the chain cannot load (an older chain's format) cannot analyse flights
+        try:
+            usable = load_active_model(session) is not None
+        except ValueError:
+            usable = False
     if not usable:
         design = campaign_dir_for(settings.data_dir, "demo-design")
         manifest = design / "manifest.json"
