@@ -59,13 +59,16 @@ __all__ = [
     "analyze_flight",
 ]
 
-#: /3: features/4 (F_MTWEAR is the screw gap between flanks); /2 added self-referenced
+#: /4: features/5 (F_MTEL is the screw's friction ratio from the cruise torque hysteresis, and
+#: grows with its fault); /3: features/4 (F_MTWEAR is the screw gap between flanks); /2 added
+#: self-referenced
 #: detection and classifier input (3-flight means). An older model would be fed inputs it was
 #: not trained on
-MODEL_FORMAT = "ema-phm-model/3"
+MODEL_FORMAT = "ema-phm-model/4"
 #: formats of older chains: their baselines were fitted on other feature definitions
-#: (/2: F_MTWEAR was the reversal lost motion, features/3), so they are refused, not misread
-_OLD_MODEL_FORMATS = ("ema-phm-model/1", "ema-phm-model/2")
+#: (/2: F_MTWEAR was the reversal lost motion, features/3; /3: F_MTEL was the ratio of apparent
+#: efficiencies, falling with its fault, features/4), so they are refused, not misread
+_OLD_MODEL_FORMATS = ("ema-phm-model/1", "ema-phm-model/2", "ema-phm-model/3")
 HEALTH_FORMAT = "ema-actuator-health/2"
 PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
 #: the paper's Table 1: one preferential feature per failure mode (tracked by the filter)

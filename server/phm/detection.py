@@ -57,8 +57,8 @@ step faults (SE, BDO); the long window accumulates evidence of slow drifts. The 
 until maintenance: replacing an actuator gives it a fresh state
 (:meth:`DetectionState.reset` does the same in place).
 
-The test is one-sided along each fault's physical direction (``DEFAULT_DIRECTIONS``: F_MTEL
-falls, every other feature grows), ``|S_w|`` being replaced by ``direction * S_w``, and one
+The test is one-sided along each fault's physical direction (``DEFAULT_DIRECTIONS``: every
+feature grows with its fault), ``|S_w|`` being replaced by ``direction * S_w``, and one
 band serves a generic feature on every position (the largest over the positions).
 
 Everything persists as JSON (``to_dict`` / ``from_dict``), never pickle.
@@ -92,7 +92,7 @@ __all__ = [
 DETECTOR_FORMAT = "ema-detector/1"
 #: physical direction of each generic feature under its fault: +1 grows, -1 falls, 0 either
 DEFAULT_DIRECTIONS: dict[str, int] = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1,
-                                      "F_MTEL": -1, "F_MTWEAR": 1, "F_REWEAR": 1}
+                                      "F_MTEL": 1, "F_MTWEAR": 1, "F_REWEAR": 1}
 #: shortest alarm window per generic feature (see FaultDetector, ``min_windows``)
 DEFAULT_MIN_WINDOWS: dict[str, int] = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3,
                                        "F_REWEAR": 3}

@@ -31,8 +31,10 @@ Features (formulas and validity rules are in ``docs/FEATURES.md``):
 ``F_SE``   relative 1/rev modulation of the flux from the q-axis back-EMF (mechanical angle)
            [-]; moving steps.
 ``F_BDO``  imbalance of the three phase-voltage RMS values (std / mean over phases) [-].
-``F_MTEL`` sqrt of the ratio of apparent efficiencies moving with / against the design aero
-           load ``-(k x + bias)`` (~ sqrt(eta_d eta_b)) [-]; the load scale cancels.
+``F_MTEL`` friction ratio of the screw at cruise [-]: the torque hysteresis between moving
+           up and down at the same deflection over the load torque plus a reference torque,
+           ``W / (T_ref + |L|)``; constant on a healthy drive whatever the load, grows with
+           the efficiency loss and the drag of aged grease.
 ``F_MTWEAR`` screw gap [m]: the step of ``x - r theta`` between the two flanks of the screw,
            the flank read from the sign of the motor torque (``i_q``).
 ``F_REWEAR`` lost motion of ``x_WL1 - x_WL2`` across reversals of the winglet tab [m].
@@ -68,7 +70,7 @@ __all__ = [
 ]
 
 #: bumped whenever a feature formula changes (invalidates cached campaign features)
-FEATURE_VERSION = "features/4"
+FEATURE_VERSION = "features/5"
 ACTUATOR_FEATURES: tuple[str, ...] = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR")
 POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
 WINGLET_PAIR: tuple[str, str] = ("WL1", "WL2")
@@ -131,7 +133,21 @@ class FeatureConfig:
     aero_bias_n: Mapping[str, float] = field(default_factory=_default_aero_bias)
     cruise_temp_c: float = -40.0  # degC, ambient at cruise (design dynamic pressure)
     cruise_band_c: float = 3.0  # degC, F_MTEL only where T_amb <= cruise_temp_c + band
-    min_load_fraction: float = 0.15  # of the largest expected |load| in the flight, for F_MTEL
+    #: N m, F_MTEL's reference torque T_ref = c0 / k0 of the healthy hysteresis line
+    #: W = c0 + k0 |L| (design seed 1, healthy cruise regressions of all drives:
+    #: W = 0.107 + 0.229 |L| N m, residual 0.026 N m): W / (T_ref + |L|) is then k0 whatever
+    #: the load. Physics gives c0 = 2 x 0.04 N m drag and k0 = (1/eta_d - eta_b) / mean
+    #: = 0.22, T_ref 0.36 N m; the measured drag is larger (link damping, the tab's force share)
+    mtel_ref_torque_nm: float = 0.47
+    #: rad/s^2 of motor acceleration (80 Hz) above which a step is a start or stop of a move,
+    #: not the steady motion F_MTEL compares
+    steady_accel_rad_s2: float = 30.0
+    #: F_MTEL needs this many steady cruise steps in each direction (0.75 s) and a cruise load
+    #: torque |L| of at least mtel_min_load_nm: under a light load the ratio rests on the drag
+    #: alone and its scatter doubles (design seed 1: flight-to-flight sd 0.025 below 0.3 N m,
+    #: 0.010 above 1 N m)
+    mtel_min_steps: int = 60
+    mtel_min_load_nm: float = 0.3
     min_r_estimate_blocks: int = 20  # still steps needed to trust the resistance estimate
     min_valid_steps: int = 40  # steps a flight needs for a feature value (else NaN)
     min_events: int = 3  # reversals a flight needs for F_REWEAR (else NaN)
@@ -337,31 +353,39 @@ def _lost_motion_events(e: np.ndarray, pos_m: np.ndarray, vel_m_s: np.ndarray,
 
 
 def _normal_accumulators(xs: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Per-step terms of the 3x3 normal equations of ``y`` on ``xs`` (n, 3): the 6 upper
-    entries of ``xs xs'`` then the 3 entries of ``xs y`` (see :func:`_solve_normal3`)."""
-    iu = np.triu_indices(3)
+    """Per-step terms of the k x k normal equations of ``y`` on ``xs`` (n, k): the upper
+    triangle of ``xs xs'`` (row by row) then the k entries of ``xs y`` (see
+    :func:`_solve_normal`)."""
+    k = xs.shape[1]
+    iu = np.triu_indices(k)
     return np.c_[(xs[:, :, np.newaxis] * xs[:, np.newaxis, :])[:, iu[0], iu[1]],
                  xs * y[:, np.newaxis]]
 
 
-def _solve_normal3(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares coefficients (n, 3) from (filtered) normal-equation accumulators, and
+def _normal_matrix(f: np.ndarray, k: int) -> np.ndarray:
+    """The symmetric (n, k, k) matrices of (filtered) normal-equation accumulators."""
+    iu = np.triu_indices(k)
+    a = np.zeros((f.shape[0], k, k))
+    a[:, iu[0], iu[1]] = f[:, :iu[0].size]
+    a[:, iu[1], iu[0]] = f[:, :iu[0].size]
+    return a
+
+
+def _solve_normal(f: np.ndarray, k: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares coefficients (n, k) from (filtered) normal-equation accumulators, and
     whether each system was well posed."""
-    n = f.shape[0]
-    iu = np.triu_indices(3)
-    A = np.zeros((n, 3, 3))
-    A[:, iu[0], iu[1]] = f[:, :6]
-    A[:, iu[1], iu[0]] = f[:, :6]
-    det = np.linalg.det(A)
-    ok = np.isfinite(det) & (np.abs(det) > 1e-12 * np.abs(A[:, 0, 0]) ** 3)
-    A[~ok] = np.eye(3)
-    coef = np.linalg.solve(A, np.where(ok[:, np.newaxis], f[:, 6:9], 0.0)[..., np.newaxis])[..., 0]
-    return coef, ok
+    a = _normal_matrix(f, k)
+    m = k * (k + 1) // 2
+    det = np.linalg.det(a)
+    ok = np.isfinite(det) & (np.abs(det) > 1e-12 * np.abs(a[:, 0, 0]) ** k)
+    a[~ok] = np.eye(k)
+    rhs = np.where(ok[:, np.newaxis], f[:, m:m + k], 0.0)
+    return np.linalg.solve(a, rhs[..., np.newaxis])[..., 0], ok
 
 
 def _se_combine(f: np.ndarray) -> np.ndarray:
     """Relative 1/rev modulation from the 3x3 normal equations (6 upper entries, 3 rhs)."""
-    coef, ok = _solve_normal3(f)
+    coef, ok = _solve_normal(f)
     out = np.hypot(coef[:, 1], coef[:, 2]) / coef[:, 0]
     return np.where(ok, out, np.nan)
 
@@ -369,7 +393,7 @@ def _se_combine(f: np.ndarray) -> np.ndarray:
 def _flank_combine(f: np.ndarray) -> np.ndarray:
     """Screw gap [m] from the regression of ``x - r theta`` on [1, i_q, sign(i_q)]: the rod
     sits half a gap behind the nut on either flank, ``-(gap / 2) sign(force)``."""
-    coef, ok = _solve_normal3(f)
+    coef, ok = _solve_normal(f)
     return np.where(ok, -2.0 * coef[:, 2], np.nan)
 
 
@@ -379,10 +403,16 @@ def _tts_combine(f: np.ndarray) -> np.ndarray:
     return np.max((xy - x * y) / (xx - x * x), axis=1)
 
 
-def _mtel_combine(f: np.ndarray) -> np.ndarray:
-    """sqrt(mean apparent efficiency moving with the load / moving against it) [-]."""
-    ratio = (f[:, 0] / f[:, 1]) / (f[:, 2] / f[:, 3])
-    return np.sqrt(np.where(ratio > 0, ratio, np.nan))
+def _mtel_combine(f: np.ndarray, ref_torque_nm: float) -> np.ndarray:
+    """Friction ratio ``W / (T_ref + |L|)`` from the regression of the motor torque on
+    ``[1, x, s, s x]`` (``s`` the direction of motion, ``x`` the rod position): at the local
+    mean position the load torque is ``L = a + b x`` and the up-down hysteresis ``W = 2 (c +
+    d x)``."""
+    coef, ok = _solve_normal(f, 4)
+    x_mean = f[:, 1] / f[:, 0]  # accumulator of 1 * x over that of 1 * 1
+    load = coef[:, 0] + coef[:, 1] * x_mean
+    width = 2.0 * (coef[:, 2] + coef[:, 3] * x_mean)
+    return np.where(ok, width / (ref_torque_nm + np.abs(load)), np.nan)
 
 
 def _event_track(n_steps: int, steps: np.ndarray, vals: np.ndarray, alpha: float,
@@ -425,7 +455,7 @@ def actuator_features(
     aero_gradient_n_per_m, aero_bias_n : design aero model of the rod load at cruise,
         ``F = -(aero_gradient_n_per_m * x + aero_bias_n)`` [N].
     t_amb_c : optional ambient temperature (n,) [degC]; when given, ``F_MTEL`` uses only
-        still windows at cruise (where the design dynamic pressure applies).
+        moves at cruise (constant dynamic pressure: the hinge load is linear in deflection).
 
     Returns
     -------
@@ -560,34 +590,40 @@ def actuator_features(
 
     tracks["F_BDO"] = _track(ms, bdo_valid, bdo_combine, alpha, cfg.min_valid_steps)
 
-    # ---- F_MTEL: transmission efficiency from motion against / with the load --------------
-    # Under an aerodynamic load F the motor torque moving against the load is
-    # r |F| / eta_d + T_c and moving with it (back-driven) r |F| eta_b - T_c. The apparent
-    # efficiencies a = T / (r |F_exp|) of the two directions share the unknown dynamic-pressure
-    # scale of the flight, which cancels in their ratio: F_MTEL = sqrt(a_with / a_against)
-    # ~ sqrt(eta_d eta_b) (net of Coulomb drag) [-], falling with lubricant aging. Holds are
-    # not used: the holding current keeps the value it had when motion stopped, anywhere
-    # between the two friction edges. Only slow moving current-valid steps under load, at
-    # cruise (T_amb <= cruise_temp_c + band) when T_amb is recorded (stable dynamic pressure).
-    load_exp = -(aero_gradient_n_per_m * x_b + aero_bias_n)  # N
-    load_abs = np.abs(load_exp)
-    load_floor = cfg.min_load_fraction * (load_abs.max() if load_abs.size else 0.0)
-    under_load = load_abs > max(load_floor, 1e-9)
-    mtel_valid = current_ok & moving & under_load
+    # ---- F_MTEL: friction of the screw from the torque hysteresis at cruise ------------
+    # Moving against the load torque L the motor gives |L| / eta_d + T_c, moving with it
+    # |L| eta_b - T_c: at one deflection the torque of an upward and a downward move differ by
+    # the friction both ways, W = |L| (1 / eta_d - eta_b) + 2 T_c, and their mean is about L.
+    # Aged grease lowers the efficiencies and raises the drag T_c: W grows on both counts.
+    # The hinge load at cruise is the paper's expected aerodynamic load, linear in the
+    # deflection, F = -(k x + bias), with the flight's unknown dynamic-pressure scale and
+    # offset: L = a + b x, identified with the friction from the motor torque itself by least
+    # squares on [1, x, s, s x] (s = direction of motion) over steady moving steps at cruise
+    # (T_amb <= cruise_temp_c + band when recorded; the whole flight otherwise). On a healthy
+    # drive W = c0 + k0 |L|, so W / (T_ref + |L|) with T_ref = c0 / k0 is k0 whatever the load.
+    torque_b = 1.5 * mc.pole_pairs * psi_hat * i_q_b
+    accel_b = np.gradient(w_mean, cfg.step_s) if n > 1 else np.zeros(n)
+    # no current floor here: dropping the low-torque steps would drop one direction's moves
+    # under a light load
+    mtel_valid = ((f_e_max < cfg.max_electrical_hz) & moving
+                  & (np.abs(accel_b) < cfg.steady_accel_rad_s2))
     if t_amb_c is not None and len(t_amb_c) >= cut:
         t_amb_b = block_mean(np.asarray(t_amb_c[:cut], dtype=np.float64), d)
         mtel_valid &= t_amb_b <= cfg.cruise_temp_c + cfg.cruise_band_c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # motor torque opposes the load torque r F: a > 0 in both directions
-        app = np.where(under_load, -1.5 * mc.pole_pairs * psi_hat * i_q_b
-                       / (r_screw * np.where(under_load, load_exp, 1.0)), 0.0)
-    against = (np.sign(w_mean) == -np.sign(load_exp)).astype(np.float64)
-    with_ = 1.0 - against
-    mtel_acc = np.c_[app * with_, with_, app * against, against]
-    tracks["F_MTEL"] = _track(mtel_acc, mtel_valid, _mtel_combine, alpha, cfg.min_valid_steps)
-    n_with = int(np.count_nonzero(mtel_valid & (with_ > 0)))
-    if min(n_with, int(np.count_nonzero(mtel_valid)) - n_with) < cfg.min_valid_steps // 2:
-        tracks["F_MTEL"].value = float("nan")  # one direction barely seen: no ratio
+    x_rel_mm = 1e3 * (x_b - (x_b[mtel_valid].mean() if mtel_valid.any() else 0.0))
+    s_dir = np.sign(w_mean)
+    mtel_acc = _normal_accumulators(np.c_[np.ones(n), x_rel_mm, s_dir, s_dir * x_rel_mm],
+                                    torque_b)
+    ref_t = cfg.mtel_ref_torque_nm
+    tracks["F_MTEL"] = _track(mtel_acc, mtel_valid, lambda f: _mtel_combine(f, ref_t), alpha,
+                              cfg.min_valid_steps)
+    n_up = int(np.count_nonzero(mtel_valid & (s_dir > 0)))
+    if min(n_up, int(np.count_nonzero(mtel_valid)) - n_up) < cfg.mtel_min_steps:
+        tracks["F_MTEL"].value = float("nan")  # one direction barely seen: no hysteresis
+    elif np.isfinite(tracks["F_MTEL"].value):
+        coef, _ = _solve_normal(mtel_acc[mtel_valid].mean(axis=0, keepdims=True), 4)
+        if abs(coef[0, 0]) < cfg.mtel_min_load_nm:  # at the mean position (x_rel = 0)
+            tracks["F_MTEL"].value = float("nan")
 
     # ---- F_MTWEAR: screw gap between the two flanks --------------------------------------
     # The rod (LVDT) sits behind the nut (r theta) by the screw's compliance and half its gap
@@ -605,6 +641,7 @@ def actuator_features(
            np.count_nonzero(flank & (side < 0))) < cfg.min_flank_steps:
         tracks["F_MTWEAR"].value = float("nan")  # one flank only: the gap was not crossed
 
+    load_exp = -(aero_gradient_n_per_m * x_b + aero_bias_n)  # N, design aero load at cruise
     extras = {
         "psi_hat_wb": float(psi_hat),
         "r_hat_ohm": r_hat,

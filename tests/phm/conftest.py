@@ -40,6 +40,7 @@ def make_actuator(
     hold_eta: float = 0.9,
     eta_d: float = 0.9,
     eta_b: float = 0.89,
+    drag_nm: float = 0.0,
     load_gradient: float = 4.0e4,
     load_bias_n: float = 0.0,
     r_ohm: float = R,
@@ -51,7 +52,8 @@ def make_actuator(
 
     The rod follows a sequence of smooth moves and holds; motor torque = J alpha + load
     torque; a hold carries ``hold_eta`` x the load torque (back-driving efficiency).
-    Moving against the load the motor torque is ``r F / eta_d``, moving with it ``r F eta_b``.
+    Moving against the load the motor torque is ``r F / eta_d``, moving with it ``r F eta_b``,
+    plus a Coulomb drag ``drag_nm`` opposing the motion.
     ``psi_scale`` < 1 is magnet degradation, ``se_amp`` modulates the flux with the mechanical
     angle, ``tts_i0`` adds a common-node current proportional to the phase-a current,
     ``bdo`` clips the positive half of phase a's voltage, ``backlash_m`` adds a dead zone
@@ -79,7 +81,7 @@ def make_actuator(
     load = load_gradient * x_cmd + load_bias_n
     moving = np.abs(w) > 0.05
     against = np.sign(w) == np.sign(load)  # moving away from neutral pushes against the load
-    t_move = np.where(against, RS * load / eta_d, RS * load * eta_b)
+    t_move = np.where(against, RS * load / eta_d, RS * load * eta_b) + drag_nm * np.sign(w)
     t_load = np.where(moving, t_move, hold_eta * RS * load)
     torque = 1e-4 * acc + t_load
     psi_th = PSI * psi_scale * (1.0 + se_amp * np.cos(theta))

@@ -214,7 +214,7 @@ def test_active_model_of_an_older_chain_defers_analysis_and_loses_nothing(
     """A model version trained by the previous chain format must not analyse flights (its
     classifier expects other inputs), nor burn their jobs' attempts: the jobs wait."""
     settings = Settings(data_dir=tmp_path / "data")
-    keys = seed_system(settings, {**trained_model[0], "format": "ema-phm-model/2"})
+    keys = seed_system(settings, {**trained_model[0], "format": "ema-phm-model/3"})
     with TestClient(create_app(settings)) as client:
         location = _register_and_upload(client, keys, "OLD1")
         _run_worker_once(settings)
