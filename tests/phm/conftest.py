@@ -155,13 +155,15 @@ def _sim_worker_exe() -> str | None:
     return shutil.which("sim-worker")
 
 
-def _campaign(kind: str, seed: int, root: Path) -> Path:
-    """``root/<kind>_<seed>``, generated unless present. ``PHM_DESIGN_DIR`` /
-    ``PHM_VERIFICATION_DIR`` point straight at existing campaign directories (e.g. /tmp/cq2)."""
-    direct = os.environ.get(f"PHM_{kind.upper()}_DIR")
+def _campaign(kind: str, seed: int, root: Path, render_every: int | None = None) -> Path:
+    """``root/<kind>_<seed>`` (``..._every<N>`` with ``render_every``), generated unless
+    present. ``PHM_DESIGN_DIR`` / ``PHM_VERIFICATION_DIR`` / ``PHM_VERIFICATION_EVERY5_DIR``
+    point straight at existing campaign directories (e.g. /tmp/cq2)."""
+    suffix = f"_every{render_every}" if render_every else ""
+    direct = os.environ.get(f"PHM_{kind.upper()}{suffix.upper()}_DIR")
     if direct and (Path(direct) / "manifest.json").exists():
         return Path(direct)
-    out = root / f"{kind}_{seed}"
+    out = root / f"{kind}_{seed}{suffix}"
     if (out / "manifest.json").exists():
         return out
     try:
@@ -183,6 +185,7 @@ def _campaign(kind: str, seed: int, root: Path) -> Path:
             str(seed),
             "--scale",
             "quick",
+            *(["--render-every", str(render_every)] if render_every else []),
         ],
         check=True,
         capture_output=True,
@@ -206,6 +209,17 @@ def verification_campaign(campaign_root: Path):
 
 
 @pytest.fixture(scope="session")
+def dense_verification_campaign(campaign_root: Path):
+    """The verification campaign with every 5th flight of a fault-to-failure run rendered
+    (the quick one renders every 20th: three flights of evidence are then 60 flights of a
+    170-450-flight life, while an aircraft in service downloads every flight)."""
+    from server.phm.evaluate_detection import load_campaign
+
+    return load_campaign(_campaign("verification", VERIFICATION_SEED, campaign_root,
+                                   render_every=5), jobs=2)
+
+
+@pytest.fixture(scope="session")
 def detection_model(design_campaign):
     from server.phm.evaluate_detection import fit_detection
 
@@ -217,3 +231,10 @@ def verification_outcomes(detection_model, verification_campaign):
     from server.phm.evaluate_detection import evaluate
 
     return evaluate(detection_model, verification_campaign)
+
+
+@pytest.fixture(scope="session")
+def dense_verification_outcomes(detection_model, dense_verification_campaign):
+    from server.phm.evaluate_detection import evaluate
+
+    return evaluate(detection_model, dense_verification_campaign)

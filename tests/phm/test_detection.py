@@ -230,16 +230,12 @@ def test_no_false_alarm_on_healthy_verification_flights(verification_campaign,
     assert n_flights >= 250, f"only {n_flights} healthy verification flights in the campaign"
 
 
-_LATE = pytest.mark.xfail(strict=True, reason="target not reached on the quick verification "
-                          "campaign: 2 of 3 MTEL patterns alarm at 51 and 71 % of life "
-                          "(docs/RESULTS.md, Detection)")
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("mode", ["TTS", "DMD", pytest.param("MTEL", marks=_LATE), "MTWEAR",
-                                  "REWEAR"])
-def test_progressive_faults_detected_before_half_life(verification_outcomes, mode) -> None:
-    prog = [o for o in verification_outcomes if o.mode == mode]
+@pytest.mark.parametrize("mode", ["TTS", "DMD", "MTEL", "MTWEAR", "REWEAR"])
+def test_progressive_faults_detected_before_half_life(dense_verification_outcomes, mode) -> None:
+    """On the verification campaign with every 5th flight of a fault run rendered (the model
+    is the quick design campaign's: the bands come from healthy flights, which both render)."""
+    prog = [o for o in dense_verification_outcomes if o.mode == mode]
     assert prog
     late = [(o.id, o.mode, o.detection_pct_life) for o in prog
             if o.detected_index is None or not o.detection_pct_life < 50.0]
@@ -247,12 +243,19 @@ def test_progressive_faults_detected_before_half_life(verification_outcomes, mod
 
 
 @pytest.mark.slow
+def test_no_false_alarm_before_onset_on_the_dense_campaign(dense_verification_outcomes) -> None:
+    assert sum(o.false_alarms for o in dense_verification_outcomes) == 0
+
+
+@pytest.mark.slow
 def test_reached_levels_do_not_regress(verification_outcomes) -> None:
-    """What the unmet target above reaches today: every MTEL pattern detected before its
-    failure."""
-    prog = [o for o in verification_outcomes if o.mode == "MTEL"]
-    assert prog and all(o.detected_index is not None and o.detection_pct_life < 100.0
-                        for o in prog)
+    """The quick campaign (every 20th flight of a fault run rendered) as it stands: every
+    progressive fault detected, MTEL before 75 % of its life (51 and 71 % on two of its three
+    patterns: one rendered flight is 6-12 % of a life there), the others before half life."""
+    prog = [o for o in verification_outcomes if o.mode in ("TTS", "DMD", "MTEL", "MTWEAR",
+                                                          "REWEAR")]
+    assert len(prog) == 15 and all(o.detected_index is not None for o in prog)
+    assert all(o.detection_pct_life < (75.0 if o.mode == "MTEL" else 50.0) for o in prog)
 
 
 @pytest.mark.slow
