@@ -20,10 +20,19 @@ from server.db import make_session_factory, session_scope
 from server.migrate import upgrade
 from server.services import models as model_service
 from sim_worker.service import Api, SimFleetRunner
-from tests.browser.test_dashboard import ARGS, CHROMIUM, Console, _plot_points, _shot, _sign_in
+from tests.browser.test_dashboard import (
+    ARGS,
+    CHROMIUM,
+    NEEDS_CHROMIUM,
+    Console,
+    _plot_points,
+    _shot,
+    _sign_in,
+)
 from tests.live_server import running_server
 
-pytestmark = pytest.mark.slow
+# without Chromium the test skips, like the other browser tests, instead of erroring
+pytestmark = [pytest.mark.slow, NEEDS_CHROMIUM]
 
 
 @pytest.fixture(scope="module")
