@@ -200,20 +200,42 @@ def evaluation_view(*, data_dir: Path) -> dict[str, Any]:
     """The paper's Table 2 beside ours (``<data_dir>/evaluation/latest.json`` if present)."""
     path = data_dir / "evaluation" / "latest.json"
     ours: dict[str, Any] | None = None
+    campaign: str | None = None
     error = None
     if path.exists():
         try:
             doc = json.loads(path.read_text())
             ours = dict(doc.get("prognosis") or {})
-        except (OSError, ValueError, AttributeError) as exc:
+            campaign = _campaign_label(doc.get("campaign"), doc.get("created_at"))
+        except (OSError, ValueError, AttributeError, TypeError) as exc:
             error = f"{path.name} could not be read: {exc.__class__.__name__}"
     rows = []
     for mode, (ph, ra) in PAPER_TABLE2.items():
         mine = (ours or {}).get(mode) or {}
         rows.append({"mode": mode, "paper_ph": ph, "paper_ra": ra,
-                     "ph": _num(mine.get("ph")), "ra": _percent(mine.get("ra"))})
+                     "ph": _num(mine.get("ph")), "ra": _percent(mine.get("ra")),
+                     "ph_band": _num(mine.get("ph_band"))})
     return {"rows": rows, "has_ours": ours is not None, "error": error,
-            "path": "evaluation/latest.json"}
+            "path": "evaluation/latest.json", "campaign": campaign}
+
+
+def _campaign_label(campaign: Any, created_at: Any) -> str | None:
+    """``verification campaign, seed 2, quick scale, every 20th flight of a fault run, 31
+    patterns; evaluated 2026-12-01T06:38`` from an evaluation document's fields."""
+    if not isinstance(campaign, dict):
+        return None
+    parts = [f"{campaign.get('kind', '?')} campaign"]
+    if campaign.get("seed") is not None:
+        parts.append(f"seed {campaign['seed']}")
+    if campaign.get("scale"):
+        parts.append(f"{campaign['scale']} scale")
+    every = _num(campaign.get("render_every"))
+    if every and every > 1:
+        parts.append(f"every {int(every)}th flight of a fault run analysed")
+    if campaign.get("patterns") is not None:
+        parts.append(f"{campaign['patterns']} patterns")
+    label = ", ".join(parts)
+    return f"{label}; evaluated {str(created_at)[:16]}" if created_at else label
 
 
 def _num(v: Any) -> float | None:

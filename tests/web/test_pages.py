@@ -182,9 +182,16 @@ def test_evaluation_page_reads_latest_json_or_says_not_run(client, keys, app) ->
     assert 'id="not-run"' in page and "0.82" in page and "81.2" in page
     path = app.state.settings.data_dir / "evaluation" / "latest.json"
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({"prognosis": {"DMD": {"ph": 0.5, "ra": 0.713}}}))
+    path.write_text(json.dumps({"prognosis": {"DMD": {"ph": 0.5, "ra": 0.713, "ph_band": 0.64}},
+                                "campaign": {"kind": "verification", "seed": 2,
+                                             "scale": "quick", "render_every": 20,
+                                             "patterns": 31},
+                                "created_at": "2026-12-01T06:38:06+00:00"}))
     page = client.get("/evaluation").text
     assert 'id="not-run"' not in page and "0.50" in page and "71.3" in page
+    assert "0.64" in page  # Saxena's constant-band horizon beside the cone's
+    assert "verification campaign, seed 2, quick scale, every 20th flight" in page
+    assert "evaluated 2026-12-01T06:38" in page
 
 
 def test_events_stream_needs_a_key_and_reports_new_alarms(client, keys, seeded, aircraft
