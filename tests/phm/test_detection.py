@@ -142,6 +142,39 @@ def test_self_reference_sees_a_shift_smaller_than_the_production_scatter() -> No
     assert caught["self"] >= 36 and caught["fleet"] <= 8, caught
 
 
+def test_a_fleet_referenced_feature_learns_no_offset_from_a_bimodal_start() -> None:
+    """F_REWEAR is tested against the fleet: a pair whose first flights all fell in the low
+    mode of a bimodal healthy feature does not judge its ordinary high flights against that
+    unlucky reference (a self-referenced detector of the same data does, and gets closer to
+    an alarm), while a worn rod end still alarms."""
+    rng = np.random.default_rng(21)
+    names = ["WL.F_REWEAR"]
+
+    def bimodal(n: int) -> np.ndarray:  # 60 % of flights near -0.6, 40 % near +0.9
+        modes = np.where(rng.random(n) < 0.6, -0.6, 0.9)[:, np.newaxis]
+        return modes + 0.15 * rng.standard_normal((n, 1))
+
+    train = [bimodal(12) for _ in range(40)]
+    fleet = FaultDetector().fit(train, names)
+    own = FaultDetector(fleet_referenced=()).fit(train, names)
+    sigma, tau = offset_components(train)
+    assert fleet.between_std_[0] == 0.0
+    assert fleet.within_std_[0] == pytest.approx(np.hypot(sigma[0], tau[0]))
+    unlucky = np.r_[np.full((6, 1), -0.6), np.tile([[0.9], [0.9], [-0.6]], (10, 1))]
+    c_fleet = fleet.confidence_sequence(unlucky, names).max()
+    c_own = own.confidence_sequence(unlucky, names).max()
+    assert c_fleet < c_own and c_fleet < 0.98, (c_fleet, c_own)
+    worn = unlucky.copy()
+    worn[12:] += 8.0  # a worn rod end moves the feature far beyond the healthy modes
+    assert fleet.confidence_sequence(worn, names).max() >= 0.98
+    st = DetectionState.new("WL", names)
+    for row in unlucky[:8]:
+        fleet.update(st, {"WL.F_REWEAR": float(row[0])})
+    assert fleet.update(st, {"WL.F_REWEAR": 0.9}).offset["WL.F_REWEAR"] == 0.0
+    again = FaultDetector.from_dict(json.loads(json.dumps(fleet.to_dict())))
+    assert again.fleet_referenced == ("F_REWEAR",)
+
+
 def test_a_few_odd_flights_do_not_make_an_eight_flight_alarm() -> None:
     """Three odd flights among eight move the running mean past the band; the running median
     (the default for the 8-flight window) does not move, and a sustained shift still alarms."""
