@@ -96,10 +96,10 @@ DETECTOR_FORMAT = "ema-detector/1"
 #: physical direction of each generic feature under its fault: +1 grows, -1 falls, 0 either
 DEFAULT_DIRECTIONS: dict[str, int] = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1,
                                       "F_MTEL": 1, "F_MTWEAR": 1, "F_REWEAR": 1}
-#: shortest alarm window per generic feature (see FaultDetector, ``min_windows``)
 #: generic features tested against the fleet rather than the actuator's own first flights (see
 #: FaultDetector, ``fleet_referenced``)
 DEFAULT_FLEET_REFERENCED: tuple[str, ...] = ("F_REWEAR",)
+#: shortest alarm window per generic feature (see FaultDetector, ``min_windows``)
 DEFAULT_MIN_WINDOWS: dict[str, int] = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3,
                                        "F_REWEAR": 3}
 STATE_FORMAT = "ema-detection-state/2"

@@ -220,8 +220,8 @@ def evaluation_view(*, data_dir: Path) -> dict[str, Any]:
 
 
 def _campaign_label(campaign: Any, created_at: Any) -> str | None:
-    """``verification campaign, seed 2, quick scale, every 20th flight of a fault run, 31
-    patterns; evaluated 2026-12-01T06:38`` from an evaluation document's fields."""
+    """``verification campaign, seed 2, quick scale, 1 in 20 flights of a fault run analysed,
+    31 patterns; evaluated 2026-12-01T06:38`` from an evaluation document's fields."""
     if not isinstance(campaign, dict):
         return None
     parts = [f"{campaign.get('kind', '?')} campaign"]
@@ -231,7 +231,7 @@ def _campaign_label(campaign: Any, created_at: Any) -> str | None:
         parts.append(f"{campaign['scale']} scale")
     every = _num(campaign.get("render_every"))
     if every and every > 1:
-        parts.append(f"every {int(every)}th flight of a fault run analysed")
+        parts.append(f"1 in {int(every)} flights of a fault run analysed")
     if campaign.get("patterns") is not None:
         parts.append(f"{campaign['patterns']} patterns")
     label = ", ".join(parts)

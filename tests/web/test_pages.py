@@ -190,7 +190,7 @@ def test_evaluation_page_reads_latest_json_or_says_not_run(client, keys, app) ->
     page = client.get("/evaluation").text
     assert 'id="not-run"' not in page and "0.50" in page and "71.3" in page
     assert "0.64" in page  # Saxena's constant-band horizon beside the cone's
-    assert "verification campaign, seed 2, quick scale, every 20th flight" in page
+    assert "verification campaign, seed 2, quick scale, 1 in 20 flights of a fault run" in page
     assert "evaluated 2026-12-01T06:38" in page
 
 
