@@ -44,6 +44,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from scipy.signal import lfilter
@@ -403,16 +404,17 @@ def _tts_combine(f: np.ndarray) -> np.ndarray:
     return np.max((xy - x * y) / (xx - x * x), axis=1)
 
 
-def _mtel_combine(f: np.ndarray, ref_torque_nm: float) -> np.ndarray:
+def _mtel_combine(f: np.ndarray, ref_torque_nm: float, min_load_nm: float) -> np.ndarray:
     """Friction ratio ``W / (T_ref + |L|)`` from the regression of the motor torque on
     ``[1, x, s, s x]`` (``s`` the direction of motion, ``x`` the rod position): at the local
     mean position the load torque is ``L = a + b x`` and the up-down hysteresis ``W = 2 (c +
-    d x)``."""
+    d x)``; NaN where ``|L| < min_load_nm``."""
     coef, ok = _solve_normal(f, 4)
     x_mean = f[:, 1] / f[:, 0]  # accumulator of 1 * x over that of 1 * 1
     load = coef[:, 0] + coef[:, 1] * x_mean
     width = 2.0 * (coef[:, 2] + coef[:, 3] * x_mean)
-    return np.where(ok, width / (ref_torque_nm + np.abs(load)), np.nan)
+    return np.where(ok & (np.abs(load) >= min_load_nm),
+                    width / (ref_torque_nm + np.abs(load)), np.nan)
 
 
 def _event_track(n_steps: int, steps: np.ndarray, vals: np.ndarray, alpha: float,
@@ -614,16 +616,14 @@ def actuator_features(
     s_dir = np.sign(w_mean)
     mtel_acc = _normal_accumulators(np.c_[np.ones(n), x_rel_mm, s_dir, s_dir * x_rel_mm],
                                     torque_b)
-    ref_t = cfg.mtel_ref_torque_nm
-    tracks["F_MTEL"] = _track(mtel_acc, mtel_valid, lambda f: _mtel_combine(f, ref_t), alpha,
-                              cfg.min_valid_steps)
+    tracks["F_MTEL"] = _track(
+        mtel_acc, mtel_valid,
+        partial(_mtel_combine, ref_torque_nm=cfg.mtel_ref_torque_nm,
+                min_load_nm=cfg.mtel_min_load_nm),
+        alpha, cfg.min_valid_steps)
     n_up = int(np.count_nonzero(mtel_valid & (s_dir > 0)))
     if min(n_up, int(np.count_nonzero(mtel_valid)) - n_up) < cfg.mtel_min_steps:
         tracks["F_MTEL"].value = float("nan")  # one direction barely seen: no hysteresis
-    elif np.isfinite(tracks["F_MTEL"].value):
-        coef, _ = _solve_normal(mtel_acc[mtel_valid].mean(axis=0, keepdims=True), 4)
-        if abs(coef[0, 0]) < cfg.mtel_min_load_nm:  # at the mean position (x_rel = 0)
-            tracks["F_MTEL"].value = float("nan")
 
     # ---- F_MTWEAR: screw gap between the two flanks --------------------------------------
     # The rod (LVDT) sits behind the nut (r theta) by the screw's compliance and half its gap
