@@ -5,7 +5,7 @@ Usage::
     hmsm evaluate --campaign DIR [--design DIR | --model-json FILE | --model-id N]
                   [--out DIR] [--jobs N] [--seed N] [--no-progress]
 
-Model: ``--model-json`` (a ``ema-phm-model/4`` document, or a model-version export with a
+Model: ``--model-json`` (a ``ema-phm-model/5`` document, or a model-version export with a
 ``payload``), ``--model-id`` (a model version of the database), ``--design`` (train on a design
 campaign, seed ``--seed``), else the active model version of the database.
 
@@ -47,7 +47,7 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
     parser.add_argument("--campaign", required=True, help="campaign directory to evaluate on")
     src = parser.add_mutually_exclusive_group()
     src.add_argument("--design", help="train the model on this design campaign first")
-    src.add_argument("--model-json", help="model JSON file (ema-phm-model/4)")
+    src.add_argument("--model-json", help="model JSON file (ema-phm-model/5)")
     src.add_argument("--model-id", type=int, help="model version id in the database")
     parser.add_argument("--seed", type=int, default=0, help="training seed (with --design)")
     parser.add_argument("--out", help="output directory (default "

@@ -120,9 +120,11 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
         if timer is not None:
             with timer.span("chain"):
                 out = analyze_flight(model, rec.features, health, seed=seed,
-                                     flight_index=rec.index)
+                                     flight_index=rec.index, started_at=rec.started_at,
+                                     base=pattern.base)
         else:
-            out = analyze_flight(model, rec.features, health, seed=seed, flight_index=rec.index)
+            out = analyze_flight(model, rec.features, health, seed=seed, flight_index=rec.index,
+                                 started_at=rec.started_at, base=pattern.base)
         o = out.get(faulty) if faulty else None
         flights.append({
             "index": rec.index,

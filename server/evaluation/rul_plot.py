@@ -30,7 +30,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("--campaign", required=True, help="campaign directory")
     src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--model-json", help="model JSON (ema-phm-model/4)")
+    src.add_argument("--model-json", help="model JSON (ema-phm-model/5)")
     src.add_argument("--design", help="train on this design campaign first (seed 0)")
     ap.add_argument("--mode", required=True, choices=PROGRESSIVE)
     ap.add_argument("--pattern", help="only this pattern id (default: all of the mode)")

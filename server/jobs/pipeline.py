@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import math
 import threading
+from datetime import UTC
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,7 @@ from server.jobs.queue import ClaimedJob
 from server.jobs.worker import Deferred, JobContext
 from server.models import (
     Actuator,
+    Aircraft,
     ActuatorState,
     Alarm,
     Flight,
@@ -139,7 +141,13 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
         health = {a.position: (ActuatorHealth.from_dict(states[a.id].detection)
                                if states[a.id] is not None and states[a.id].detection
                                else model.new_health(a.position)) for a in todo}
-        outcomes = analyze_flight(model, features, health, seed=job.flight_id)
+        aircraft = session.get(Aircraft, aircraft_id)
+        started_at = flight.started_at
+        if started_at is not None and started_at.tzinfo is None:  # stored naive in UTC
+            started_at = started_at.replace(tzinfo=UTC)
+        outcomes = analyze_flight(model, features, health, seed=job.flight_id,
+                                  started_at=started_at,
+                                  base=None if aircraft is None else aircraft.base)
         for act in todo:
             out = outcomes[act.position]
             _store(session, flight, act, out, health[act.position], states[act.id], model_id)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from datetime import datetime
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -32,6 +33,7 @@ from .baselines import FleetBaseline
 from .classification import FaultClassifier
 from .detection import DetectionResult, DetectionState, FaultDetector
 from .features import FlightFeatures
+from .season import SeasonalClimate, StressClock, next_flights_per_day
 from .prognosis import (
     MeasurementModel,
     ParticleFilterPrognoser,
@@ -64,11 +66,12 @@ __all__ = [
 #: self-referenced
 #: detection and classifier input (3-flight means). An older model would be fed inputs it was
 #: not trained on
-MODEL_FORMAT = "ema-phm-model/4"
+MODEL_FORMAT = "ema-phm-model/5"
 #: formats of older chains: their baselines were fitted on other feature definitions
 #: (/2: F_MTWEAR was the reversal lost motion, features/3; /3: F_MTEL was the ratio of apparent
 #: efficiencies, falling with its fault, features/4), so they are refused, not misread
-_OLD_MODEL_FORMATS = ("ema-phm-model/1", "ema-phm-model/2", "ema-phm-model/3")
+_OLD_MODEL_FORMATS = ("ema-phm-model/1", "ema-phm-model/2", "ema-phm-model/3",
+                      "ema-phm-model/4")
 HEALTH_FORMAT = "ema-actuator-health/2"
 PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
 #: the paper's Table 1: one preferential feature per failure mode (tracked by the filter)
@@ -143,6 +146,11 @@ class MeasurementSpec:
     #: design runs had enough flights: the same wear shows differently on a drive that shares
     #: its surface with a second drive than on a lone one
     by_surface: dict[str, MeasurementModel] = field(default_factory=dict)
+    #: temperature sensitivity of the mode's ageing [1/K] and its reference temperature
+    #: [degC]: the filter's clock adds exp(beta (T - T_ref)) per flight (server.phm.season);
+    #: beta = 0 is a flight clock
+    stress_beta_per_k: float = 0.0
+    stress_ref_c: float = 0.0
 
     def model_for(self, position: str) -> MeasurementModel:
         return self.by_surface.get(surface_of(position), self.model)
@@ -150,7 +158,8 @@ class MeasurementSpec:
     def to_dict(self) -> dict[str, Any]:
         return {"feature": self.feature, "model": self.model.to_dict(),
                 "prognoser": None if self.prognoser is None else self.prognoser.to_dict(),
-                "by_surface": {k: m.to_dict() for k, m in self.by_surface.items()}}
+                "by_surface": {k: m.to_dict() for k, m in self.by_surface.items()},
+                "stress_beta_per_k": self.stress_beta_per_k, "stress_ref_c": self.stress_ref_c}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> MeasurementSpec:
@@ -158,7 +167,8 @@ class MeasurementSpec:
         return cls(str(d["feature"]), MeasurementModel.from_dict(dict(d["model"])),
                    None if cfg is None else PrognoserConfig.from_dict(dict(cfg)),
                    {k: MeasurementModel.from_dict(dict(m))
-                    for k, m in (d.get("by_surface") or {}).items()})
+                    for k, m in (d.get("by_surface") or {}).items()},
+                   float(d.get("stress_beta_per_k", 0.0)), float(d.get("stress_ref_c", 0.0)))
 
 
 def surface_of(position: str) -> str:
@@ -175,13 +185,16 @@ class PhmModel:
     classifier: FaultClassifier | None
     measurement: dict[str, MeasurementSpec]
     prognoser: PrognoserConfig = field(default_factory=PrognoserConfig)
+    #: annual temperature cycle of each base (the stress clock's temperatures); None: flights
+    climate: SeasonalClimate | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": MODEL_FORMAT, "baseline": self.baseline.to_dict(),
                 "detector": self.detector.to_dict(),
                 "classifier": None if self.classifier is None else self.classifier.to_dict(),
                 "measurement": {m: s.to_dict() for m, s in self.measurement.items()},
-                "prognoser": self.prognoser.to_dict()}
+                "prognoser": self.prognoser.to_dict(),
+                "climate": None if self.climate is None else self.climate.to_dict()}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> PhmModel:
@@ -194,7 +207,8 @@ class PhmModel:
         return cls(FleetBaseline.from_dict(d["baseline"]), FaultDetector.from_dict(d["detector"]),
                    None if clf is None else FaultClassifier.from_dict(clf),
                    {m: MeasurementSpec.from_dict(s) for m, s in d["measurement"].items()},
-                   PrognoserConfig.from_dict(dict(d["prognoser"])))
+                   PrognoserConfig.from_dict(dict(d["prognoser"])),
+                   None if d.get("climate") is None else SeasonalClimate.from_dict(d["climate"]))
 
     def new_health(self, position: str) -> ActuatorHealth:
         known = set(self.detector.feature_names_)
@@ -216,6 +230,10 @@ class ActuatorHealth:
     fault_mode: str | None = None
     prognosis: dict[str, Any] | None = None
     history: list[tuple[int, dict[str, float]]] = field(default_factory=list)
+    #: take-off time (ISO 8601) of the last flight analysed and the aircraft's flying rate
+    #: [flight/day], for the stress clock (server.phm.season)
+    last_started_at: str | None = None
+    flights_per_day: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": HEALTH_FORMAT, "position": self.position,
@@ -223,7 +241,9 @@ class ActuatorHealth:
                 "alarm_index": self.alarm_index,
                 "class_log_prob": self.class_log_prob, "fault_mode": self.fault_mode,
                 "prognosis": self.prognosis,
-                "history": [[i, z] for i, z in self.history]}
+                "history": [[i, z] for i, z in self.history],
+                "last_started_at": self.last_started_at,
+                "flights_per_day": self.flights_per_day}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> ActuatorHealth:
@@ -239,7 +259,10 @@ class ActuatorHealth:
                    class_log_prob=d.get("class_log_prob"), fault_mode=d.get("fault_mode"),
                    prognosis=d.get("prognosis"),
                    history=[(int(i), {k: float(v) for k, v in z.items()})
-                            for i, z in d.get("history", [])] if keep_history else [])
+                            for i, z in d.get("history", [])] if keep_history else [],
+                   last_started_at=d.get("last_started_at"),
+                   flights_per_day=None if d.get("flights_per_day") is None
+                   else float(d["flights_per_day"]))
 
 
 @dataclass
@@ -264,7 +287,8 @@ def _finite(v: float) -> float | None:
 
 
 def _replay(model: PhmModel, mode: str, position: str,
-            history: list[tuple[int, dict[str, float]]], seed: int) -> PrognoserState | None:
+            history: list[tuple[int, dict[str, float]]], seed: int,
+            clock: StressClock | None) -> PrognoserState | None:
     spec = model.measurement.get(mode)
     if spec is None:
         return None
@@ -274,19 +298,60 @@ def _replay(model: PhmModel, mode: str, position: str,
     for index, z in history:
         value = z.get(spec.feature)
         if value is not None and math.isfinite(value):
-            state = pf.update(state, value, index)
+            state = pf.update(state, value, index, stress=_stress(clock, state, index))
     return state
+
+
+def _stress_clock(model: PhmModel, spec: MeasurementSpec, h: ActuatorHealth, base: str | None,
+                  index: int) -> StressClock | None:
+    """The mode's stress clock for this aircraft, anchored at the current flight; None (a
+    flight clock) for a mode without temperature sensitivity, an unknown base or date."""
+    if (spec.stress_beta_per_k == 0.0 or model.climate is None or not model.climate.knows(base)
+            or h.last_started_at is None or not h.flights_per_day):
+        return None
+    return StressClock(model.climate, str(base), spec.stress_beta_per_k, spec.stress_ref_c,
+                       datetime.fromisoformat(h.last_started_at), index, h.flights_per_day)
+
+
+def _stress(clock: StressClock | None, state: PrognoserState, index: int) -> float | None:
+    if clock is None or state.flight_index is None:
+        return None
+    return clock.between(state.flight_index, index)
+
+
+def _track_calendar(h: ActuatorHealth, index: int, started_at: datetime | None) -> None:
+    """Update the aircraft's flying rate from the take-off times of analysed flights."""
+    if started_at is None:
+        return
+    if h.last_started_at is not None and h.history:
+        h.flights_per_day = next_flights_per_day(
+            h.flights_per_day, index - h.history[-1][0],
+            started_at - datetime.fromisoformat(h.last_started_at))
+    h.last_started_at = started_at.isoformat()
+
+
+def _predict(pf: ParticleFilterPrognoser, state: PrognoserState, index: int,
+             clock: StressClock | None) -> RulDistribution:
+    if clock is None or state.flight_index is None:
+        return pf.predict(state, at_flight=index)
+    curve = clock.curve(state.flight_index, pf.config.max_horizon_flights)
+    return pf.predict(state, at_flight=index, stress_curve=curve)
 
 
 def analyze_flight(model: PhmModel, features: FlightFeatures,
                    health: dict[str, ActuatorHealth], *, seed: int = 0,
-                   flight_index: int | None = None) -> dict[str, ActuatorOutcome]:
+                   flight_index: int | None = None, started_at: datetime | None = None,
+                   base: str | None = None) -> dict[str, ActuatorOutcome]:
     """Advance every actuator's state by one flight (``health`` is updated in place).
 
     ``flight_index`` is the flight number of this flight when flights in between were not
     analysed (e.g. a campaign that renders every 20th flight): the particle filter then
     propagates over the gap. Default: ``flights_seen + 1`` (every flight analysed, the
     service's case). It must increase strictly from flight to flight.
+
+    ``started_at`` (take-off time, timezone-aware) and ``base`` (the aircraft's home base)
+    let the prognosis age thermal faults on the season's clock (:mod:`server.phm.season`);
+    without them it counts flights.
     """
     z_all = model.baseline.zscores(features)
     out: dict[str, ActuatorOutcome] = {}
@@ -299,6 +364,7 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
                                  f"{h.history[-1][0]}")
             h.flights_seen = int(flight_index)
         index = h.flights_seen
+        _track_calendar(h, index, started_at)
         det = model.detector.update(h.detection, z_all)
         if det.new_alarm:
             h.alarm_index = index
@@ -329,14 +395,16 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
             spec = model.measurement[h.fault_mode]
             pf = ParticleFilterPrognoser(spec.prognoser or model.prognoser,
                                          spec.model_for(position))
+            clock = _stress_clock(model, spec, h, base, index)
             state = None
             if h.prognosis is not None:
                 try:
                     state = PrognoserState.from_dict(h.prognosis)
                     value = generic.get(spec.feature)
                     if value is not None and math.isfinite(value):
-                        state = pf.update(state, value, index)
-                    rul = pf.predict(state, at_flight=index)
+                        state = pf.update(state, value, index,
+                                          stress=_stress(clock, state, index))
+                    rul = _predict(pf, state, index, clock)
                 except ValueError:
                     # the stored filter belongs to another model version (a new model was
                     # activated): start again from this actuator's history
@@ -344,8 +412,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
             if state is None:
                 since = h.alarm_index if h.alarm_index is not None else -1
                 state = _replay(model, h.fault_mode, position,
-                                [(i, v) for i, v in h.history if i >= since], seed)
-                rul = None if state is None else pf.predict(state, at_flight=index)
+                                [(i, v) for i, v in h.history if i >= since], seed, clock)
+                rul = None if state is None else _predict(pf, state, index, clock)
             if state is not None:
                 h.prognosis = state.to_dict()
 

@@ -28,6 +28,7 @@ import sys
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,7 @@ class FlightRecord:
     true_rul_flights: float | None
     ground_temp_c: float | None
     features: FlightFeatures
+    started_at: datetime | None = None  # take-off time, from the flight log's metadata
 
 
 @dataclass
@@ -84,6 +86,7 @@ class Pattern:
     onset_flight: int | None
     failure_flight: int | None
     flights: list[FlightRecord] = field(default_factory=list)
+    base: str | None = None  # the aircraft's home base
 
 
 @dataclass
@@ -106,6 +109,15 @@ def _features_of(args: tuple[str, float | None, FeatureConfig]) -> dict[str, Any
     path, ground, cfg = args
     ch = read_flight_channels(path)
     return flight_features(ch, config=cfg, ground_temp_c=ground).to_dict()
+
+
+def read_started_at(path: str | os.PathLike[str]) -> datetime | None:
+    """Take-off time from a flight-log Parquet file's metadata (the footer only)."""
+    import pyarrow.parquet as pq
+
+    meta = pq.read_schema(path).metadata or {}
+    raw = meta.get(b"started_at")
+    return None if raw is None else datetime.fromisoformat(raw.decode().replace("Z", "+00:00"))
 
 
 def _ff_from_dict(d: Mapping[str, Any]) -> FlightFeatures:
@@ -152,17 +164,19 @@ def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | 
             tmp = cache_path.with_suffix(".tmp")
             tmp.write_text(json.dumps({"config": cfg_key, "flights": cached}))
             tmp.replace(cache_path)
+    bases = {str(a.get("tail")): a.get("base") for a in manifest.get("aircraft", [])}
     patterns = []
     for pat in manifest["patterns"]:
         recs = [FlightRecord(str(fl["flight"]), int(fl["index"]), float(fl.get("severity", 0.0)),
                              float(fl.get("severity_norm", 0.0)),
                              None if fl.get("true_rul_flights") is None
                              else float(fl["true_rul_flights"]),
-                             fl.get("ground_temp_c"), _ff_from_dict(cached[fl["file"]]))
+                             fl.get("ground_temp_c"), _ff_from_dict(cached[fl["file"]]),
+                             read_started_at(root / fl["file"]))
                 for fl in sorted(pat["flights"], key=lambda f: int(f["index"]))]
         patterns.append(Pattern(str(pat["id"]), str(pat["aircraft"]), str(pat["mode"]),
                                 pat.get("position"), pat.get("onset_flight"),
-                                pat.get("failure_flight"), recs))
+                                pat.get("failure_flight"), recs, bases.get(str(pat["aircraft"]))))
     return Campaign(str(manifest.get("kind")), int(manifest.get("seed", 0)), patterns,
                     list(manifest.get("aircraft", [])))
 

@@ -42,6 +42,7 @@ from .classification import train_classifier
 from .detection import DetectionResult
 from .evaluate_detection import Campaign, FlightRecord, Pattern, fit_detection, load_campaign
 from .prognosis import MeasurementModel, PrognoserConfig
+from .season import SeasonalClimate, StressClock, day_of_year
 
 __all__ = ["training_rows", "fit_measurement_models", "train_phm_model"]
 
@@ -51,6 +52,16 @@ _MIN_SURFACE_FLIGHTS = 12  # design flights needed to fit a surface-specific mea
 #: fault that grows faster or slower than the design prior (selected on the seed-5 design
 #: campaign: 0.004 lagged, 0.02 cost TTS its horizon)
 PROCESS_NOISE_STD = 0.01
+#: forgetting factor per flight of the log-level RLS (memory about 1 / (1 - lambda) flights)
+LEVEL_FORGETTING = 0.995
+#: candidate shapes c of the exponential law (0.01: near-pure exponential; 10: near-linear)
+_GROWTH_OFFSETS = np.geomspace(0.01, 10.0, 61)
+#: candidate temperature sensitivities of a mode's ageing [1/K] (0: a flight clock; ln 2 / 10 K
+#: = 0.069 is Montsinger's insulation rule, ln 2 / 15 K = 0.046 the SKF grease rule)
+_STRESS_BETAS = np.round(np.arange(0.0, 0.1001, 0.005), 4)
+#: a mode ages on the stress clock only if that at least halves the misfit of the flight clock
+#: (design seed 1: TTS, DMD, MTEL fall by 86-93 %, the wear modes by 1-7 %)
+_STRESS_GAIN = 0.5
 
 
 def _faulty_history(model: PhmModel, p: Pattern
@@ -125,6 +136,87 @@ def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, floa
                     "dk": float(np.median(gaps)), "mid_rate_bounds": list(bounds)}
 
 
+def fit_climate(campaign: Campaign) -> SeasonalClimate | None:
+    """Annual temperature cycle of each base from the design flights' ground temperatures
+    (the ``temp_ground_c`` condition read from the log) and take-off dates."""
+    bases, days, temps = [], [], []
+    for p in campaign.patterns:
+        for r in p.flights:
+            cond = next(iter(r.features.conditions.values()), {})
+            if p.base is None or r.started_at is None:
+                continue
+            bases.append(p.base)
+            days.append(day_of_year(r.started_at))
+            temps.append(float(cond.get("temp_ground_c", math.nan)))
+    climate = SeasonalClimate.fit(bases, days, temps)
+    return climate if climate.coefficients else None
+
+
+def _fault_runs(campaign: Campaign, mode: str) -> list[Pattern]:
+    """The design runs of ``mode`` with at least 4 flights from the onset."""
+    return [p for p in campaign.patterns if p.mode == mode
+            and sum(1 for r in p.flights if r.index >= int(p.onset_flight or 0)) >= 4]
+
+
+def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(true normalised severity (n,), stress since the onset (betas, n)) of one run."""
+    fl = [r for r in run.flights if r.index >= int(run.onset_flight or 0)]
+    k = np.array([r.index for r in fl], dtype=int)
+    sn = np.array([r.severity_norm for r in fl], dtype=float)
+    stress = np.tile(k - k[0], (_STRESS_BETAS.size, 1)).astype(float)
+    dated = [r for r in fl if r.started_at is not None]
+    if climate is not None and climate.knows(run.base) and len(dated) >= 2:
+        days = (dated[-1].started_at - dated[0].started_at).total_seconds() / 86400.0
+        per_day = (dated[-1].index - dated[0].index) / days if days > 0 else None
+        if per_day:
+            for j, beta in enumerate(_STRESS_BETAS):
+                clock = StressClock(climate, str(run.base), float(beta), ref_c,
+                                    dated[0].started_at, dated[0].index, per_day)
+                stress[j] = [clock.between(int(k[0]), int(i)) for i in k]
+    return sn, stress
+
+
+def _exponential_prior(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
+                       ref_c: float) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+    """Shape c, temperature sensitivity beta and rate prior of dh/dtau = r (h + c), tau the
+    stress clock (:mod:`server.phm.season`), from the design runs' true severities.
+
+    (c, beta) is the point of a grid that makes ln(h + c) most nearly a straight line in tau
+    over the runs (mean 1 - R^2 of a per-run fit: scale-free, so shapes and clocks compare
+    fairly); each run's slope there is its rate r. The prior is the runs' median r and their
+    standard deviation; the rate bounds are the slowest and fastest run's mid-life rate
+    r (0.5 + c) with a 50 % margin.
+    """
+    runs = [_run_clocks(p, climate, ref_c) for p in _fault_runs(campaign, mode)]
+    if len(runs) < 2:
+        return None, {"error": "too few fault-to-failure runs"}
+    misfit = np.zeros((_STRESS_BETAS.size, _GROWTH_OFFSETS.size))
+    for sn, stress in runs:
+        Y = np.log(np.maximum(sn, 0.0)[:, np.newaxis] + _GROWTH_OFFSETS)  # (n, c grid)
+        Yc = Y - Y.mean(axis=0)
+        for j, tau in enumerate(stress):
+            X = np.column_stack([np.ones_like(tau), tau])
+            coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
+            misfit[j] += ((Y - X @ coef) ** 2).sum(axis=0) / (Yc**2).sum(axis=0)
+    jb, jc = np.unravel_index(int(np.argmin(misfit)), misfit.shape)
+    if misfit[jb, jc] > _STRESS_GAIN * misfit[0].min():  # temperature explains little: flights
+        jb, jc = 0, int(np.argmin(misfit[0]))
+    beta, c = float(_STRESS_BETAS[jb]), float(_GROWTH_OFFSETS[jc])
+    rates = np.array([np.polyfit(stress[jb], np.log(np.maximum(sn, 0.0) + c), 1)[0]
+                      for sn, stress in runs])
+    r0 = float(max(np.median(rates), 1e-6))
+    r_std = float(max(np.std(rates, ddof=1), 0.1 * r0))
+    mid = rates * (0.5 + c)
+    bounds = (max(float(mid.min()) / 1.5, 1e-5), max(float(mid.max()) * 1.5, 2e-5))
+    prior = {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
+             "rate": r0, "rate_std": r_std, "n_runs": len(runs),
+             "mid_rate_bounds": list(bounds),
+             "misfit_flight_clock": float(misfit[0].min() / len(runs)),
+             "misfit": float(misfit[jb, jc] / len(runs))}
+    return prior, dict(prior)
+
+
 def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float) -> float:
     """Initial RLS covariance P0 that weighs the first-trial parameters against the data.
 
@@ -143,13 +235,24 @@ def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: floa
     return float(np.clip(sigma_theta**2 / max(sigma_y**2, 1e-30), 1e-2, 1.0))
 
 
+def _reference_temperature(campaign: Campaign, climate: SeasonalClimate | None) -> float:
+    """Mean climatological temperature of the design flights [degC]: a flight there adds one
+    unit of stress, so stress and flights are of the same order."""
+    temps = [float(climate.temperature(str(p.base), day_of_year(r.started_at)))
+             for p in campaign.patterns if climate is not None and climate.knows(p.base)
+             for r in p.flights if r.started_at is not None]
+    return round(float(np.mean(temps)), 2) if temps else 0.0
+
+
 def fit_measurement_models(campaign: Campaign, phm: PhmModel,
-                           base_config: PrognoserConfig | None = None) -> tuple[
+                           base_config: PrognoserConfig | None = None,
+                           climate: SeasonalClimate | None = None) -> tuple[
         dict[str, MeasurementSpec], dict[str, Any]]:
     """Per progressive mode: h(severity) of the mode's own feature (paper Table 1), fitted on
     the physical-unit residuals of the faulty actuator, less its own offset, over its design
     fault-to-failure runs (``phm`` supplies baseline and detector)."""
     base_config = base_config or PrognoserConfig()
+    ref_c = _reference_temperature(campaign, climate)
     specs: dict[str, MeasurementSpec] = {}
     report: dict[str, Any] = {}
     for mode in PROGRESSIVE:
@@ -178,16 +281,30 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
                                                                [b for _, b in sub])
                 except ValueError:
                     pass
-        theta, prior = _degradation_prior(campaign, mode)
         noise_sev = float(model.noise_std / max(abs(float(model.derivative(
             np.array([0.5]))[0])), 1e-12))
         config = base_config
+        law, prior = _exponential_prior(campaign, mode, climate, ref_c)
+        theta = None
+        if law is not None and law["stress_beta_per_k"] > 0:
+            # a thermally driven mode: dh/dtau = r (h + c) on the season's stress clock
+            config = replace(base_config, rate_basis="exponential",
+                             growth_offset=law["growth_offset"],
+                             initial_theta=(0.0, law["rate"]),
+                             initial_rate_std=law["rate_std"],
+                             rls_forgetting=LEVEL_FORGETTING,
+                             rate_bounds=tuple(law["mid_rate_bounds"]))
+        else:
+            theta, prior = _degradation_prior(campaign, mode)
+            prior["stress"] = law
         if theta is not None:
             config = replace(base_config, initial_theta=theta,
                              rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]),
                              rate_bounds=tuple(prior["mid_rate_bounds"]))
             prior["rls_initial_cov"] = config.rls_initial_cov
-        specs[mode] = MeasurementSpec(feature, model, config, by_surface)
+        specs[mode] = MeasurementSpec(feature, model, config, by_surface,
+                                      float(prior.get("stress_beta_per_k", 0.0)),
+                                      float(prior.get("stress_ref_c", 0.0)))
         rho = spearmanr(s, v).statistic
         report[mode] = {"feature": feature, "spearman": float(rho),
                         "noise_std": model.noise_std, "n_flights": len(pairs),
@@ -223,10 +340,11 @@ def train_phm_model(design_dir: str | os.PathLike[str], *, seed: int = 0,
         progress=lambda st, f: tick(f"classifier:{st}", 0.6 + 0.3 * f))
     t_clf = time.perf_counter()
     tick("measurement", 0.9)
+    climate = fit_climate(campaign)
     specs, meas_report = fit_measurement_models(
-        campaign, bare, PrognoserConfig(process_noise_std=PROCESS_NOISE_STD))
+        campaign, bare, PrognoserConfig(process_noise_std=PROCESS_NOISE_STD), climate)
     model = PhmModel(detection.baseline, detection.detector, classifier, specs,
-                     PrognoserConfig(process_noise_std=PROCESS_NOISE_STD))
+                     PrognoserConfig(process_noise_std=PROCESS_NOISE_STD), climate)
     t_end = time.perf_counter()
     tick("done", 1.0)
     n_flights = sum(len(p.flights) for p in campaign.patterns)

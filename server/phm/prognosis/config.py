@@ -19,10 +19,11 @@ from typing import Any, Literal
 
 __all__ = ["RATE_BASES", "PrognoserConfig", "RateBasis"]
 
-RateBasis = Literal["constant", "affine", "quadratic"]
+RateBasis = Literal["constant", "affine", "quadratic", "exponential"]
 
-#: number of RLS parameters of each growth-rate basis ``dh/dk = theta . phi(h)``
-RATE_BASES: dict[str, int] = {"constant": 1, "affine": 2, "quadratic": 3}
+#: number of RLS parameters of each growth-rate basis: ``dh/dk = theta . phi(h)``, or for
+#: ``"exponential"`` theta = (a, r) of the log-level line ``ln(h + c) = a + r k``
+RATE_BASES: dict[str, int] = {"constant": 1, "affine": 2, "quadratic": 3, "exponential": 2}
 
 _CONFIG_VERSION = 1
 
@@ -41,10 +42,20 @@ class PrognoserConfig:
     rate_basis:
         Growth-rate model ``dh/dk = theta . phi(h)`` [1/flight]: ``"constant"`` phi = [1]
         (linear wear, Archard at constant load), ``"affine"`` phi = [1, h] (linear + exponential
-        growth), ``"quadratic"`` phi = [1, h, h^2] (accelerating).
+        growth), ``"quadratic"`` phi = [1, h, h^2] (accelerating); these are tuned by RLS on the
+        increments of the filtered severity. ``"exponential"``: dh/dk = r (h + c) with the shape
+        ``growth_offset`` c fixed, tuned by RLS on the severity *level*, ln(h + c) = a + r k
+        (see :mod:`.degradation`).
+    growth_offset:
+        Shape c of the ``"exponential"`` law [-] (severity at which growth would stop, negated):
+        large c is near-linear wear, small c near-pure exponential growth. Unused by the others.
+    initial_rate_std:
+        Prior standard deviation of r [1/flight] for the ``"exponential"`` law; ``None`` ->
+        35 % of the first-trial r (the spread of fault-to-failure spans between patterns).
     initial_theta:
         First-trial RLS parameters, one per basis term; ``None`` -> a constant rate of
-        ``initial_rate`` per flight and zeros for the other terms.
+        ``initial_rate`` per flight and zeros for the other terms (``"exponential"``: a = 0,
+        re-set at the first measurement, and r giving ``initial_rate`` at h = 0.5).
     initial_rate:
         First-trial growth rate [1/flight] used when ``initial_theta`` is None
         (1/250: the middle of the 150-400 flight fault-to-failure span of the campaigns).
@@ -97,6 +108,8 @@ class PrognoserConfig:
     n_particles: int = 200
     process_noise_std: float = 0.004
     rate_basis: RateBasis = "affine"
+    growth_offset: float = 0.5
+    initial_rate_std: float | None = None
     initial_theta: tuple[float, ...] | None = None
     initial_rate: float = 1.0 / 250.0
     rls_forgetting: float = 0.97
@@ -136,6 +149,9 @@ class PrognoserConfig:
                 raise ValueError("initial_theta must be finite")
             object.__setattr__(self, "initial_theta", theta)
         _positive("initial_rate", self.initial_rate)
+        _positive("growth_offset", self.growth_offset)
+        if self.initial_rate_std is not None:
+            _positive("initial_rate_std", self.initial_rate_std)
         if not (0.0 < self.rls_forgetting <= 1.0):
             raise ValueError(f"rls_forgetting must be in (0, 1], got {self.rls_forgetting}")
         _positive("rls_initial_cov", self.rls_initial_cov)
@@ -179,7 +195,16 @@ class PrognoserConfig:
         """First-trial RLS parameter vector."""
         if self.initial_theta is not None:
             return self.initial_theta
+        if self.rate_basis == "exponential":
+            return (0.0, self.initial_rate / (0.5 + self.growth_offset))
         return (self.initial_rate,) + (0.0,) * (self.n_params - 1)
+
+    @property
+    def rate_prior_std(self) -> float:
+        """Prior standard deviation of r of the ``"exponential"`` law [1/flight]."""
+        if self.initial_rate_std is not None:
+            return self.initial_rate_std
+        return 0.35 * abs(self.theta0[1])
 
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)

@@ -13,15 +13,38 @@ regressed on phi(h_hat[k-dk]): the time-variant, auto-tuned degradation model of
 RLS keeps an exponentially weighted residual variance s2, so that s2 * P approximates the
 covariance of theta (used to draw one parameter vector per particle in the long-term prediction).
 
+The ``"exponential"`` law dh/dk = r (h + c), with the shape c fixed per fault mode (learned on the
+design runs), is the simulator's and the physics' form: Arrhenius insulation damage and magnet
+loss grow in proportion to the damage done (small c), Archard wear at a steady load grows
+linearly (large c). Its rate r is tuned by RLS on the severity *level* instead of its
+increments: ln(h + c) = a + r k is a straight line in the flight index, so r is the slope of a
+weighted linear regression of the log-level on k. Increments of the filtered severity are a
+noisy, lagged derivative and leave r to the prior for much of a life; the level uses every
+measurement since the alarm with its own independent noise. The intercept is kept at the latest
+flight (a change of coordinates, exact for RLS): before each update ``a <- a + r dk`` and
+``P <- F P F'`` with F = [[1, dk], [0, 1]], then the regressor is [1, 0]. The observation is
+the measurement inverted to severity, linearised about the filtered estimate h_f:
+y = ln(h_f + c) + (h_obs - h_f) / (h_f + c), with standard deviation sigma_h / (h_f + c); the
+RLS runs on y / sigma_y, so P is the parameter covariance itself and s2 the misfit factor.
+
 All functions are pure and work on small numpy arrays; nothing here is random.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["growth_rate", "regressor", "rls_update"]
+__all__ = [
+    "exponential_law",
+    "growth_rate",
+    "level_rls_update",
+    "log_level_observation",
+    "regressor",
+    "rls_update",
+]
 
 
 def regressor(h: NDArray[np.float64] | float, n_params: int) -> NDArray[np.float64]:
@@ -82,3 +105,38 @@ def rls_update(
     # a-posteriori-normalised squared error: unbiased estimate of the output noise variance
     resid_var_new = forgetting * resid_var + (1.0 - forgetting) * err * err * forgetting / denom
     return theta_new, cov_new, resid_var_new
+
+
+def exponential_law(theta: NDArray[np.float64], offset: float) -> NDArray[np.float64]:
+    """Affine coefficients [r c, r] of dh/dk = r (h + c) from theta = (a, r), shape (2,) or
+    (N, 2) (the intercept a plays no part in the growth rate)."""
+    rate = theta[..., 1]
+    return np.stack([rate * offset, rate], axis=-1)
+
+
+def log_level_observation(h_obs: float, h_ref: float, sigma_h: float, offset: float
+                          ) -> tuple[float, float]:
+    """(y, sigma_y): ln(h + c) observed through a severity measurement h_obs with standard
+    deviation sigma_h, linearised about the estimate h_ref (h_ref floored at 0, so a negative
+    measurement near a healthy state stays finite)."""
+    base = max(h_ref, 0.0) + offset
+    return math.log(base) + (h_obs - h_ref) / base, sigma_h / base
+
+
+def level_rls_update(
+    theta: NDArray[np.float64],
+    cov: NDArray[np.float64],
+    resid_var: float,
+    dk: float,
+    y: float,
+    sigma_y: float,
+    forgetting: float,
+    max_trace: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """One RLS step of the log-level line after ``dk`` flights; forgetting ``lambda ** dk``
+    (memory counted in flights, whatever the spacing of the measurements)."""
+    shift = np.array([[1.0, dk], [0.0, 1.0]])
+    theta = shift @ theta
+    cov = shift @ cov @ shift.T
+    phi = np.array([1.0 / sigma_y, 0.0])
+    return rls_update(theta, cov, resid_var, phi, y / sigma_y, forgetting**dk, max_trace)

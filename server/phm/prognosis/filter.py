@@ -10,7 +10,8 @@ One update at flight k (dk = k - k_prev flights since the previous update)::
     1. propagate   h_i <- max(h_i + dk g(h_i; theta) + q sqrt(dk) w_i, 0)
     2. weight      log w_i <- log w_i - (z - h(h_i))^2 / (2 sigma_v^2), max subtracted, normalised
     3. resample    systematic, only when ESS = 1 / sum w_i^2 < resample_threshold * N
-    4. tune        RLS on y = (h_hat[k] - h_hat[k_prev]) / dk against phi(h_hat[k_prev])
+    4. tune        RLS on y = (h_hat[k] - h_hat[k_prev]) / dk against phi(h_hat[k_prev]), or
+                   for the "exponential" law on the log-level ln(h + c) (see .degradation)
 
 The first measurement initialises the cloud around the inverted measurement,
 h_i = h^-1(z) + sigma_v / |h'| w_i, instead of weighting the prior.
@@ -36,7 +37,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .config import PrognoserConfig
-from .degradation import growth_rate, regressor, rls_update
+from .degradation import (
+    exponential_law,
+    growth_rate,
+    level_rls_update,
+    log_level_observation,
+    regressor,
+    rls_update,
+)
 from .measurement import MeasurementModel
 from .predictor import RulDistribution, propagate_to_threshold, summarise_rul
 
@@ -271,12 +279,18 @@ class ParticleFilterPrognoser:
         rng = np.random.Generator(np.random.PCG64(rng_seed))
         n = config.n_particles
         severity = rng.uniform(0.0, config.initial_severity_max, n)
+        if config.rate_basis == "exponential":  # the intercept's variance is set by the first z
+            cov = np.diag([1.0, config.rate_prior_std**2])
+            resid_var = 1.0  # the RLS runs on whitened observations
+        else:
+            cov = np.eye(config.n_params) * config.rls_initial_cov
+            resid_var = config.process_noise_std**2
         return PrognoserState(
             severity=severity,
             log_weights=np.full(n, -math.log(n)),
             theta=np.asarray(config.theta0, dtype=float),
-            cov=np.eye(config.n_params) * config.rls_initial_cov,
-            resid_var=config.process_noise_std**2,
+            cov=cov,
+            resid_var=resid_var,
             rng_state=rng.bit_generator.state,
             config_digest=_digest(config, measurement_model),
         )
@@ -294,11 +308,14 @@ class ParticleFilterPrognoser:
         flight_index: int,
         *,
         flight_hours: float | None = None,
+        stress: float | None = None,
     ) -> PrognoserState:
         """Fuse the feature of flight ``flight_index`` and return the new state.
 
         ``flight_index`` must increase strictly between updates; gaps (skipped flights) are
         propagated with dk > 1. ``flight_hours`` is the duration of this flight [h].
+        ``stress`` is the ageing time since the previous update in the degradation law's
+        clock (:mod:`server.phm.season`); default the number of flights, dk.
         """
         self._check(state)
         z = float(feature_value)
@@ -325,10 +342,17 @@ class ParticleFilterPrognoser:
             h = np.maximum(s0 + spread * rng.standard_normal(n), 0.0)
             log_w = np.full(n, -math.log(n))
             estimate = float(h.mean())
+            theta, cov = state.theta, state.cov
+            if cfg.rate_basis == "exponential":
+                y, sigma_y = log_level_observation(s0, s0, spread, cfg.growth_offset)
+                theta = np.array([y, state.theta[1]])
+                cov = np.diag([sigma_y**2, state.cov[1, 1]])
             return replace(
                 state,
                 severity=h,
                 log_weights=log_w,
+                theta=theta,
+                cov=cov,
                 rng_state=rng.bit_generator.state,
                 flight_index=k,
                 last_estimate=estimate,
@@ -340,10 +364,14 @@ class ParticleFilterPrognoser:
             )
 
         dk = float(k - state.flight_index)
+        if stress is not None:
+            if not (math.isfinite(stress) and stress > 0):
+                raise ValueError("stress must be finite and > 0")
+            dk = float(stress)  # from here on, the law's clock
         # 1. propagate
         # the law is bounded where it is used (propagation, prediction), not inside the RLS:
         # rescaling the RLS estimate itself fed back into the regression and let it drift
-        h = state.severity + dk * growth_rate(state.severity, self._bounded(state.theta),
+        h = state.severity + dk * growth_rate(state.severity, self._law(state.theta),
                                               cfg.min_rate)
         h += (cfg.process_noise_std * math.sqrt(dk)) * rng.standard_normal(n)
         np.maximum(h, 0.0, out=h)
@@ -363,11 +391,19 @@ class ParticleFilterPrognoser:
             h = h[idx]
             log_w = np.full(n, -math.log(n))
         # 4. tune the degradation model
-        phi = regressor(state.last_estimate, cfg.n_params)
-        y = (estimate - state.last_estimate) / dk
-        theta, cov, resid_var = rls_update(
-            state.theta, state.cov, state.resid_var, phi, y, cfg.rls_forgetting, cfg.rls_max_trace
-        )
+        if cfg.rate_basis == "exponential":
+            h_obs = float(mm.invert(z))
+            sigma_h = mm.noise_std / max(abs(float(mm.derivative(estimate))), 1e-12)
+            y, sigma_y = log_level_observation(h_obs, estimate, sigma_h, cfg.growth_offset)
+            theta, cov, resid_var = level_rls_update(
+                state.theta, state.cov, state.resid_var, dk, y, sigma_y, cfg.rls_forgetting,
+                cfg.rls_max_trace)
+        else:
+            phi = regressor(state.last_estimate, cfg.n_params)
+            y = (estimate - state.last_estimate) / dk
+            theta, cov, resid_var = rls_update(
+                state.theta, state.cov, state.resid_var, phi, y, cfg.rls_forgetting,
+                cfg.rls_max_trace)
         return PrognoserState(
             severity=h,
             log_weights=log_w,
@@ -396,6 +432,13 @@ class ParticleFilterPrognoser:
         """
         cfg = self.config
         n = cfg.n_particles
+        if cfg.rate_basis == "exponential":
+            # only r matters for the growth; its variance from the whitened RLS, inflated by
+            # the misfit factor s2 when the line fits worse than the measurement noise says
+            var = cfg.param_uncertainty_scale * max(state.resid_var, 1.0) * state.cov[1, 1]
+            rate = state.theta[1] + math.sqrt(max(var, 0.0)) * rng.standard_normal(n)
+            theta = np.column_stack([np.zeros(n), np.maximum(rate, 0.0)])
+            return self._law(theta)
         scale = cfg.param_uncertainty_scale * state.resid_var
         if scale <= 0:
             return np.broadcast_to(state.theta, (n, cfg.n_params))
@@ -413,6 +456,13 @@ class ParticleFilterPrognoser:
             theta[:, 1:] = clipped
         return self._bounded(theta)
 
+    def _law(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Growth-rate coefficients (of :func:`.growth_rate`) of RLS parameters (p,) or (N, p),
+        kept within ``config.rate_bounds``."""
+        if self.config.rate_basis == "exponential":
+            theta = exponential_law(theta, self.config.growth_offset)
+        return self._bounded(theta)
+
     def _bounded(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         """Scale parameter vectors (p,) or (N, p) so that the mid-life rate g(0.5) lies in
         ``config.rate_bounds`` (the shape of the law is kept)."""
@@ -420,7 +470,7 @@ class ParticleFilterPrognoser:
         if bounds is None:
             return theta
         lo, hi = bounds
-        mid = 0.5 ** np.arange(self.config.n_params)
+        mid = 0.5 ** np.arange(theta.shape[-1])
         if theta.ndim == 1:  # the filter's own law, once per update: no array temporaries
             rate = float(theta @ mid)
             if lo <= rate <= hi:
@@ -433,24 +483,43 @@ class ParticleFilterPrognoser:
         rate = theta @ mid
         safe = np.where(rate > 0, rate, lo)
         out = theta * (np.clip(safe, lo, hi) / safe)[:, np.newaxis]
-        out[rate <= 0] = np.eye(1, self.config.n_params)[0] * lo
+        out[rate <= 0] = np.eye(1, theta.shape[-1])[0] * lo
         return out
 
     def predict(self, state: PrognoserState, *, threshold: float = 1.0,
-                at_flight: int | None = None) -> RulDistribution:
+                at_flight: int | None = None,
+                stress_curve: NDArray[np.float64] | None = None) -> RulDistribution:
         """Long-term prediction: RUL distribution from the state (does not modify it).
 
         ``at_flight`` (>= the state's flight) asks for the RUL as seen at a later flight that
         brought no measurement: every particle's trajectory goes on from the last update,
         so its RUL is shortened by the flights since (0 if it would have reached the
         threshold already). Without it the RUL counts from the last update.
+
+        ``stress_curve`` is the law's clock over the coming flights: cumulative stress from
+        the last update's flight to each of the next flights, increasing, starting at 0
+        (:meth:`server.phm.season.StressClock.curve`). The particles are propagated in stress
+        and their crossing times mapped back to flights; a particle that needs more stress
+        than the curve holds is beyond the horizon. Default: one unit per flight.
         """
         self._check(state)
         bit_gen = getattr(np.random, state.rng_state["bit_generator"])()
         bit_gen.state = state.rng_state
         rng = np.random.Generator(bit_gen.jumped())
         theta = self.parameter_samples(state, rng)
-        rul = propagate_to_threshold(state.severity, theta, self.config, rng, threshold=threshold)
+        if stress_curve is None:
+            rul = propagate_to_threshold(state.severity, theta, self.config, rng,
+                                         threshold=threshold)
+        else:
+            curve = np.asarray(stress_curve, dtype=float)
+            if curve.ndim != 1 or curve.size < 2 or curve[0] != 0.0 or \
+                    not np.all(np.diff(curve) > 0) or not np.isfinite(curve[-1]):
+                raise ValueError("stress_curve must start at 0 and increase strictly")
+            need = propagate_to_threshold(state.severity, theta, self.config, rng,
+                                          threshold=threshold, horizon=float(curve[-1]))
+            rul = np.full_like(need, np.inf)
+            ok = np.isfinite(need)
+            rul[ok] = np.interp(need[ok], curve, np.arange(curve.size, dtype=float))
         flight = state.flight_index
         if at_flight is not None and flight is not None:
             elapsed = int(at_flight) - flight

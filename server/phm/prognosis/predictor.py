@@ -165,11 +165,14 @@ def propagate_to_threshold(
     rng: np.random.Generator,
     *,
     threshold: float = 1.0,
+    horizon: float | None = None,
 ) -> NDArray[np.float64]:
     """Time to threshold [flight] of every particle (shape (N,)), +inf beyond the horizon.
 
     ``theta`` has shape (p,) or (N, p) (one parameter vector per particle). Euler steps of
     ``step`` flights with process noise ``q sqrt(step)``; crossing time interpolated linearly.
+    Time is in the law's clock (flights, or stress units: :mod:`server.phm.season`);
+    ``horizon`` defaults to ``config.max_horizon_flights``.
     """
     h = severity.astype(float, copy=True)
     n = h.size
@@ -185,13 +188,13 @@ def propagate_to_threshold(
     h_ref = float(np.mean(h[~failed]))
     theta_ref = theta if theta.ndim == 1 else theta.mean(axis=0)
     rate_ref = float(growth_rate(np.array([h_ref]), theta_ref, config.min_rate)[0])
-    t_expected = min((threshold - h_ref) / rate_ref, float(config.max_horizon_flights))
+    horizon = float(config.max_horizon_flights) if horizon is None else float(horizon)
+    t_expected = min((threshold - h_ref) / rate_ref, horizon)
     step = max(1, int(math.ceil(t_expected / config.prediction_steps)))
     # contiguous parameter columns, one per basis term (shape (N,) or scalars)
     cols = [np.ascontiguousarray(theta[..., j]) for j in range(theta.shape[-1])]
     q = config.process_noise_std
     min_rate = config.min_rate
-    horizon = float(config.max_horizon_flights)
     block = config.prediction_steps
     noise = q * rng.standard_normal((block, n))
     t = 0.0
