@@ -148,9 +148,9 @@ class MeasurementSpec:
     by_surface: dict[str, MeasurementModel] = field(default_factory=dict)
     #: temperature sensitivity of the mode's ageing [1/K] and its reference temperature
     #: [degC]: the filter's clock adds exp(beta (T - T_ref)) per flight (server.phm.season);
-    #: beta = 0 is a flight clock
+    #: beta = 0 is a flight clock; T_ref None is each base's own annual mean
     stress_beta_per_k: float = 0.0
-    stress_ref_c: float = 0.0
+    stress_ref_c: float | None = None
 
     def model_for(self, position: str) -> MeasurementModel:
         return self.by_surface.get(surface_of(position), self.model)
@@ -168,7 +168,8 @@ class MeasurementSpec:
                    None if cfg is None else PrognoserConfig.from_dict(dict(cfg)),
                    {k: MeasurementModel.from_dict(dict(m))
                     for k, m in (d.get("by_surface") or {}).items()},
-                   float(d.get("stress_beta_per_k", 0.0)), float(d.get("stress_ref_c", 0.0)))
+                   float(d.get("stress_beta_per_k", 0.0)),
+                   None if d.get("stress_ref_c") is None else float(d["stress_ref_c"]))
 
 
 def surface_of(position: str) -> str:

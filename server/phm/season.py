@@ -97,12 +97,14 @@ class StressClock:
 
     ``anchor`` is the take-off time of flight ``anchor_index``; other flights are placed
     ``1 / flights_per_day`` days apart around it (the aircraft's own flying rate).
+    ``ref_temp_c`` None: the base's own annual mean temperature (a fault's rate is then stated
+    against its base's average season).
     """
 
     climate: SeasonalClimate
     base: str
     beta_per_k: float
-    ref_temp_c: float
+    ref_temp_c: float | None
     anchor: datetime
     anchor_index: int
     flights_per_day: float
@@ -112,7 +114,9 @@ class StressClock:
         start = day_of_year(self.anchor)
         days = start + (flights - self.anchor_index) / self.flights_per_day
         temp = self.climate.temperature(self.base, np.mod(days, _YEAR_DAYS))
-        return np.exp(self.beta_per_k * (temp - self.ref_temp_c))
+        ref = self.climate.coefficients[self.base][0] if self.ref_temp_c is None \
+            else self.ref_temp_c
+        return np.exp(self.beta_per_k * (temp - ref))
 
     def between(self, first: int, last: int) -> float:
         """Stress accumulated from flight ``first`` to flight ``last`` (last - first flights)."""

@@ -52,6 +52,9 @@ _MIN_SURFACE_FLIGHTS = 12  # design flights needed to fit a surface-specific mea
 #: fault that grows faster or slower than the design prior (selected on the seed-5 design
 #: campaign: 0.004 lagged, 0.02 cost TTS its horizon)
 PROCESS_NOISE_STD = 0.01
+#: the prior standard deviation of r is the design runs' spread times this: six runs per mode
+#: say little about the tails (seed 5: a DMD run 3.7 sd faster than the median)
+RATE_PRIOR_INFLATION = 2.0
 #: forgetting factor per flight of the log-level RLS (memory about 1 / (1 - lambda) flights)
 LEVEL_FORGETTING = 0.995
 #: candidate shapes c of the exponential law (0.01: near-pure exponential; 10: near-linear)
@@ -158,7 +161,7 @@ def _fault_runs(campaign: Campaign, mode: str) -> list[Pattern]:
             and sum(1 for r in p.flights if r.index >= int(p.onset_flight or 0)) >= 4]
 
 
-def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float
+def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | None
                 ) -> tuple[np.ndarray, np.ndarray]:
     """(true normalised severity (n,), stress since the onset (betas, n)) of one run."""
     fl = [r for r in run.flights if r.index >= int(run.onset_flight or 0)]
@@ -178,7 +181,23 @@ def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float
 
 
 def _exponential_prior(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
-                       ref_c: float) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+                       fleet_ref_c: float) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+    """:func:`_fit_exponential_law` with the stress referred to the fleet's mean temperature
+    and to each base's own annual mean; the reference that leaves the smaller spread of rates
+    between design runs (coefficient of variation) is kept: the prior on r is then tighter."""
+    fits = [_fit_exponential_law(campaign, mode, climate, ref) for ref in (fleet_ref_c, None)]
+    fits = [f for f in fits if f[0] is not None]
+    if not fits:
+        return None, {"error": "too few fault-to-failure runs"}
+    best = min(fits, key=lambda f: f[0]["rate_std"] / f[0]["rate"])
+    best[1]["rate_cv_by_reference"] = {
+        "fleet" if f[0]["stress_ref_c"] is not None else "base": f[0]["rate_std"] / f[0]["rate"]
+        for f in fits}
+    return best
+
+
+def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
+                         ref_c: float | None) -> tuple[dict[str, Any] | None, dict[str, Any]]:
     """Shape c, temperature sensitivity beta and rate prior of dh/dtau = r (h + c), tau the
     stress clock (:mod:`server.phm.season`), from the design runs' true severities.
 
@@ -202,11 +221,12 @@ def _exponential_prior(campaign: Campaign, mode: str, climate: SeasonalClimate |
     jb, jc = np.unravel_index(int(np.argmin(misfit)), misfit.shape)
     if misfit[jb, jc] > _STRESS_GAIN * misfit[0].min():  # temperature explains little: flights
         jb, jc = 0, int(np.argmin(misfit[0]))
+        ref_c = None
     beta, c = float(_STRESS_BETAS[jb]), float(_GROWTH_OFFSETS[jc])
     rates = np.array([np.polyfit(stress[jb], np.log(np.maximum(sn, 0.0) + c), 1)[0]
                       for sn, stress in runs])
     r0 = float(max(np.median(rates), 1e-6))
-    r_std = float(max(np.std(rates, ddof=1), 0.1 * r0))
+    r_std = RATE_PRIOR_INFLATION * float(max(np.std(rates, ddof=1), 0.1 * r0))
     mid = rates * (0.5 + c)
     bounds = (max(float(mid.min()) / 1.5, 1e-5), max(float(mid.max()) * 1.5, 2e-5))
     prior = {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
@@ -304,7 +324,7 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
             prior["rls_initial_cov"] = config.rls_initial_cov
         specs[mode] = MeasurementSpec(feature, model, config, by_surface,
                                       float(prior.get("stress_beta_per_k", 0.0)),
-                                      float(prior.get("stress_ref_c", 0.0)))
+                                      prior.get("stress_ref_c"))
         rho = spearmanr(s, v).statistic
         report[mode] = {"feature": feature, "spearman": float(rho),
                         "noise_std": model.noise_std, "n_flights": len(pairs),
