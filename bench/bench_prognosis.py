@@ -7,6 +7,9 @@ them, with the machine they ran on, into docs/BENCHMARKS.md between
 What is timed (synthetic exponential degradation, failure at flight 300, state at mid-life):
 - one filter update (propagate, weight, ESS check / resample, RLS) at 200 particles;
 - one long-term prediction (all particles to the threshold -> RUL distribution);
+- the same at 200 particles for the "exponential" law dh/dtau = r (h + c) on a seasonal stress
+  clock (server.phm.season): one update with its stress, the stress curve of the coming 2000
+  flights, one prediction on that curve (data grown on the same clock, failure at flight 300);
 - the RLS step alone, as a share of one update + prediction cycle (paper: 7.4 ms, RLS 2.25 %);
 - scaling of both to 10 000 particles;
 - progpy's ParticleFilter.estimate and MonteCarlo.predict on the same model and data.
@@ -33,17 +36,33 @@ from server.phm.prognosis import (
     regressor,
     rls_update,
 )
+from server.phm.season import SeasonalClimate, StressClock
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "BENCHMARKS.md"
 START, END = "<!-- bench:prognosis:start -->", "<!-- bench:prognosis:end -->"
 MODEL = MeasurementModel((0.2, 2.0, 0.5), 0.03)
 LIFE, H0, MID = 300, 0.1, 150
+# stress clock: Turin (3 degC in January, 23 in July), life halves per +10 K, reference the
+# base's annual mean, 2 flights a day from 1 January (flights 150-300: March to May)
+CLOCK = StressClock(
+    SeasonalClimate({"Turin": (13.0, -10.0, 0.0)}),
+    "Turin",
+    math.log(2.0) / 10.0,
+    None,
+    dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
+    0,
+    2.0,
+)
+C_EXP = 0.1  # growth offset c of the exponential law
 
 
-def _series(seed: int = 0) -> np.ndarray:
+def _series(seed: int = 0, clock: StressClock | None = None, c: float = 0.0) -> np.ndarray:
+    """Measurements of a severity with ln(h + c) linear in the clock (flights, or the stress
+    of ``clock``), H0 at flight 0 and 1 at flight LIFE."""
     rng = np.random.default_rng(seed)
-    h = H0 * np.exp(np.log(1 / H0) * np.arange(LIFE + 1) / LIFE)
+    tau = np.arange(LIFE + 1) if clock is None else clock.curve(0, LIFE)
+    h = (H0 + c) * np.exp(np.log((1 + c) / (H0 + c)) * tau / tau[-1]) - c
     return MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
 
 
@@ -63,13 +82,36 @@ def _time(fn: Callable[[], object], *, min_time: float = 0.4, min_runs: int = 5)
     return best
 
 
-def _warm(n: int, z: np.ndarray) -> tuple[ParticleFilterPrognoser, object]:
-    # rate bounds on, as the trained chain configures the filter (life 300 -> rate ~1/300)
-    cfg = PrognoserConfig(n_particles=n, rate_bounds=(1.0 / 900.0, 1.0 / 100.0))
+def _stress_config(n: int, clock: StressClock) -> PrognoserConfig:
+    """Exponential law on ``clock``, as training configures a thermal mode: prior r the truth of
+    ``_series(clock=clock, c=C_EXP)``, mid-life rate bounds a factor 3 either side."""
+    r = math.log((1 + C_EXP) / (H0 + C_EXP)) / float(clock.curve(0, LIFE)[-1])
+    mid = r * (0.5 + C_EXP)
+    return PrognoserConfig(
+        n_particles=n,
+        rate_basis="exponential",
+        growth_offset=C_EXP,
+        initial_theta=(0.0, r),
+        rls_forgetting=0.995,
+        rate_bounds=(mid / 3.0, mid * 3.0),
+    )
+
+
+def _warm(
+    n: int, z: np.ndarray, clock: StressClock | None = None
+) -> tuple[ParticleFilterPrognoser, object]:
+    # rate bounds on, as the trained chain configures the filter (life 300 -> rate ~1/300);
+    # with a clock, the exponential law fed the stress since the previous update
+    if clock is None:
+        cfg = PrognoserConfig(n_particles=n, rate_bounds=(1.0 / 900.0, 1.0 / 100.0))
+    else:
+        cfg = _stress_config(n, clock)
     pf = ParticleFilterPrognoser(cfg, MODEL)
     state = pf.initial_state(cfg, MODEL, 1)
     for k in range(MID):
-        state = pf.update(state, z[k], k)
+        prev = state.flight_index  # type: ignore[attr-defined]
+        stress = None if clock is None or prev is None else clock.between(prev, k)
+        state = pf.update(state, z[k], k, stress=stress)
     return pf, state
 
 
@@ -94,6 +136,17 @@ def bench_ours(z: np.ndarray) -> dict[str, object]:
     out["update_200"], out["predict_200"], out["rls_200"] = upd, pred, rls
     dist = pf.predict(state)
     out["median_200"], out["true_rul"] = dist.median, LIFE - (MID - 1)
+    # exponential law on the stress clock, same 200 particles and flights
+    zs = _series(clock=CLOCK, c=C_EXP)
+    pf_s, st_s = _warm(200, zs, clock=CLOCK)
+    last = st_s.flight_index  # type: ignore[attr-defined]
+    out["stress_update_200"] = _time(
+        lambda: pf_s.update(st_s, zs[MID], MID, stress=CLOCK.between(last, MID))
+    )
+    out["stress_curve_2000"] = _time(lambda: CLOCK.curve(last, 2000))
+    curve = CLOCK.curve(last, 2000)
+    out["stress_predict_200"] = _time(lambda: pf_s.predict(st_s, stress_curve=curve))
+    out["stress_median_200"] = pf_s.predict(st_s, stress_curve=curve).median
     scaling = []
     for n in (200, 1000, 10_000):
         pf_n, st_n = _warm(n, z)
@@ -185,7 +238,8 @@ def machine() -> str:
     except OSError:
         pass
     return (
-        f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"{cpu}, {os.cpu_count()} cores (shared with other jobs), "
+        f"Python {platform.python_version()}, "
         f"numpy {np.__version__}, "
         f"{dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}"
     )
@@ -198,6 +252,7 @@ def render(ours: dict[str, object], theirs: dict[str, object]) -> str:
     lines = [
         "## Prognosis: particle filter (`bench/bench_prognosis.py`)",
         "",
+        "Command: `python bench/bench_prognosis.py` (from the repository root).",
         f"Machine: {machine()}.",
         "Synthetic exponential degradation (failure at flight 300), "
         "state at mid-life (flight 149).",
@@ -211,6 +266,22 @@ def render(ours: dict[str, object], theirs: dict[str, object]) -> str:
         "",
         f"Median RUL at flight 149: {float(ours['median_200']):.1f} flights "  # type: ignore[arg-type]
         f"(truth {ours['true_rul']}).",
+        "",
+        f"Exponential law dh/dtau = r (h + c), c = {C_EXP}, on a seasonal stress clock (Turin, "
+        "13 - 10 cos degC over the year; beta = ln 2 / 10 K; reference the annual mean; "
+        "2 flights a day from 1 January), data grown on the same clock, failure at flight 300:",
+        "",
+        "| what (200 particles, stress clock) | ours |",
+        "|---|---|",
+        f"| one filter update, with `StressClock.between` | "
+        f"{float(ours['stress_update_200']) * ms:.3f} ms |",  # type: ignore[arg-type]
+        f"| stress curve of the next 2000 flights (`StressClock.curve`) | "
+        f"{float(ours['stress_curve_2000']) * ms:.3f} ms |",  # type: ignore[arg-type]
+        f"| one long-term prediction on that curve | "
+        f"{float(ours['stress_predict_200']) * ms:.3f} ms |",  # type: ignore[arg-type]
+        "",
+        f"Median RUL at flight 149 on the stress clock: "
+        f"{float(ours['stress_median_200']):.1f} flights (truth {ours['true_rul']}).",  # type: ignore[arg-type]
         "",
         "| particles | update | prediction |",
         "|---|---|---|",

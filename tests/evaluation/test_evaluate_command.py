@@ -54,7 +54,13 @@ def test_hmsm_evaluate_reports_the_papers_section_5(evaluated) -> None:
     assert "CDN" not in text
 
 
-@pytest.mark.parametrize("mode", [pytest.param(m, marks=_UNMET) for m in PAPER_TABLE2])
+#: modes that reach the paper's Table 2 on the quick verification campaign (TTS since the
+#: stress clock: 0.59 / 90.3 % against 0.11 / 64.3 %); the others are expected to fail
+_MET = {"TTS"}
+
+
+@pytest.mark.parametrize("mode", [pytest.param(m, marks=() if m in _MET else _UNMET)
+                                  for m in PAPER_TABLE2])
 def test_prognosis_reaches_the_papers_table_2(evaluated, mode: str) -> None:
     """Issue 6: every mode at least the paper's prognostic horizon (+-20 % cone, normalised
     over life) and relative accuracy."""
