@@ -24,8 +24,8 @@ from server.jobs.queue import ClaimedJob
 from server.jobs.worker import Deferred, JobContext
 from server.models import (
     Actuator,
-    Aircraft,
     ActuatorState,
+    Aircraft,
     Alarm,
     Flight,
     HealthRecord,

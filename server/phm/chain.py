@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from datetime import datetime
 from dataclasses import dataclass, field
+from datetime import datetime
 from typing import Any
 
 import numpy as np
@@ -33,7 +33,6 @@ from .baselines import FleetBaseline
 from .classification import FaultClassifier
 from .detection import DetectionResult, DetectionState, FaultDetector
 from .features import FlightFeatures
-from .season import SeasonalClimate, StressClock, next_flights_per_day
 from .prognosis import (
     MeasurementModel,
     ParticleFilterPrognoser,
@@ -41,6 +40,7 @@ from .prognosis import (
     PrognoserState,
     RulDistribution,
 )
+from .season import SeasonalClimate, StressClock, next_flights_per_day
 
 __all__ = [
     "MODEL_FORMAT",

@@ -55,7 +55,8 @@ PROCESS_NOISE_STD = 0.01
 #: the prior standard deviation of r is the design runs' spread times this: six runs per mode
 #: say little about the tails (seed 5: a DMD run 3.7 sd faster than the median)
 RATE_PRIOR_INFLATION = 2.0
-#: forgetting factor per flight of the log-level RLS (memory about 1 / (1 - lambda) flights)
+#: forgetting factor of the log-level RLS per unit of its clock (a flight, or a flight at the
+#: reference temperature on the stress clock): memory about 1 / (1 - lambda) = 200 such units
 LEVEL_FORGETTING = 0.995
 #: candidate shapes c of the exponential law (0.01: near-pure exponential; 10: near-linear)
 _GROWTH_OFFSETS = np.geomspace(0.01, 10.0, 61)

@@ -55,7 +55,8 @@ def test_model_from_json_analyses_flights_exactly_as_trained(design_campaign_dir
     assert 1 <= state.n_updates <= len(since_alarm) <= len(pattern.flights) - onset
 
 
-@pytest.mark.parametrize("old", ["ema-phm-model/1", "ema-phm-model/2", "ema-phm-model/3", "ema-phm-model/4"])
+@pytest.mark.parametrize("old", ["ema-phm-model/1", "ema-phm-model/2", "ema-phm-model/3",
+                                 "ema-phm-model/4"])
 def test_a_model_of_an_older_chain_format_is_refused(trained_model, old: str) -> None:
     """A /1 model was trained on single-flight fleet residuals, a /2 model on the reversal
     lost motion as F_MTWEAR, a /3 model on the apparent-efficiency F_MTEL: they must be

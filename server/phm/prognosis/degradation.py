@@ -133,8 +133,8 @@ def level_rls_update(
     forgetting: float,
     max_trace: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """One RLS step of the log-level line after ``dk`` flights; forgetting ``lambda ** dk``
-    (memory counted in flights, whatever the spacing of the measurements)."""
+    """One RLS step of the log-level line after ``dk`` units of the clock; forgetting
+    ``lambda ** dk`` (memory counted in the clock, whatever the spacing of the measurements)."""
     shift = np.array([[1.0, dk], [0.0, 1.0]])
     theta = shift @ theta
     cov = shift @ cov @ shift.T
