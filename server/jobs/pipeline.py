@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import math
 import threading
-from datetime import UTC
 from typing import Any
 
 import numpy as np
@@ -142,11 +141,8 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
                                if states[a.id] is not None and states[a.id].detection
                                else model.new_health(a.position)) for a in todo}
         aircraft = session.get(Aircraft, aircraft_id)
-        started_at = flight.started_at
-        if started_at is not None and started_at.tzinfo is None:  # stored naive in UTC
-            started_at = started_at.replace(tzinfo=UTC)
         outcomes = analyze_flight(model, features, health, seed=job.flight_id,
-                                  started_at=started_at,
+                                  started_at=flight.started_at,  # aware (UTCDateTime)
                                   base=None if aircraft is None else aircraft.base)
         for act in todo:
             out = outcomes[act.position]

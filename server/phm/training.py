@@ -113,11 +113,8 @@ def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, floa
     median over runs. (One fit pooled over runs is biased towards b < 0: slow runs contribute
     many small increments at high severity, fast runs few large ones.)"""
     fits, gaps = [], []
-    for p in campaign.patterns:
-        if p.mode != mode:
-            continue
-        fl = [r for r in sorted(p.flights, key=lambda r: r.index)
-              if p.onset_flight is None or r.index >= int(p.onset_flight)]
+    for p in _fault_runs(campaign, mode):
+        fl = _from_onset(p)
         xs, ys = [], []
         for a, b in zip(fl, fl[1:], strict=False):
             if b.index > a.index:
@@ -146,9 +143,9 @@ def fit_climate(campaign: Campaign) -> SeasonalClimate | None:
     bases, days, temps = [], [], []
     for p in campaign.patterns:
         for r in p.flights:
-            cond = next(iter(r.features.conditions.values()), {})
             if p.base is None or r.started_at is None:
                 continue
+            cond = next(iter(r.features.conditions.values()), {})
             bases.append(p.base)
             days.append(day_of_year(r.started_at))
             temps.append(float(cond.get("temp_ground_c", math.nan)))
@@ -156,16 +153,21 @@ def fit_climate(campaign: Campaign) -> SeasonalClimate | None:
     return climate if climate.coefficients else None
 
 
+def _from_onset(p: Pattern) -> list[FlightRecord]:
+    """The flights of a design run from its fault's onset on, in flight order."""
+    return sorted((r for r in p.flights if r.index >= int(p.onset_flight or 0)),
+                  key=lambda r: r.index)
+
+
 def _fault_runs(campaign: Campaign, mode: str) -> list[Pattern]:
     """The design runs of ``mode`` with at least 4 flights from the onset."""
-    return [p for p in campaign.patterns if p.mode == mode
-            and sum(1 for r in p.flights if r.index >= int(p.onset_flight or 0)) >= 4]
+    return [p for p in campaign.patterns if p.mode == mode and len(_from_onset(p)) >= 4]
 
 
 def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | None
                 ) -> tuple[np.ndarray, np.ndarray]:
     """(true normalised severity (n,), stress since the onset (betas, n)) of one run."""
-    fl = [r for r in run.flights if r.index >= int(run.onset_flight or 0)]
+    fl = _from_onset(run)
     k = np.array([r.index for r in fl], dtype=int)
     sn = np.array([r.severity_norm for r in fl], dtype=float)
     stress = np.tile(k - k[0], (_STRESS_BETAS.size, 1)).astype(float)
@@ -182,23 +184,23 @@ def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | No
 
 
 def _exponential_prior(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
-                       fleet_ref_c: float) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+                       fleet_ref_c: float) -> dict[str, Any] | None:
     """:func:`_fit_exponential_law` with the stress referred to the fleet's mean temperature
     and to each base's own annual mean; the reference that leaves the smaller spread of rates
     between design runs (coefficient of variation) is kept: the prior on r is then tighter."""
     fits = [_fit_exponential_law(campaign, mode, climate, ref) for ref in (fleet_ref_c, None)]
-    fits = [f for f in fits if f[0] is not None]
+    fits = [f for f in fits if f is not None]
     if not fits:
-        return None, {"error": "too few fault-to-failure runs"}
-    best = min(fits, key=lambda f: f[0]["rate_std"] / f[0]["rate"])
-    best[1]["rate_cv_by_reference"] = {
-        "fleet" if f[0]["stress_ref_c"] is not None else "base": f[0]["rate_std"] / f[0]["rate"]
+        return None
+    best = min(fits, key=lambda f: f["rate_std"] / f["rate"])
+    best["rate_cv_by_reference"] = {
+        "fleet" if f["stress_ref_c"] is not None else "base": f["rate_std"] / f["rate"]
         for f in fits}
     return best
 
 
 def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
-                         ref_c: float | None) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+                         ref_c: float | None) -> dict[str, Any] | None:
     """Shape c, temperature sensitivity beta and rate prior of dh/dtau = r (h + c), tau the
     stress clock (:mod:`server.phm.season`), from the design runs' true severities.
 
@@ -210,7 +212,7 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     """
     runs = [_run_clocks(p, climate, ref_c) for p in _fault_runs(campaign, mode)]
     if len(runs) < 2:
-        return None, {"error": "too few fault-to-failure runs"}
+        return None
     misfit = np.zeros((_STRESS_BETAS.size, _GROWTH_OFFSETS.size))
     for sn, stress in runs:
         Y = np.log(np.maximum(sn, 0.0)[:, np.newaxis] + _GROWTH_OFFSETS)  # (n, c grid)
@@ -230,12 +232,11 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     r_std = RATE_PRIOR_INFLATION * float(max(np.std(rates, ddof=1), 0.1 * r0))
     mid = rates * (0.5 + c)
     bounds = (max(float(mid.min()) / 1.5, 1e-5), max(float(mid.max()) * 1.5, 2e-5))
-    prior = {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
-             "rate": r0, "rate_std": r_std, "n_runs": len(runs),
-             "mid_rate_bounds": list(bounds),
-             "misfit_flight_clock": float(misfit[0].min() / len(runs)),
-             "misfit": float(misfit[jb, jc] / len(runs))}
-    return prior, dict(prior)
+    return {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
+            "rate": r0, "rate_std": r_std, "n_runs": len(runs),
+            "mid_rate_bounds": list(bounds),
+            "misfit_flight_clock": float(misfit[0].min() / len(runs)),
+            "misfit": float(misfit[jb, jc] / len(runs))}
 
 
 def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float) -> float:
@@ -305,9 +306,10 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         noise_sev = float(model.noise_std / max(abs(float(model.derivative(
             np.array([0.5]))[0])), 1e-12))
         config = base_config
-        law, prior = _exponential_prior(campaign, mode, climate, ref_c)
+        law = _exponential_prior(campaign, mode, climate, ref_c)
         theta = None
         if law is not None and law["stress_beta_per_k"] > 0:
+            prior = law
             # a thermally driven mode: dh/dtau = r (h + c) on the season's stress clock
             config = replace(base_config, rate_basis="exponential",
                              growth_offset=law["growth_offset"],
