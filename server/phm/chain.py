@@ -39,6 +39,7 @@ from .prognosis import (
     PrognoserConfig,
     PrognoserState,
     RulDistribution,
+    growth_onset,
 )
 from .season import SeasonalClimate, StressClock, next_flights_per_day
 
@@ -151,6 +152,10 @@ class MeasurementSpec:
     #: beta = 0 is a flight clock; T_ref None is each base's own annual mean
     stress_beta_per_k: float = 0.0
     stress_ref_c: float | None = None
+    #: replay the filter from the growth's estimated onset (:func:`growth_onset` on the stored
+    #: history) instead of from the alarm: for faults that grow along a straight line (wear),
+    #: whose flights between onset and alarm already carry the rate
+    replay_from_onset: bool = False
 
     def model_for(self, position: str) -> MeasurementModel:
         return self.by_surface.get(surface_of(position), self.model)
@@ -159,7 +164,8 @@ class MeasurementSpec:
         return {"feature": self.feature, "model": self.model.to_dict(),
                 "prognoser": None if self.prognoser is None else self.prognoser.to_dict(),
                 "by_surface": {k: m.to_dict() for k, m in self.by_surface.items()},
-                "stress_beta_per_k": self.stress_beta_per_k, "stress_ref_c": self.stress_ref_c}
+                "stress_beta_per_k": self.stress_beta_per_k, "stress_ref_c": self.stress_ref_c,
+                "replay_from_onset": self.replay_from_onset}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> MeasurementSpec:
@@ -169,7 +175,8 @@ class MeasurementSpec:
                    {k: MeasurementModel.from_dict(dict(m))
                     for k, m in (d.get("by_surface") or {}).items()},
                    float(d.get("stress_beta_per_k", 0.0)),
-                   None if d.get("stress_ref_c") is None else float(d["stress_ref_c"]))
+                   None if d.get("stress_ref_c") is None else float(d["stress_ref_c"]),
+                   bool(d.get("replay_from_onset", False)))
 
 
 def surface_of(position: str) -> str:
@@ -303,6 +310,18 @@ def _replay(model: PhmModel, mode: str, position: str,
     return state
 
 
+def _growth_onset(spec: MeasurementSpec, position: str,
+                  history: list[tuple[int, dict[str, float]]]) -> int:
+    """The flight at which the mode's fault began to grow, from the inverted measurements of
+    the actuator's stored history (:func:`~server.phm.prognosis.onset.growth_onset`)."""
+    points = [(i, z[spec.feature]) for i, z in history
+              if spec.feature in z and math.isfinite(z[spec.feature])]
+    if not points:
+        return history[-1][0] if history else 0
+    severity = spec.model_for(position).invert(np.array([v for _, v in points]))
+    return growth_onset([i for i, _ in points], severity)
+
+
 def _stress_clock(model: PhmModel, spec: MeasurementSpec, h: ActuatorHealth, base: str | None,
                   index: int) -> StressClock | None:
     """The mode's stress clock for this aircraft, anchored at the current flight; None (a
@@ -412,6 +431,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
                     state = None
             if state is None:
                 since = h.alarm_index if h.alarm_index is not None else -1
+                if spec.replay_from_onset:
+                    since = min(since, _growth_onset(spec, position, h.history))
                 state = _replay(model, h.fault_mode, position,
                                 [(i, v) for i, v in h.history if i >= since], seed, clock)
                 rul = None if state is None else _predict(pf, state, index, clock)

@@ -64,3 +64,26 @@ def test_a_model_of_an_older_chain_format_is_refused(trained_model, old: str) ->
     doc = {**trained_model[0], "format": old}
     with pytest.raises(ValueError, match="hmsm train"):
         PhmModel.from_dict(doc)
+
+
+def test_precise_wear_replays_its_filter_from_the_growth_onset(design_campaign_dir,
+                                                               trained_model) -> None:
+    """F_MTWEAR resolves severity to hundredths: its filter is replayed from the estimated
+    onset, so it fuses the flights between onset and alarm too; REWEAR's noisy feature and
+    the thermal modes start at the alarm."""
+    model = PhmModel.from_dict(trained_model[0])
+    flags = {m: s.replay_from_onset for m, s in model.measurement.items()}
+    assert flags == {"TTS": False, "DMD": False, "MTEL": False, "MTWEAR": True,
+                     "REWEAR": False}
+    assert model.measurement["MTWEAR"].prognoser.rate_basis == "exponential"
+    campaign = load_campaign(design_campaign_dir, jobs=2)
+    pattern = next(p for p in campaign.patterns if p.mode == "MTWEAR")
+    health = {pos: model.new_health(pos) for pos in ("WL1", "WL2", "WT")}
+    for r in pattern.flights:
+        out = analyze_flight(model, r.features, health, flight_index=r.index + 1)
+    own = health[pattern.position]
+    assert out[pattern.position].fault_mode == "MTWEAR" and own.prognosis is not None
+    feature = model.measurement["MTWEAR"].feature
+    fused_since_alarm = sum(1 for i, z in own.history if i >= own.alarm_index and feature in z)
+    state = PrognoserState.from_dict(own.prognosis)
+    assert state.n_updates > fused_since_alarm

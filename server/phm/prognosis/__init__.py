@@ -16,6 +16,7 @@ from .filter import (
 )
 from .generic import estimate_noise_std, predict_rul, track_rul
 from .measurement import MeasurementModel
+from .onset import growth_onset
 from .predictor import RulDistribution, propagate_to_threshold, summarise_rul, weighted_quantiles
 
 __all__ = [
@@ -28,6 +29,7 @@ __all__ = [
     "RulDistribution",
     "effective_sample_size",
     "estimate_noise_std",
+    "growth_onset",
     "growth_rate",
     "predict_rul",
     "propagate_to_threshold",
