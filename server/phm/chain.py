@@ -62,11 +62,11 @@ __all__ = [
     "analyze_flight",
 ]
 
+#: /5: thermal modes age on the season's stress clock (the model carries the bases' climate);
 #: /4: features/5 (F_MTEL is the screw's friction ratio from the cruise torque hysteresis, and
 #: grows with its fault); /3: features/4 (F_MTWEAR is the screw gap between flanks); /2 added
-#: self-referenced
-#: detection and classifier input (3-flight means). An older model would be fed inputs it was
-#: not trained on
+#: self-referenced detection and classifier input (3-flight means). An older model would be fed
+#: inputs it was not trained on
 MODEL_FORMAT = "ema-phm-model/5"
 #: formats of older chains: their baselines were fitted on other feature definitions
 #: (/2: F_MTWEAR was the reversal lost motion, features/3; /3: F_MTEL was the ratio of apparent

@@ -312,9 +312,7 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
                     pass
         noise_sev = float(model.noise_std / max(abs(float(model.derivative(
             np.array([0.5]))[0])), 1e-12))
-        config = base_config
         law = _exponential_prior(campaign, mode, climate, ref_c)
-        theta = None
         thermal = law is not None and law["stress_beta_per_k"] > 0
         precise_wear = law is not None and not thermal and noise_sev <= _PRECISE_WEAR_NOISE
         if thermal or precise_wear:
@@ -330,11 +328,12 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         else:
             theta, prior = _degradation_prior(campaign, mode)
             prior["stress"] = law
-        if theta is not None:
-            config = replace(base_config, initial_theta=theta,
-                             rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]),
-                             rate_bounds=tuple(prior["mid_rate_bounds"]))
-            prior["rls_initial_cov"] = config.rls_initial_cov
+            config = base_config
+            if theta is not None:
+                config = replace(base_config, initial_theta=theta,
+                                 rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]),
+                                 rate_bounds=tuple(prior["mid_rate_bounds"]))
+                prior["rls_initial_cov"] = config.rls_initial_cov
         specs[mode] = MeasurementSpec(feature, model, config, by_surface,
                                       float(prior.get("stress_beta_per_k", 0.0)),
                                       prior.get("stress_ref_c"), precise_wear)
@@ -343,8 +342,7 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         report[mode] = {"feature": feature, "spearman": float(rho),
                         "noise_std": model.noise_std, "n_flights": len(pairs),
                         "coefficients": list(model.coefficients),
-                        "noise_in_severity": float(model.noise_std / max(
-                            abs(float(model.derivative(np.array([0.5]))[0])), 1e-12)),
+                        "noise_in_severity": noise_sev,
                         "degradation_prior": prior,
                         "surface_noise_std": {k: m.noise_std for k, m in by_surface.items()}}
     return specs, report
