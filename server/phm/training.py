@@ -73,6 +73,9 @@ _PRECISE_WEAR_NOISE = 0.05
 #: a mode ages on the stress clock only if that at least halves the misfit of the flight clock
 #: (design seed 1: TTS, DMD, MTEL fall by 86-93 %, the wear modes by 1-7 %)
 _STRESS_GAIN = 0.5
+#: noise law of the measurement models: "linear", sigma grows with severity (see
+#: server.phm.prognosis.measurement), or "constant"
+MEASUREMENT_NOISE = "linear"
 
 
 def _faulty_history(model: PhmModel, p: Pattern
@@ -297,7 +300,8 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         s = np.array([a for a, _ in pairs])
         v = np.array([b for _, b in pairs])
         try:
-            model = MeasurementModel.fit(s, v)
+            model = MeasurementModel.fit(s, v, noise=MEASUREMENT_NOISE)
+            spread = MeasurementModel.fit(s, v).noise_std  # the residuals' sd over the life
         except ValueError as exc:  # no monotone relation: no prognosis for this mode
             report[mode] = {"feature": feature, "error": str(exc)}
             continue
@@ -306,11 +310,11 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
             sub = [(sn, v) for sn, v, srf in triples if srf == surface]
             if len(sub) >= _MIN_SURFACE_FLIGHTS:
                 try:
-                    by_surface[surface] = MeasurementModel.fit([a for a, _ in sub],
-                                                               [b for _, b in sub])
+                    by_surface[surface] = MeasurementModel.fit(
+                        [a for a, _ in sub], [b for _, b in sub], noise=MEASUREMENT_NOISE)
                 except ValueError:
                     pass
-        noise_sev = float(model.noise_std / max(abs(float(model.derivative(
+        noise_sev = float(spread / max(abs(float(model.derivative(
             np.array([0.5]))[0])), 1e-12))
         law = _exponential_prior(campaign, mode, climate, ref_c)
         thermal = law is not None and law["stress_beta_per_k"] > 0
@@ -340,7 +344,8 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         prior["replay_from_onset"] = precise_wear
         rho = spearmanr(s, v).statistic
         report[mode] = {"feature": feature, "spearman": float(rho),
-                        "noise_std": model.noise_std, "n_flights": len(pairs),
+                        "noise_std": model.noise_std, "noise_slope": model.noise_slope,
+                        "residual_sd": spread, "n_flights": len(pairs),
                         "coefficients": list(model.coefficients),
                         "noise_in_severity": noise_sev,
                         "degradation_prior": prior,

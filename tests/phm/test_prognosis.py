@@ -256,6 +256,42 @@ def test_measurement_model_fit_and_json() -> None:
     assert np.all(np.diff(dec.predict(np.linspace(0, 1.5, 50))) < 0)
 
 
+def test_measurement_noise_growing_with_severity_is_fitted_and_normalised() -> None:
+    rng = np.random.default_rng(5)
+    s = rng.uniform(0.0, 1.1, 600)
+    scale = 1e-4  # a feature in metres, as F_MTWEAR
+    f = scale * (0.2 * s + (0.004 + 0.02 * s) * rng.standard_normal(s.size))
+    mm = MeasurementModel.fit(s, f, noise="linear")
+    assert mm.noise_std == pytest.approx(0.004 * scale, rel=0.25)
+    assert mm.noise_slope == pytest.approx(0.02 * scale, rel=0.15)
+    np.testing.assert_allclose(mm.noise_at([0.0, 1.0, 9.0]),
+                               mm.noise_std + mm.noise_slope * np.array([0.0, 1.0, 1.5]))
+    assert MeasurementModel.from_json(mm.to_json()) == mm
+    # the log-likelihood is a normalised density in the feature whatever the severity
+    z = np.linspace(-0.5, 1.0, 30001) * scale
+    for sev in (0.1, 0.9):
+        dens = np.exp([float(mm.log_likelihood(v, np.array([sev]))[0]) for v in z])
+        area = float(np.sum(dens) * (z[1] - z[0]))
+        assert area == pytest.approx(np.sqrt(2 * np.pi) * mm.noise_std, rel=1e-3)
+    # homoscedastic data: the slope stays near 0 and sigma near the constant fit's
+    g = 0.2 * s + 0.01 * rng.standard_normal(s.size)
+    const = MeasurementModel.fit(s, g)
+    lin = MeasurementModel.fit(s, g, noise="linear")
+    assert lin.noise_slope < 0.2 * const.noise_std
+    assert lin.noise_at(0.5) == pytest.approx(const.noise_std, rel=0.1)
+    with pytest.raises(ValueError, match="noise"):
+        MeasurementModel.fit(s, g, noise="student")
+
+
+def test_measurement_model_reads_version_1_documents() -> None:
+    old = {"version": 1, "kind": "polynomial_gaussian", "coefficients": [0.0, 0.2],
+           "noise_std": 0.01, "severity_range": [0.0, 1.5]}
+    mm = MeasurementModel.from_dict(old)
+    assert mm.noise_slope == 0.0 and mm.to_dict()["version"] == 2
+    with pytest.raises(ValueError, match="unsupported"):
+        MeasurementModel.from_dict({**old, "version": 3})
+
+
 def test_generic_interface_on_decreasing_indicator() -> None:
     # a capacity-like indicator: 100 -> 70 (threshold) linearly over 150 flights, noise 0.5
     rng = np.random.default_rng(8)

@@ -87,3 +87,14 @@ def test_precise_wear_replays_its_filter_from_the_growth_onset(design_campaign_d
     fused_since_alarm = sum(1 for i, z in own.history if i >= own.alarm_index and feature in z)
     state = PrognoserState.from_dict(own.prognosis)
     assert state.n_updates > fused_since_alarm
+
+
+def test_measurement_noise_grows_with_severity_where_the_design_runs_show_it(
+        trained_model) -> None:
+    """On the design runs the scatter of F_TTS and F_MTWEAR around h(severity) at failure is
+    several times that at the onset; the trained models carry it (sigma(1) / sigma(0))."""
+    model = PhmModel.from_dict(trained_model[0])
+    growth = {m: float(s.model.noise_at(1.0) / s.model.noise_at(0.0))
+              for m, s in model.measurement.items()}
+    assert growth["TTS"] > 2.0 and growth["MTWEAR"] > 2.0, growth
+    assert all(g >= 1.0 for g in growth.values())

@@ -338,7 +338,7 @@ class ParticleFilterPrognoser:
         if state.flight_index is None:
             # first measurement: initialise around the inverted measurement
             s0 = float(mm.invert(z))
-            spread = mm.noise_std / max(abs(float(mm.derivative(s0))), 1e-12)
+            spread = float(mm.noise_at(s0)) / max(abs(float(mm.derivative(s0))), 1e-12)
             h = np.maximum(s0 + spread * rng.standard_normal(n), 0.0)
             log_w = np.full(n, -math.log(n))
             estimate = float(h.mean())
@@ -393,7 +393,7 @@ class ParticleFilterPrognoser:
         # 4. tune the degradation model
         if cfg.rate_basis == "exponential":
             h_obs = float(mm.invert(z))
-            sigma_h = mm.noise_std / max(abs(float(mm.derivative(estimate))), 1e-12)
+            sigma_h = float(mm.noise_at(estimate)) / max(abs(float(mm.derivative(estimate))), 1e-12)
             y, sigma_y = log_level_observation(h_obs, estimate, sigma_h, cfg.growth_offset)
             theta, cov, resid_var = level_rls_update(
                 state.theta, state.cov, state.resid_var, dk, y, sigma_y, cfg.rls_forgetting,

@@ -1,15 +1,20 @@
-"""Measurement model of the prognoser: feature = h(severity) + v, v ~ N(0, noise_std^2).
+"""Measurement model of the prognoser: feature = h(severity) + v, v ~ N(0, sigma(severity)^2).
 
 Conventions
 -----------
 - ``severity`` is normalised (0 healthy, 1.0 = failure threshold), dimensionless.
 - ``feature`` is in the unit of the health feature it models (e.g. ``F_MTWEAR`` in m); the noise
-  standard deviation ``noise_std`` is in the same unit.
+  standard deviation ``sigma(s) = noise_std + noise_slope * s`` is in the same unit.
+- The noise may grow with severity (``noise_slope`` >= 0): on the design campaigns the features'
+  scatter around h at the end of life is 1.3-7 times that at the onset (a grown gap rattles,
+  a unit's gain error scales with its fault). A constant sigma then overrates the first
+  flights' noise, which carry the growth rate, and underrates the last ones'.
 - ``h`` is a polynomial in severity (ascending coefficients ``c_0 + c_1 s + ...``) fitted by least
   squares on a design campaign's (severity, feature) pairs. It must be strictly monotone on its
   ``severity_range`` (otherwise severity is not identifiable from the feature); outside that range
   it is continued linearly with the end slope, so it stays monotone for particles that overshoot.
-- Persisted as versioned JSON (``"version": 1``), never pickled.
+- Persisted as versioned JSON (``"version": 2``; version 1, without ``noise_slope``, is still
+  read), never pickled.
 """
 
 from __future__ import annotations
@@ -21,10 +26,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import minimize
 
 __all__ = ["MeasurementModel"]
 
-_VERSION = 1
+_VERSION = 2
+_READABLE_VERSIONS = (1, 2)
 _GRID = 513
 
 
@@ -37,14 +44,18 @@ class MeasurementModel:
     coefficients:
         Ascending polynomial coefficients of h [feature unit per severity^j].
     noise_std:
-        Standard deviation of the feature around h(severity) [feature unit], > 0.
+        Standard deviation of the feature around h(severity) at severity 0 [feature unit], > 0.
     severity_range:
         (low, high) where the polynomial is used [-]; linear continuation outside.
+    noise_slope:
+        Growth of the standard deviation per unit severity [feature unit], >= 0; severity is
+        clipped to ``severity_range`` there.
     """
 
     coefficients: tuple[float, ...]
     noise_std: float
     severity_range: tuple[float, float] = (0.0, 1.5)
+    noise_slope: float = 0.0
 
     def __post_init__(self) -> None:
         coefs = tuple(float(c) for c in self.coefficients)
@@ -57,6 +68,9 @@ class MeasurementModel:
         if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
             raise ValueError("severity_range must be finite with high > low")
         object.__setattr__(self, "severity_range", (lo, hi))
+        if not (math.isfinite(self.noise_slope) and self.noise_slope >= 0):
+            raise ValueError(f"noise_slope must be finite and >= 0, got {self.noise_slope!r}")
+        object.__setattr__(self, "noise_slope", float(self.noise_slope))
         grid = np.linspace(lo, hi, _GRID)
         slope = self._poly_derivative(grid)
         if not (np.all(slope > 0) or np.all(slope < 0)):
@@ -79,6 +93,7 @@ class MeasurementModel:
         *,
         degree: int = 2,
         severity_range: tuple[float, float] | None = None,
+        noise: str = "constant",
     ) -> MeasurementModel:
         """Least-squares fit of h from (severity, feature) pairs.
 
@@ -92,12 +107,13 @@ class MeasurementModel:
             slope is zero).
         severity_range:
             Range where the polynomial is trusted; default (min(0, s_min), max(1.5, s_max)).
-
-        Returns
-        -------
-        MeasurementModel
-            With ``noise_std`` the residual standard deviation (ddof = number of coefficients).
+        noise:
+            ``"constant"``: ``noise_std`` is the residual standard deviation (ddof = number of
+            coefficients). ``"linear"``: ``noise_std`` and ``noise_slope`` maximise the Gaussian
+            likelihood of the residuals with sigma(s) = noise_std + noise_slope s.
         """
+        if noise not in ("constant", "linear"):
+            raise ValueError(f"noise must be 'constant' or 'linear', got {noise!r}")
         s = np.asarray(severity, dtype=float).ravel()
         z = np.asarray(feature, dtype=float).ravel()
         if s.shape != z.shape:
@@ -121,8 +137,12 @@ class MeasurementModel:
             resid = z - vander @ coefs
             sigma = float(np.sqrt(np.sum(resid**2) / (s.size - n_coef)))
             sigma = max(sigma, 1e-12 * max(1.0, float(np.abs(z).max())))
+            slope = 0.0
+            if noise == "linear":
+                lo_s, hi_s = severity_range
+                sigma, slope = _fit_linear_noise(np.clip(s, lo_s, hi_s), resid, sigma)
             try:
-                return cls(tuple(coefs), sigma, severity_range)
+                return cls(tuple(coefs), sigma, severity_range, slope)
             except ValueError as exc:  # not monotone: try a lower degree
                 last_error = exc
         raise ValueError(
@@ -170,6 +190,11 @@ class MeasurementModel:
             np.where(s < lo, self._lo_slope, self._poly_derivative(np.clip(s, lo, hi))),
         )
 
+    def noise_at(self, severity: ArrayLike) -> NDArray[np.float64]:
+        """Noise standard deviation sigma(severity) [feature unit], vectorised."""
+        s = np.clip(np.asarray(severity, dtype=float), *self.severity_range)
+        return self.noise_std + self.noise_slope * s
+
     def invert(self, feature: ArrayLike) -> NDArray[np.float64]:
         """Severity whose expected feature is ``feature`` (table lookup + linear continuation)."""
         z = np.asarray(feature, dtype=float)
@@ -187,8 +212,12 @@ class MeasurementModel:
 
     def log_likelihood(self, feature: float, severity: NDArray[np.float64]) -> NDArray[np.float64]:
         """log p(feature | severity) up to an additive constant, shape of ``severity``."""
-        r = (feature - self.predict(severity)) / self.noise_std
-        return -0.5 * r * r
+        if self.noise_slope == 0.0:
+            r = (feature - self.predict(severity)) / self.noise_std
+            return -0.5 * r * r
+        sigma = self.noise_at(severity)
+        r = (feature - self.predict(severity)) / sigma
+        return -0.5 * r * r - np.log(sigma / self.noise_std)
 
     # -- persistence ------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -197,6 +226,7 @@ class MeasurementModel:
             "kind": "polynomial_gaussian",
             "coefficients": list(self.coefficients),
             "noise_std": self.noise_std,
+            "noise_slope": self.noise_slope,
             "severity_range": list(self.severity_range),
         }
 
@@ -205,7 +235,8 @@ class MeasurementModel:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> MeasurementModel:
-        if data.get("version") != _VERSION or data.get("kind") != "polynomial_gaussian":
+        if (data.get("version") not in _READABLE_VERSIONS
+                or data.get("kind") != "polynomial_gaussian"):
             raise ValueError(
                 f"unsupported measurement model {data.get('kind')!r} v{data.get('version')!r}"
             )
@@ -213,8 +244,27 @@ class MeasurementModel:
             tuple(data["coefficients"]),
             float(data["noise_std"]),
             (float(data["severity_range"][0]), float(data["severity_range"][1])),
+            float(data.get("noise_slope", 0.0)),
         )
 
     @classmethod
     def from_json(cls, text: str) -> MeasurementModel:
         return cls.from_dict(json.loads(text))
+
+
+def _fit_linear_noise(s: NDArray[np.float64], resid: NDArray[np.float64],
+                      sd: float) -> tuple[float, float]:
+    """Maximum-likelihood (sigma_0, slope) of N(0, (sigma_0 + slope s)^2) residuals, with
+    sigma_0 > 0 and slope >= 0; solved in units of the constant fit's ``sd`` (features span
+    1e-6 m to 1), from the constant fit (sd, 0), which it falls back to."""
+    u2 = (resid / sd) ** 2
+
+    def nll(p: NDArray[np.float64]) -> float:
+        sigma = p[0] + p[1] * s
+        return float(np.sum(np.log(sigma) + 0.5 * u2 / (sigma * sigma)))
+
+    start = np.array([1.0, 0.0])
+    res = minimize(nll, start, method="L-BFGS-B", bounds=[(1e-3, None), (0.0, None)])
+    if not np.all(np.isfinite(res.x)) or nll(res.x) >= nll(start):
+        return sd, 0.0
+    return float(res.x[0]) * sd, float(res.x[1]) * sd
