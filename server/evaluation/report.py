@@ -84,12 +84,19 @@ def _point(flight: Mapping[str, Any], trace: Mapping[str, Any]) -> float | None:
     return float(trace.get("horizon", math.inf)) if rul["q50"] is None else float(rul["q50"])
 
 
+_ROW_PX = 320  # height of one pattern's panel in the RUL pages [px]
+_GAP_PX = 70  # gap between two panels (room for the x-axis title and the next title) [px]
+
+
 def rul_band_figure(traces: Sequence[Mapping[str, Any]], mode: str) -> go.Figure:
     """RUL median and 5-95 % band against true RUL over the life, one row per pattern."""
     rows = [t for t in traces if t["mode"] == mode]
+    height = _ROW_PX * max(len(rows), 1) + 80
+    # a fixed gap in pixels: as a fraction it must stay below 1 / (rows - 1), which a fixed
+    # fraction broke at paper scale (25 patterns per mode)
     fig = make_subplots(rows=max(len(rows), 1), cols=1, shared_xaxes=False,
                         subplot_titles=[f"{t['id']} ({t['aircraft']}/{t['position']})"
-                                        for t in rows], vertical_spacing=0.08)
+                                        for t in rows], vertical_spacing=_GAP_PX / height)
     for r, tr in enumerate(rows, start=1):
         fl = tr["flights"]
         idx = [f["index"] for f in fl]
@@ -128,8 +135,7 @@ def rul_band_figure(traces: Sequence[Mapping[str, Any]], mode: str) -> go.Figure
         fig.update_yaxes(title_text="RUL [flights]", range=[0, 1.8 * top], row=r, col=1)
         fig.update_xaxes(title_text="flight since onset", row=r, col=1)
     fig.update_layout(title=f"{mode}: RUL median and 5-95 % band vs true RUL "
-                      "(red dotted: detection)", height=320 * max(len(rows), 1) + 80,
-                      width=900)
+                      "(red dotted: detection)", height=height, width=900)
     return fig
 
 

@@ -6,7 +6,7 @@ Conventions
 - ``feature`` is in the unit of the health feature it models (e.g. ``F_MTWEAR`` in m); the noise
   standard deviation ``sigma(s) = noise_std + noise_slope * s`` is in the same unit.
 - The noise may grow with severity (``noise_slope`` >= 0): on the design campaigns the features'
-  scatter around h at the end of life is 1.3-7 times that at the onset (a grown gap rattles,
+  scatter around h at failure is 1.4-10 times that at the onset (a grown gap rattles,
   a unit's gain error scales with its fault). A constant sigma then overrates the first
   flights' noise, which carry the growth rate, and underrates the last ones'.
 - ``h`` is a polynomial in severity (ascending coefficients ``c_0 + c_1 s + ...``) fitted by least
@@ -111,6 +111,11 @@ class MeasurementModel:
             ``"constant"``: ``noise_std`` is the residual standard deviation (ddof = number of
             coefficients). ``"linear"``: ``noise_std`` and ``noise_slope`` maximise the Gaussian
             likelihood of the residuals with sigma(s) = noise_std + noise_slope s.
+
+        Returns
+        -------
+        MeasurementModel
+            Of the highest degree that is monotone on ``severity_range``.
         """
         if noise not in ("constant", "linear"):
             raise ValueError(f"noise must be 'constant' or 'linear', got {noise!r}")
