@@ -197,7 +197,8 @@ class MeasurementModel:
 
     def noise_at(self, severity: ArrayLike) -> NDArray[np.float64]:
         """Noise standard deviation sigma(severity) [feature unit], vectorised."""
-        s = np.clip(np.asarray(severity, dtype=float), *self.severity_range)
+        lo, hi = self.severity_range  # minimum/maximum: np.clip's overhead is the update's
+        s = np.minimum(np.maximum(np.asarray(severity, dtype=float), lo), hi)
         return self.noise_std + self.noise_slope * s
 
     def invert(self, feature: ArrayLike) -> NDArray[np.float64]:
