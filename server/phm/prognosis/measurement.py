@@ -6,9 +6,10 @@ Conventions
 - ``feature`` is in the unit of the health feature it models (e.g. ``F_MTWEAR`` in m); the noise
   standard deviation ``sigma(s) = noise_std + noise_slope * s`` is in the same unit.
 - The noise may grow with severity (``noise_slope`` >= 0): on the design campaigns the features'
-  scatter around h at failure is 1.4-10 times that at the onset (a grown gap rattles,
-  a unit's gain error scales with its fault). A constant sigma then overrates the first
-  flights' noise, which carry the growth rate, and underrates the last ones'.
+  scatter around h at failure is 1.4-10 times that at the onset (one cause that fits: a
+  unit's gain error scales with its fault; not traced per mode). A constant sigma then
+  overrates the first flights' noise, which carry the growth rate, and underrates the last
+  ones'.
 - ``h`` is a polynomial in severity (ascending coefficients ``c_0 + c_1 s + ...``) fitted by least
   squares on a design campaign's (severity, feature) pairs. It must be strictly monotone on its
   ``severity_range`` (otherwise severity is not identifiable from the feature); outside that range
