@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from server.flightlog import parse_metadata
+
 from .baselines import FleetBaseline
 from .detection import UNITS, DetectionState, FaultDetector
 from .features import (
@@ -112,12 +114,15 @@ def _features_of(args: tuple[str, float | None, FeatureConfig]) -> dict[str, Any
 
 
 def read_started_at(path: str | os.PathLike[str]) -> datetime | None:
-    """Take-off time from a flight-log Parquet file's metadata (the footer only)."""
+    """Take-off time (UTC) from a flight-log Parquet file's metadata, read from the footer
+    only and validated as the service validates an upload (:func:`parse_metadata`); None for a
+    file without metadata."""
     import pyarrow.parquet as pq
 
     meta = pq.read_schema(path).metadata or {}
-    raw = meta.get(b"started_at")
-    return None if raw is None else datetime.fromisoformat(raw.decode().replace("Z", "+00:00"))
+    if b"started_at" not in meta:
+        return None
+    return parse_metadata({k.decode(): v.decode() for k, v in meta.items()}).started_at
 
 
 def _ff_from_dict(d: Mapping[str, Any]) -> FlightFeatures:

@@ -123,8 +123,7 @@ class StressClock:
         if last <= first:
             return 0.0
         x = np.linspace(float(first), float(last), _GAP_POINTS)
-        r = self._rate(x)
-        return float((last - first) * np.mean(0.5 * (r[1:] + r[:-1])))
+        return float(np.trapezoid(self._rate(x), x))
 
     def curve(self, first: int, n_flights: int) -> NDArray[np.float64]:
         """Cumulative stress from flight ``first`` to each of the next ``n_flights`` flights,

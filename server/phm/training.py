@@ -301,7 +301,6 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         v = np.array([b for _, b in pairs])
         try:
             model = MeasurementModel.fit(s, v, noise=MEASUREMENT_NOISE)
-            spread = MeasurementModel.fit(s, v).noise_std  # the residuals' sd over the life
         except ValueError as exc:  # no monotone relation: no prognosis for this mode
             report[mode] = {"feature": feature, "error": str(exc)}
             continue
@@ -314,6 +313,8 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
                         [a for a, _ in sub], [b for _, b in sub], noise=MEASUREMENT_NOISE)
                 except ValueError:
                     pass
+        resid = v - model.predict(s)  # the residuals' sd over the whole life
+        spread = float(np.sqrt(resid @ resid / (s.size - len(model.coefficients))))
         noise_sev = float(spread / max(abs(float(model.derivative(
             np.array([0.5]))[0])), 1e-12))
         law = _exponential_prior(campaign, mode, climate, ref_c)

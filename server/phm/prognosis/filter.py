@@ -8,7 +8,8 @@ Roles (after progpy): the *degradation model* (:mod:`.degradation`) moves severi
 One update at flight k (dk = k - k_prev flights since the previous update)::
 
     1. propagate   h_i <- max(h_i + dk g(h_i; theta) + q sqrt(dk) w_i, 0)
-    2. weight      log w_i <- log w_i - (z - h(h_i))^2 / (2 sigma_v^2), max subtracted, normalised
+    2. weight      log w_i <- log w_i - (z - h(h_i))^2 / (2 sigma_v(h_i)^2) - log sigma_v(h_i),
+                   max subtracted, normalised (sigma_v grows with severity: .measurement)
     3. resample    systematic, only when ESS = 1 / sum w_i^2 < resample_threshold * N
     4. tune        RLS on y = (h_hat[k] - h_hat[k_prev]) / dk against phi(h_hat[k_prev]), or
                    for the "exponential" law on the log-level ln(h + c) (see .degradation)
