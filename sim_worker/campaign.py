@@ -11,7 +11,8 @@ Fault-to-failure runs start with ``lead_flights`` healthy flights (the actuator'
 the fault, every one rendered), then advance the progression law every flight from the onset;
 only every ``render_every``-th flight after the onset (and the failure flight) is simulated at
 12 kHz and written; the others use the quasi-static :func:`~sim_worker.flight.estimate_summary`
-of the same flight conditions.
+of the same flight conditions, fault-aware (a worn drive's measured load share), so a run's
+expected life does not depend on ``render_every``.
 """
 
 from __future__ import annotations
@@ -251,7 +252,7 @@ def run_pattern(args: tuple[str, str, int, ScaleConfig, PatternSpec, dict[str, A
             else:
                 summ = estimate_summary(aircraft, index, _flight_rng(spec, index, 0),
                                         started_at=flight_start(index, day_offset=spec.day_offset),
-                                        duration_s=cfg.duration_s)
+                                        duration_s=cfg.duration_s, fault=fault)
             if is_fail:
                 failure = index
                 break

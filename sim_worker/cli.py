@@ -2,6 +2,7 @@
 
 ``sim-worker campaign --kind design|verification --out DIR --seed N --scale quick|paper``
 writes a campaign of flight logs and its manifest (see :mod:`sim_worker.campaign`).
+``sim-worker load-share --out FILE`` measures a worn drive's load share (:mod:`.calibration`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,14 @@ def build_parser() -> argparse.ArgumentParser:
     camp.add_argument("--noise-scale", type=float, default=1.0,
                       help="robustness: multiply every sensor's noise by this factor")
     camp.set_defaults(func=_cmd_campaign)
+
+    share = sub.add_parser("load-share", help="measure a worn drive's load share at 12 kHz "
+                           "(regenerates sim_worker/data/load_share.json)")
+    share.add_argument("--out", required=True, help="JSON file to write")
+    share.add_argument("--flights", type=int, default=12, help="paired flights per point")
+    share.add_argument("--duration", type=float, default=60.0, help="seconds per flight")
+    share.add_argument("--workers", type=int, default=None)
+    share.set_defaults(func=_cmd_load_share)
 
     run = sub.add_parser("run", help="fly the simulated fleet against a running HMSM")
     run.add_argument("--api", required=True, help="HMSM base URL, e.g. http://127.0.0.1:8000")
@@ -88,6 +97,23 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     n = sum(len(p["flights"]) for p in manifest["patterns"])
     print(f"{args.kind} campaign: {len(manifest['patterns'])} patterns, {n} flights written to "
           f"{args.out} in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def _cmd_load_share(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from .calibration import measure_load_share
+
+    t0 = time.perf_counter()
+    doc = measure_load_share(n_flights=args.flights, duration_s=args.duration,
+                             workers=args.workers)
+    Path(args.out).write_text(json.dumps(doc, indent=1) + "\n")
+    for mode, curves in doc["ratio"].items():
+        for pos, curve in curves.items():
+            print(f"{mode:7s} {pos:4s} " + " ".join(f"{v:.3f}" for v in curve))
+    print(f"load share written to {args.out} in {time.perf_counter() - t0:.1f} s")
     return 0
 
 

@@ -24,7 +24,9 @@ loading (DMD); grease life halves per +15 K above 70 degC (MTEL); Archard wear v
 force times sliding distance on the screw (MTWEAR) and on the rod end (REWEAR). Every driver is
 multiplied by the flight's block hours over 1.5 h. ``rate`` is drawn per pattern so that the
 expected fault-to-failure span at the base's average conditions is ``U(170, 360)`` flights
-(accelerated ageing, as in the paper); actual spans spread further with season and usage.
+(accelerated ageing, as in the paper); actual spans spread further with season and usage. A worn
+drive of the winglet pair does less and less of the work as its backlash grows (its partner holds
+the tab), so winglet wear decelerates: see :mod:`.load_share`.
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
+
+from .load_share import life_integral
 
 __all__ = [
     "MODES",
@@ -134,9 +138,11 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
               reference: ActuatorSummary | None = None, span_flights: float | None = None,
               severity_norm: float | None = None) -> FaultState:
     """A fault at onset. Progressive modes draw the rate so that, at the ``reference`` flight
-    (the base's average conditions), failure comes after U(170, 360) flights, or after
-    ``span_flights`` when a test-station operator sets it. ``severity_norm`` imposes the
-    severity of an a priori fault (SE) as a fraction of its threshold."""
+    (the base's average conditions, estimated), failure comes after U(170, 360) flights, or after
+    ``span_flights`` when a test-station operator sets it; wear modes integrate the worn drive's
+    falling load share (:mod:`.load_share`) over the life, so the span holds for them too.
+    ``severity_norm`` imposes the severity of an a priori fault (SE) as a fraction of its
+    threshold."""
     if mode not in MODES:
         raise ValueError(f"unknown fault mode {mode!r}")
     thr = THRESHOLDS[mode]
@@ -149,9 +155,8 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
     if reference is None:
         raise ValueError("progressive modes need a reference flight summary to set the rate")
     span = float(rng.uniform(*_SPAN_FLIGHTS)) if span_flights is None else float(span_flights)
-    c = _GROWTH_C[mode]
     d_ref = max(driver(mode, reference, _BLOCK_HOURS_REF), 1e-9)
-    rate = math.log((1.0 + c) / (_ONSET_NORM + c)) / (span * d_ref)
+    rate = life_integral(mode, position, _ONSET_NORM, _GROWTH_C[mode]) / (span * d_ref)
     return FaultState(mode, position, _ONSET_NORM * thr, thr, rate=rate)
 
 

@@ -8,7 +8,7 @@ a fault-to-failure run that are not rendered) sees the same conditions as a simu
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timedelta, timezone
 
 import numpy as np
@@ -19,6 +19,7 @@ from server.flightlog import NOMINAL_SAMPLE_RATE_HZ, FlightLog, FlightMetadata
 from .faults import ActuatorSummary, FaultState, FlightSummary, fault_entries
 from .fleet import POSITIONS, SURFACE_OF, WINGLET, WINGTIP, Aircraft, draw_ground_temperature
 from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
+from .load_share import WORK_FIELD, load_share
 from .params import OUT_HZ, pack_ema, pack_surface
 from .scenario import REFERENCE_DURATION_S, Scenario, Warp, build_scenario, draw_warp
 
@@ -160,12 +161,16 @@ def simulate_flight(
 def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Generator, *,
                      started_at: datetime | None = None,
                      duration_s: float = REFERENCE_DURATION_S,
-                     conditions: FlightConditions | None = None) -> FlightSummary:
+                     conditions: FlightConditions | None = None,
+                     fault: FaultState | None = None) -> FlightSummary:
     """Quasi-static estimate of :class:`FlightSummary` from the scenario alone (no 12 kHz run).
 
     Travel and sliding work from the command, link force from the aerodynamic load, current from
     force x lead / (efficiency x torque constant), winding temperature from the same first-order
-    thermal model driven by ambient and copper losses.
+    thermal model driven by ambient and copper losses. With a wear ``fault``, the faulty drive's
+    sliding work is scaled by its measured load share at the fault's severity
+    (:func:`~sim_worker.load_share.load_share`), so that unrendered flights wear it as rendered
+    ones do; without one, the estimate is the healthy aircraft's.
     """
     cond = conditions or draw_conditions(aircraft, flight_index, rng, started_at=started_at)
     sc = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s)
@@ -191,6 +196,11 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
             work_screw_n_m=float(np.sum((f + _F_DYN_N) * dx)),
             work_rod_end_n_m=float(np.sum((f + _F_DYN_N) * dx)),
             travel_m=float(np.sum(dx)))
+    if fault is not None and fault.position is not None and fault.mode in WORK_FIELD:
+        field = WORK_FIELD[fault.mode]
+        own = acts[fault.position]
+        share = load_share(fault.mode, fault.position, fault.severity_norm)
+        acts[fault.position] = replace(own, **{field: getattr(own, field) * share})
     return FlightSummary(actuators=acts, block_hours=cond.block_hours,
                          ground_temp_c=cond.ground_temp_c,
                          duration_s=float(sc.t[-1]) if sc.t.size else 0.0, measured=False)
