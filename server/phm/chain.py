@@ -156,16 +156,24 @@ class MeasurementSpec:
     #: history) instead of from the alarm: for faults that grow along a straight line (wear),
     #: whose flights between onset and alarm already carry the rate
     replay_from_onset: bool = False
+    #: surface-specific filters where the design runs showed the degradation law differs by
+    #: surface (winglet wear slows down as the partner drive takes the load)
+    prognoser_by_surface: dict[str, PrognoserConfig] = field(default_factory=dict)
 
     def model_for(self, position: str) -> MeasurementModel:
         return self.by_surface.get(surface_of(position), self.model)
+
+    def config_for(self, position: str) -> PrognoserConfig | None:
+        return self.prognoser_by_surface.get(surface_of(position), self.prognoser)
 
     def to_dict(self) -> dict[str, Any]:
         return {"feature": self.feature, "model": self.model.to_dict(),
                 "prognoser": None if self.prognoser is None else self.prognoser.to_dict(),
                 "by_surface": {k: m.to_dict() for k, m in self.by_surface.items()},
                 "stress_beta_per_k": self.stress_beta_per_k, "stress_ref_c": self.stress_ref_c,
-                "replay_from_onset": self.replay_from_onset}
+                "replay_from_onset": self.replay_from_onset,
+                "prognoser_by_surface": {k: c.to_dict()
+                                         for k, c in self.prognoser_by_surface.items()}}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> MeasurementSpec:
@@ -176,7 +184,9 @@ class MeasurementSpec:
                     for k, m in (d.get("by_surface") or {}).items()},
                    float(d.get("stress_beta_per_k", 0.0)),
                    None if d.get("stress_ref_c") is None else float(d["stress_ref_c"]),
-                   bool(d.get("replay_from_onset", False)))
+                   bool(d.get("replay_from_onset", False)),
+                   {k: PrognoserConfig.from_dict(dict(c))
+                    for k, c in (d.get("prognoser_by_surface") or {}).items()})
 
 
 def surface_of(position: str) -> str:
@@ -300,7 +310,7 @@ def _replay(model: PhmModel, mode: str, position: str,
     spec = model.measurement.get(mode)
     if spec is None:
         return None
-    config = spec.prognoser or model.prognoser
+    config = spec.config_for(position) or model.prognoser
     pf = ParticleFilterPrognoser(config, spec.model_for(position))
     state = ParticleFilterPrognoser.initial_state(config, spec.model_for(position), seed)
     for index, z in history:
@@ -413,7 +423,7 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         rul = None
         if det.alarm and h.fault_mode in PROGRESSIVE and h.fault_mode in model.measurement:
             spec = model.measurement[h.fault_mode]
-            pf = ParticleFilterPrognoser(spec.prognoser or model.prognoser,
+            pf = ParticleFilterPrognoser(spec.config_for(position) or model.prognoser,
                                          spec.model_for(position))
             clock = _stress_clock(model, spec, h, base, index)
             state = None

@@ -58,8 +58,9 @@ RATE_PRIOR_INFLATION = 2.0
 #: forgetting factor of the log-level RLS per unit of its clock (a flight, or a flight at the
 #: reference temperature on the stress clock): memory about 1 / (1 - lambda) = 200 such units
 LEVEL_FORGETTING = 0.995
-#: candidate shapes c of the exponential law (0.01: near-pure exponential; 10: near-linear)
-_GROWTH_OFFSETS = np.geomspace(0.01, 10.0, 61)
+#: candidate shapes c of the exponential law (0.01: near-pure exponential; +-10: near-linear;
+#: -1.08 down to -10: growth that slows down, towards -c)
+_GROWTH_OFFSETS = np.concatenate([np.geomspace(0.01, 10.0, 61), -np.geomspace(1.08, 10.0, 31)])
 #: candidate temperature sensitivities of a mode's ageing [1/K] (0: a flight clock; ln 2 / 10 K
 #: = 0.069 is Montsinger's insulation rule, ln 2 / 15 K = 0.046 the SKF grease rule)
 _STRESS_BETAS = np.round(np.arange(0.0, 0.1001, 0.005), 4)
@@ -121,7 +122,10 @@ def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, floa
     the RLS starts from first-trial values and tunes them online), from the true severity
     increments of the design fault-to-failure runs: a least-squares fit *per run*, then the
     median over runs. (One fit pooled over runs is biased towards b < 0: slow runs contribute
-    many small increments at high severity, fast runs few large ones.)"""
+    many small increments at high severity, fast runs few large ones.) The median slope may be
+    negative: winglet rod-end wear slows down as the partner drive takes the load (selected on
+    design seeds 5 and 6, REWEAR PH / RA 0.00 / 36.4 with the slope refitted to 0, 0.02 / 73.1
+    with it kept)."""
     fits, gaps = [], []
     for p in _fault_runs(campaign, mode):
         fl = _from_onset(p)
@@ -138,8 +142,6 @@ def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, floa
     if len(fits) < 2:
         return None, {"error": "too few fault-to-failure runs"}
     a, b = (float(v) for v in np.median(np.asarray(fits), axis=0))
-    if b < 0:  # progressive faults do not slow down as they grow: refit a constant rate
-        a, b = float(np.median([f[0] + 0.5 * f[1] for f in fits])), 0.0
     a = max(a, 1e-5)
     mid = [f[0] + 0.5 * f[1] for f in fits]
     bounds = (max(min(mid) / 1.5, 1e-5), max(mid) * 1.5)
@@ -169,9 +171,11 @@ def _from_onset(p: Pattern) -> list[FlightRecord]:
                   key=lambda r: r.index)
 
 
-def _fault_runs(campaign: Campaign, mode: str) -> list[Pattern]:
-    """The design runs of ``mode`` with at least 4 flights from the onset."""
-    return [p for p in campaign.patterns if p.mode == mode and len(_from_onset(p)) >= 4]
+def _fault_runs(campaign: Campaign, mode: str, surface: str | None = None) -> list[Pattern]:
+    """The design runs of ``mode`` (on ``surface``, "WL" or "WT", if given) with at least 4
+    flights from the onset."""
+    return [p for p in campaign.patterns if p.mode == mode and len(_from_onset(p)) >= 4
+            and (surface is None or surface_of(str(p.position)) == surface)]
 
 
 def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | None
@@ -194,23 +198,25 @@ def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | No
 
 
 def _exponential_prior(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
-                       fleet_ref_c: float) -> dict[str, Any] | None:
+                       fleet_ref_c: float, surface: str | None = None) -> dict[str, Any] | None:
     """:func:`_fit_exponential_law` with the stress referred to the fleet's mean temperature
     and to each base's own annual mean; the reference that leaves the smaller spread of rates
     between design runs (coefficient of variation) is kept: the prior on r is then tighter."""
-    fits = [_fit_exponential_law(campaign, mode, climate, ref) for ref in (fleet_ref_c, None)]
+    fits = [_fit_exponential_law(campaign, mode, climate, ref, surface)
+            for ref in (fleet_ref_c, None)]
     fits = [f for f in fits if f is not None]
     if not fits:
         return None
-    best = min(fits, key=lambda f: f["rate_std"] / f["rate"])
+    best = min(fits, key=lambda f: f["rate_std"] / abs(f["rate"]))
     best["rate_cv_by_reference"] = {
-        "fleet" if f["stress_ref_c"] is not None else "base": f["rate_std"] / f["rate"]
+        "fleet" if f["stress_ref_c"] is not None else "base": f["rate_std"] / abs(f["rate"])
         for f in fits}
     return best
 
 
 def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
-                         ref_c: float | None) -> dict[str, Any] | None:
+                         ref_c: float | None, surface: str | None = None
+                         ) -> dict[str, Any] | None:
     """Shape c, temperature sensitivity beta and rate prior of dh/dtau = r (h + c), tau the
     stress clock (:mod:`server.phm.season`), from the design runs' true severities.
 
@@ -220,12 +226,15 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     standard deviation; the rate bounds are the slowest and fastest run's mid-life rate
     r (0.5 + c) with a 50 % margin.
     """
-    runs = [_run_clocks(p, climate, ref_c) for p in _fault_runs(campaign, mode)]
+    runs = [_run_clocks(p, climate, ref_c) for p in _fault_runs(campaign, mode, surface)]
     if len(runs) < 2:
         return None
     misfit = np.zeros((_STRESS_BETAS.size, _GROWTH_OFFSETS.size))
     for sn, stress in runs:
-        Y = np.log(np.maximum(sn, 0.0)[:, np.newaxis] + _GROWTH_OFFSETS)  # (n, c grid)
+        U = np.maximum(sn, 0.0)[:, np.newaxis] + _GROWTH_OFFSETS  # (n, c grid)
+        # a saturating shape must stay below its asymptote over the whole run
+        misfit[:, (_GROWTH_OFFSETS < 0) & (U.max(axis=0) > -0.02)] = np.inf
+        Y = np.log(np.maximum(np.abs(U), 0.02))
         Yc = Y - Y.mean(axis=0)
         for j, tau in enumerate(stress):
             X = np.column_stack([np.ones_like(tau), tau])
@@ -236,10 +245,11 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
         jb, jc = 0, int(np.argmin(misfit[0]))
         ref_c = None
     beta, c = float(_STRESS_BETAS[jb]), float(_GROWTH_OFFSETS[jc])
-    rates = np.array([np.polyfit(stress[jb], np.log(np.maximum(sn, 0.0) + c), 1)[0]
+    rates = np.array([np.polyfit(stress[jb], np.log(np.abs(np.maximum(sn, 0.0) + c)), 1)[0]
                       for sn, stress in runs])
-    r0 = float(max(np.median(rates), 1e-6))
-    r_std = RATE_PRIOR_INFLATION * float(max(np.std(rates, ddof=1), 0.1 * r0))
+    sign = 1.0 if c > 0 else -1.0  # r < 0 for a saturating shape: dh/dk = r (h + c) > 0
+    r0 = sign * float(max(sign * np.median(rates), 1e-6))
+    r_std = RATE_PRIOR_INFLATION * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
     mid = rates * (0.5 + c)
     bounds = (max(float(mid.min()) / 1.5, 1e-5), max(float(mid.max()) * 1.5, 2e-5))
     return {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
@@ -247,6 +257,14 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
             "mid_rate_bounds": list(bounds),
             "misfit_flight_clock": float(misfit[0].min() / len(runs)),
             "misfit": float(misfit[jb, jc] / len(runs))}
+
+
+def _level_config(base: PrognoserConfig, law: dict[str, Any]) -> PrognoserConfig:
+    """The filter of a mode whose rate is tuned on the log-level of ``law`` (its shape c, rate
+    prior and mid-life rate bounds, from :func:`_fit_exponential_law`)."""
+    return replace(base, rate_basis="exponential", growth_offset=law["growth_offset"],
+                   initial_theta=(0.0, law["rate"]), initial_rate_std=law["rate_std"],
+                   rls_forgetting=LEVEL_FORGETTING, rate_bounds=tuple(law["mid_rate_bounds"]))
 
 
 def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float) -> float:
@@ -320,28 +338,39 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         law = _exponential_prior(campaign, mode, climate, ref_c)
         thermal = law is not None and law["stress_beta_per_k"] > 0
         precise_wear = law is not None and not thermal and noise_sev <= _PRECISE_WEAR_NOISE
+        surface_configs: dict[str, PrognoserConfig] = {}
         if thermal or precise_wear:
             prior = law
             # dh/dtau = r (h + c), r tuned on the log-level: a thermally driven mode on the
             # season's stress clock, a precisely measured wear mode on flights (near-linear c)
-            config = replace(base_config, rate_basis="exponential",
-                             growth_offset=law["growth_offset"],
-                             initial_theta=(0.0, law["rate"]),
-                             initial_rate_std=law["rate_std"],
-                             rls_forgetting=LEVEL_FORGETTING,
-                             rate_bounds=tuple(law["mid_rate_bounds"]))
+            config = _level_config(base_config, law)
+            if precise_wear:
+                # a worn winglet drive hands its load to its partner and its wear slows down;
+                # the lone wingtip drive's does not: one shape per surface where runs allow
+                # (design seeds 5 and 6, MTWEAR PH / RA: one pooled shape 0.07 / 71.3, one per
+                # surface 0.23 / 85.0)
+                for surface in ("WL", "WT"):
+                    own = _exponential_prior(campaign, mode, climate, ref_c, surface)
+                    if own is not None and own["stress_beta_per_k"] == 0.0:
+                        surface_configs[surface] = _level_config(base_config, own)
+                        prior.setdefault("by_surface", {})[surface] = {
+                            k: own[k] for k in ("growth_offset", "rate", "rate_std", "n_runs",
+                                                "mid_rate_bounds")}
         else:
             theta, prior = _degradation_prior(campaign, mode)
             prior["stress"] = law
             config = base_config
             if theta is not None:
-                config = replace(base_config, initial_theta=theta,
+                # a growth that slows down (b < 0: a worn winglet drive hands its load to its
+                # partner) keeps its negative slope in the prediction's parameter draws
+                config = replace(base_config, initial_theta=theta, monotone_rate=theta[1] >= 0,
                                  rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]),
                                  rate_bounds=tuple(prior["mid_rate_bounds"]))
                 prior["rls_initial_cov"] = config.rls_initial_cov
         specs[mode] = MeasurementSpec(feature, model, config, by_surface,
                                       float(prior.get("stress_beta_per_k", 0.0)),
-                                      prior.get("stress_ref_c"), precise_wear)
+                                      prior.get("stress_ref_c"), precise_wear,
+                                      prognoser_by_surface=surface_configs)
         prior["replay_from_onset"] = precise_wear
         rho = spearmanr(s, v).statistic
         report[mode] = {"feature": feature, "spearman": float(rho),

@@ -213,6 +213,8 @@ def test_config_validation() -> None:
         {"max_horizon_flights": 0},
         {"rate_bounds": (0.01, 0.001)},
         {"rate_bounds": (0.0, 0.01)},
+        {"growth_offset": 0.0},
+        {"growth_offset": -0.8},  # would stop growing before the threshold
     ]
     for kwargs in bad:
         with pytest.raises(ValueError):
@@ -307,3 +309,27 @@ def test_generic_interface_on_decreasing_indicator() -> None:
     assert len(dists) == 2 and state.flight_index == 119
     with pytest.raises(ValueError):
         predict_rul(x, threshold=100.0, baseline=100.0)
+
+
+def test_saturating_law_tracks_growth_that_slows_down() -> None:
+    """dh/dk = r (h + c) with c < -1, r < 0: wear whose rate falls as it grows (a worn
+    winglet drive handing its load to its partner). The level RLS finds r from a wrong first
+    trial and the RUL of the last half of life comes within the alpha = 0.2 cone."""
+    big_c, h0, life = 1.5, 0.05, 220
+    mu = np.log((big_c - h0) / (big_c - 1.0)) / life
+    k = np.arange(life + 1, dtype=float)
+    h = big_c - (big_c - h0) * np.exp(-mu * k)
+    rng = np.random.default_rng(7)
+    z = MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
+    cfg = PrognoserConfig(rate_basis="exponential", growth_offset=-big_c,
+                          initial_theta=(0.0, -0.6 * mu), initial_rate_std=0.5 * mu,
+                          rls_forgetting=0.995)
+    pf = ParticleFilterPrognoser(cfg, MODEL)
+    state = pf.initial_state(cfg, MODEL, 3)
+    rel_err = []
+    for i in range(life):
+        state = pf.update(state, z[i], i)
+        if life // 2 <= i < life - 10 and i % 5 == 0:
+            rel_err.append((pf.predict(state).median - (life - i)) / (life - i))
+    assert state.theta[1] == pytest.approx(-mu, rel=0.25)
+    assert np.mean(np.abs(rel_err) <= 0.2) >= 0.7, rel_err

@@ -98,3 +98,23 @@ def test_measurement_noise_grows_with_severity_where_the_design_runs_show_it(
               for m, s in model.measurement.items()}
     assert growth["TTS"] > 2.0 and growth["MTWEAR"] > 2.0, growth
     assert all(g >= 1.0 for g in growth.values())
+
+
+def test_winglet_wear_is_learned_to_slow_down(trained_model) -> None:
+    """The design runs' winglet wear slows down as the partner drive takes the load (the
+    simulator's measured load share); training must carry that into the filters: MTWEAR gets
+    one law per surface, the winglet's growing more slowly near failure than the wingtip's,
+    and REWEAR (all on the winglet) a negative slope that the prediction keeps."""
+    model = PhmModel.from_dict(trained_model[0])
+    mtwear = model.measurement["MTWEAR"]
+    assert set(mtwear.prognoser_by_surface) == {"WL", "WT"}
+
+    def late_over_early(c: float) -> float:  # dh/dk at h = 1 over dh/dk at onset
+        return (1.0 + c) / (0.05 + c)
+
+    wl = mtwear.config_for("WL1").growth_offset
+    wt = mtwear.config_for("WT").growth_offset
+    assert late_over_early(wl) < 1.0 < late_over_early(wt), (wl, wt)
+    rewear = model.measurement["REWEAR"].config_for("WL2")
+    assert rewear.rate_basis == "affine" and rewear.initial_theta[1] < 0
+    assert rewear.monotone_rate is False

@@ -48,7 +48,9 @@ class PrognoserConfig:
         (see :mod:`.degradation`).
     growth_offset:
         Shape c of the ``"exponential"`` law [-] (severity at which growth would stop, negated):
-        large c is near-linear wear, small c near-pure exponential growth. Unused by the others.
+        large c is near-linear wear, small c near-pure exponential growth; c < -1 is growth
+        that slows down towards -c > 1 (r < 0; a worn drive that hands its load to its
+        partner). Unused by the others.
     initial_rate_std:
         Prior standard deviation of r [1/flight] for the ``"exponential"`` law; ``None`` ->
         35 % of the first-trial r (the spread of fault-to-failure spans between patterns).
@@ -149,7 +151,10 @@ class PrognoserConfig:
                 raise ValueError("initial_theta must be finite")
             object.__setattr__(self, "initial_theta", theta)
         _positive("initial_rate", self.initial_rate)
-        _positive("growth_offset", self.growth_offset)
+        c = float(self.growth_offset)
+        if not (math.isfinite(c) and (c > 0.0 or c < -1.0)):
+            raise ValueError("growth_offset must be > 0 (growth) or < -1 (saturating growth that "
+                             f"still reaches the threshold 1), got {self.growth_offset}")
         if self.initial_rate_std is not None:
             _positive("initial_rate_std", self.initial_rate_std)
         if not (0.0 < self.rls_forgetting <= 1.0):

@@ -16,8 +16,10 @@ covariance of theta (used to draw one parameter vector per particle in the long-
 The ``"exponential"`` law dh/dk = r (h + c), with the shape c fixed per fault mode (learned on the
 design runs), is the simulator's and the physics' form: Arrhenius insulation damage and magnet
 loss grow in proportion to the damage done (small c), Archard wear at a steady load grows
-linearly (large c). Its rate r is tuned by RLS on the severity *level* instead of its
-increments: ln(h + c) = a + r k is a straight line in the flight index, so r is the slope of a
+linearly (large c). With c < -1 and r < 0 the same law is growth that slows down towards -c:
+Archard wear of a drive whose share of the load falls as it wears. Its rate r is tuned by RLS
+on the severity *level* instead of its
+increments: ln|h + c| = a + r k is a straight line in the flight index, so r is the slope of a
 weighted linear regression of the log-level on k. Increments of the filtered severity are a
 noisy, lagged derivative and leave r to the prior for much of a life; the level uses every
 measurement since the alarm with its own independent noise. The intercept is kept at the latest
@@ -45,6 +47,10 @@ __all__ = [
     "regressor",
     "rls_update",
 ]
+
+
+#: smallest |h + c| of the log-level observation of a saturating law [-]
+_MIN_GAP = 0.02
 
 
 def regressor(h: NDArray[np.float64] | float, n_params: int) -> NDArray[np.float64]:
@@ -116,11 +122,14 @@ def exponential_law(theta: NDArray[np.float64], offset: float) -> NDArray[np.flo
 
 def log_level_observation(h_obs: float, h_ref: float, sigma_h: float, offset: float
                           ) -> tuple[float, float]:
-    """(y, sigma_y): ln(h + c) observed through a severity measurement h_obs with standard
+    """(y, sigma_y): ln|h + c| observed through a severity measurement h_obs with standard
     deviation sigma_h, linearised about the estimate h_ref (h_ref floored at 0, so a negative
-    measurement near a healthy state stays finite)."""
+    measurement near a healthy state stays finite). For a saturating law (c < -1), |h_ref + c|
+    is kept at least ``_MIN_GAP`` so that an estimate past the asymptote stays finite."""
     base = max(h_ref, 0.0) + offset
-    return math.log(base) + (h_obs - h_ref) / base, sigma_h / base
+    if offset < 0.0:
+        base = min(base, -_MIN_GAP)
+    return math.log(abs(base)) + (h_obs - h_ref) / base, sigma_h / abs(base)
 
 
 def level_rls_update(

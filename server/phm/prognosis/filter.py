@@ -438,7 +438,9 @@ class ParticleFilterPrognoser:
             # the misfit factor s2 when the line fits worse than the measurement noise says
             var = cfg.param_uncertainty_scale * max(state.resid_var, 1.0) * state.cov[1, 1]
             rate = state.theta[1] + math.sqrt(max(var, 0.0)) * rng.standard_normal(n)
-            theta = np.column_stack([np.zeros(n), np.maximum(rate, 0.0)])
+            # r has the sign of c (h + c keeps its sign below the threshold): growth only
+            rate = np.maximum(rate, 0.0) if cfg.growth_offset > 0 else np.minimum(rate, 0.0)
+            theta = np.column_stack([np.zeros(n), rate])
             return self._law(theta)
         scale = cfg.param_uncertainty_scale * state.resid_var
         if scale <= 0:
