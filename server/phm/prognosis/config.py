@@ -86,9 +86,10 @@ class PrognoserConfig:
     monotone_rate:
         If True, the per-particle parameter draws of the long-term prediction keep the
         severity-dependent terms >= 0 (theta_j >= 0 for j >= 1): the growth rate does not fall as
-        severity grows, as for every progressive fault mode here (Arrhenius insulation damage,
-        Archard wear, grease aging). Without it, draws with a negative slope stall below the
-        threshold and put mass "beyond the horizon".
+        severity grows (Arrhenius insulation damage, grease aging, Archard wear at a steady
+        load). Without it, draws with a negative slope stall below the threshold and put mass
+        "beyond the horizon"; training turns it off only for a mode whose design runs slow
+        down (winglet rod-end wear: the partner drive takes the load).
     param_uncertainty_scale:
         Multiplier of the RLS parameter covariance used to draw one parameter vector per particle
         in the long-term prediction [-]; 0 disables parameter uncertainty.
