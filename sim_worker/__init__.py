@@ -19,15 +19,18 @@ Public API (what the service's sim worker calls)::
   ``"Turin" | "Vancouver" | "Abu Dhabi"``.
 * ``healthy() -> FaultState``; ``new_fault(mode, position, rng, *, reference=None) -> FaultState``
   with mode in ``MODES`` (``TTS DMD SE BDO MTEL MTWEAR REWEAR``); progressive modes need a
-  ``reference`` :class:`ActuatorSummary` (e.g. ``estimate_summary(...).actuators[position]``) to
+  ``reference`` :class:`ActuatorSummary` (e.g. ``reference_summary(aircraft, position, ...)``) to
   calibrate their random rate; ``FaultState(mode, position, severity, threshold, rate)`` can also
   be built directly (e.g. an operator injecting a given severity).
 * ``simulate_flight(aircraft, fault, flight_index, rng, *, flight_id=None, started_at=None,
   duration_s=120.0) -> (FlightLog, FlightSummary)``. All draws come from ``rng`` (seed it per
   aircraft and flight); the same seed gives the same bytes.
 * ``advance_fault(fault, summary, rng) -> FaultState``: one flight of progression.
-* ``estimate_summary(aircraft, flight_index, rng, ...) -> FlightSummary``: what a flight would do,
-  without the 12 kHz run (for flights that are not rendered).
+* ``estimate_summary(aircraft, flight_index, rng, ..., fault=None) -> FlightSummary``: what a
+  flight would do, without the 12 kHz run (for flights that are not rendered; with a wear
+  ``fault``, the worn drive's work scaled by its load share, :mod:`sim_worker.load_share`).
+* ``reference_summary(aircraft, position, *, duration_s, seed) -> ActuatorSummary``: the
+  aircraft's average flight (24 estimates over a year), against which a fault's rate is set.
 * ``run_campaign(kind, out_dir, *, seed, scale, workers=None)``: see :mod:`sim_worker.campaign`.
 
 Ground truth (severity, threshold, failure flight) lives in :class:`FaultState` and in campaign
@@ -46,7 +49,7 @@ from .faults import (
     new_fault,
 )
 from .fleet import BASES, POSITIONS, Aircraft, build_aircraft
-from .flight import estimate_summary, simulate_flight
+from .flight import estimate_summary, reference_summary, simulate_flight
 
 __all__ = [
     "MODES",
@@ -63,5 +66,6 @@ __all__ = [
     "advance_fault",
     "simulate_flight",
     "estimate_summary",
+    "reference_summary",
     "run_campaign",
 ]

@@ -33,7 +33,6 @@ from .faults import (
     A_PRIORI,
     MODES,
     PROGRESSIVE,
-    ActuatorSummary,
     FaultState,
     advance_fault,
     healthy,
@@ -43,6 +42,7 @@ from .fleet import BASES, Aircraft, build_aircraft
 from .flight import (
     estimate_summary,
     flight_start,
+    reference_summary,
     simulate_flight,
 )
 
@@ -168,18 +168,6 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
     return specs
 
 
-def _reference_summary(aircraft: Aircraft, position: str, duration_s: float, seed: int
-                       ) -> ActuatorSummary:
-    """Average of estimated summaries over random flights of the aircraft at its base (the
-    expected conditions against which a pattern's progression rate is calibrated)."""
-    n = 24
-    sums = [estimate_summary(aircraft, i, np.random.default_rng([seed, 99, i]),
-                             started_at=flight_start(i * 30), duration_s=duration_s
-                             ).actuators[position] for i in range(n)]
-    return ActuatorSummary(**{k: float(np.mean([getattr(s, k) for s in sums]))
-                              for k in asdict(sums[0])})
-
-
 def _flight_rng(spec: PatternSpec, index: int, stream: int) -> np.random.Generator:
     return np.random.default_rng([spec.seed, index, stream])
 
@@ -236,7 +224,8 @@ def run_pattern(args: tuple[str, str, int, ScaleConfig, PatternSpec, dict[str, A
             flights.append(_flight_entry(fid, rel, index, f, summ, None))
     else:
         assert spec.position is not None
-        ref = _reference_summary(aircraft, spec.position, cfg.duration_s, spec.seed)
+        ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s,
+                                seed=spec.seed)
         fault = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]),
                           reference=ref)
         threshold = fault.threshold

@@ -32,6 +32,7 @@ __all__ = [
     "simulate_flight",
     "estimate_summary",
     "flight_start",
+    "reference_summary",
 ]
 
 EPOCH = datetime(2024, 1, 1, 6, 0, tzinfo=timezone.utc)
@@ -204,3 +205,17 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
     return FlightSummary(actuators=acts, block_hours=cond.block_hours,
                          ground_temp_c=cond.ground_temp_c,
                          duration_s=float(sc.t[-1]) if sc.t.size else 0.0, measured=False)
+
+
+def reference_summary(aircraft: Aircraft, position: str, *, duration_s: float,
+                      seed: int | tuple[int, ...]) -> ActuatorSummary:
+    """Average of 24 estimated flights of the aircraft at its base, spread over a year: the
+    expected conditions against which a progressive fault's rate is calibrated (so that its
+    span holds on average, not only on one drawn flight)."""
+    key = (seed,) if isinstance(seed, int) else tuple(seed)
+    n = 24
+    sums = [estimate_summary(aircraft, i, np.random.default_rng([*key, 99, i]),
+                             started_at=flight_start(i * 30), duration_s=duration_s
+                             ).actuators[position] for i in range(n)]
+    return ActuatorSummary(**{k: float(np.mean([getattr(s, k) for s in sums]))
+                              for k in ActuatorSummary.__dataclass_fields__})

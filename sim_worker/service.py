@@ -33,7 +33,7 @@ from server.flightlog import write_parquet
 
 from .faults import FaultState, advance_fault, healthy, new_fault
 from .fleet import Aircraft, build_aircraft
-from .flight import estimate_summary, flight_start, simulate_flight
+from .flight import flight_start, reference_summary, simulate_flight
 
 __all__ = ["Api", "ApiError", "SimFleetRunner", "fleet_plan"]
 
@@ -197,8 +197,11 @@ class SimFleetRunner:
     def _fault_for(self, run: AircraftRun, injection: dict[str, Any]) -> FaultState:
         """The injection's fault at onset; the same on every restart (seeded by its id)."""
         rng = np.random.default_rng([self.seed, 11, run.index, int(injection["id"])])
-        reference = estimate_summary(run.aircraft, 0, np.random.default_rng(
-            [self.seed, 12, run.index])).actuators[injection["position"]]
+        # the aircraft's average flight at this runner's recording length, as campaigns do:
+        # one drawn flight could be a short, calm one and make the fault fail far too soon
+        reference = reference_summary(run.aircraft, injection["position"],
+                                      duration_s=self.duration_s,
+                                      seed=(self.seed, 12, run.index))
         return new_fault(injection["fault_mode"], injection["position"], rng,
                          reference=reference, span_flights=injection["time_to_failure_flights"],
                          severity_norm=injection.get("severity"))

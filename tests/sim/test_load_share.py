@@ -58,3 +58,29 @@ def test_life_integral_without_load_share_is_the_closed_form():
     # the winglet's falling share makes the same span need a faster wear rate
     assert life_integral("REWEAR", "WL1", onset, 0.8) > 3 * life_integral("REWEAR", "WT", onset,
                                                                           0.8)
+
+
+@pytest.mark.parametrize(("mode", "position"), [("REWEAR", "WL1"), ("MTWEAR", "WL2"),
+                                                ("MTWEAR", "WT")])
+def test_an_operators_span_holds_on_average(mode, position):
+    """What the test station does: the rate is set against the aircraft's average flight
+    (:func:`reference_summary`), then flights advance the fault. Over eight runs the mean
+    span is the operator's 60 flights within the process noise's scatter."""
+    from sim_worker import advance_fault, new_fault, reference_summary
+    from sim_worker.flight import flight_start
+
+    ac = build_aircraft("I-SPAN01", "Vancouver", seed=21)
+    ref = reference_summary(ac, position, duration_s=30.0, seed=4)
+    spans = []
+    for run in range(8):
+        fault = new_fault(mode, position, np.random.default_rng([run, 1]), reference=ref,
+                          span_flights=60)
+        n = 0
+        while not fault.failed and n < 400:
+            index = 1000 * run + n
+            summ = estimate_summary(ac, index, np.random.default_rng([run, n]), fault=fault,
+                                    started_at=flight_start(index), duration_s=30.0)
+            fault = advance_fault(fault, summ, np.random.default_rng([run, n, 2]))
+            n += 1
+        spans.append(n)
+    assert 45 <= np.mean(spans) <= 80, spans
