@@ -333,3 +333,16 @@ def test_saturating_law_tracks_growth_that_slows_down() -> None:
             rel_err.append((pf.predict(state).median - (life - i)) / (life - i))
     assert state.theta[1] == pytest.approx(-mu, rel=0.25)
     assert np.mean(np.abs(rel_err) <= 0.2) >= 0.7, rel_err
+
+
+@pytest.mark.parametrize("model", [MODEL, MeasurementModel((1.0, -0.8, -0.3), 0.05, (0.0, 1.5),
+                                                           noise_slope=0.02)])
+def test_scalar_measurement_helpers_match_the_array_ones(model: MeasurementModel) -> None:
+    """The filter's per-update floats (invert_one, severity_noise) equal the vectorised
+    methods, inside the fitted range and on its linear continuations."""
+    s = np.array([-0.3, 0.0, 0.2, 0.77, 1.5, 2.1])
+    z = model.predict(s)
+    for si, zi in zip(s, z, strict=True):
+        assert model.invert_one(float(zi)) == pytest.approx(float(model.invert(zi)), abs=1e-12)
+        want = float(model.noise_at(si)) / abs(float(model.derivative(si)))
+        assert model.severity_noise(float(si)) == pytest.approx(want, rel=1e-12)

@@ -31,6 +31,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import threading
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -237,9 +238,19 @@ def _decode_ints(obj: Any) -> Any:
     return obj
 
 
+_BIT_GENERATORS = threading.local()
+
+
 def _generator(rng_state: dict[str, Any]) -> np.random.Generator:
-    bit_gen_cls = getattr(np.random, rng_state["bit_generator"])
-    bit_gen = bit_gen_cls()
+    """A generator at ``rng_state``. Its bit generator is reused per thread (a new one seeds
+    itself from the OS, 10 us, the update's largest fixed cost), so the generator is valid
+    until the next call in the same thread; ``update`` uses it and stores its state before
+    returning."""
+    name = rng_state["bit_generator"]
+    bit_gen = getattr(_BIT_GENERATORS, name, None)
+    if bit_gen is None:
+        bit_gen = getattr(np.random, name)(0)
+        setattr(_BIT_GENERATORS, name, bit_gen)
     bit_gen.state = rng_state
     return np.random.Generator(bit_gen)
 
@@ -338,8 +349,8 @@ class ParticleFilterPrognoser:
 
         if state.flight_index is None:
             # first measurement: initialise around the inverted measurement
-            s0 = float(mm.invert(z))
-            spread = float(mm.noise_at(s0)) / max(abs(float(mm.derivative(s0))), 1e-12)
+            s0 = mm.invert_one(z)
+            spread = mm.severity_noise(s0)
             h = np.maximum(s0 + spread * rng.standard_normal(n), 0.0)
             log_w = np.full(n, -math.log(n))
             estimate = float(h.mean())
@@ -393,8 +404,8 @@ class ParticleFilterPrognoser:
             log_w = np.full(n, -math.log(n))
         # 4. tune the degradation model
         if cfg.rate_basis == "exponential":
-            h_obs = float(mm.invert(z))
-            sigma_h = float(mm.noise_at(estimate)) / max(abs(float(mm.derivative(estimate))), 1e-12)
+            h_obs = mm.invert_one(z)
+            sigma_h = mm.severity_noise(estimate)
             y, sigma_y = log_level_observation(h_obs, estimate, sigma_h, cfg.growth_offset)
             theta, cov, resid_var = level_rls_update(
                 state.theta, state.cov, state.resid_var, dk, y, sigma_y, cfg.rls_forgetting,

@@ -217,6 +217,39 @@ class MeasurementModel:
         s = np.where(z > hi_z, hi_s + (z - hi_z) / slope_hi, s)
         return s
 
+    # scalar versions for the filter's once-per-update values: plain floats, no array overhead
+    def invert_one(self, feature: float) -> float:
+        """:meth:`invert` of one feature value."""
+        z = float(feature)
+        gs, gz = self._grid_s, self._grid_z
+        increasing = self._increasing
+        lo_z, hi_z = (gz[0], gz[-1]) if increasing else (gz[-1], gz[0])
+        if z < lo_z:
+            return float(gs[0] if increasing else gs[-1]) + (z - lo_z) / (
+                self._lo_slope if increasing else self._hi_slope)
+        if z > hi_z:
+            return float(gs[-1] if increasing else gs[0]) + (z - hi_z) / (
+                self._hi_slope if increasing else self._lo_slope)
+        if not increasing:
+            gs, gz = gs[::-1], gz[::-1]
+        return float(np.interp(z, gz, gs))
+
+    def severity_noise(self, severity: float) -> float:
+        """Measurement noise in severity units at one severity, sigma(s) / |dh/ds| (>= 0)."""
+        s = float(severity)
+        lo, hi = self.severity_range
+        if s > hi:
+            slope = self._hi_slope
+        elif s < lo:
+            slope = self._lo_slope
+        else:
+            c = self.coefficients
+            slope = 0.0
+            for j in range(len(c) - 1, 0, -1):
+                slope = slope * s + j * c[j]
+        sigma = self.noise_std + self.noise_slope * min(max(s, lo), hi)
+        return sigma / max(abs(slope), 1e-12)
+
     def log_likelihood(self, feature: float, severity: NDArray[np.float64]) -> NDArray[np.float64]:
         """log p(feature | severity) up to an additive constant, shape of ``severity``."""
         if self.noise_slope == 0.0:
