@@ -124,8 +124,8 @@ def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, floa
     median over runs. (One fit pooled over runs is biased towards b < 0: slow runs contribute
     many small increments at high severity, fast runs few large ones.) The median slope may be
     negative: winglet rod-end wear slows down as the partner drive takes the load (selected on
-    design seeds 5 and 6, REWEAR PH / RA 0.00 / 36.4 with the slope refitted to 0, 0.02 / 73.1
-    with it kept)."""
+    design seeds 5 and 6, REWEAR PH / RA 0.00 / 37.8 with a constant rate, 0.02 / 72.4 with the
+    slope kept)."""
     fits, gaps = [], []
     for p in _fault_runs(campaign, mode):
         fl = _from_onset(p)
@@ -347,8 +347,8 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
             if precise_wear:
                 # a worn winglet drive hands its load to its partner and its wear slows down;
                 # the lone wingtip drive's does not: one shape per surface where runs allow
-                # (design seeds 5 and 6, MTWEAR PH / RA: one pooled shape 0.07 / 71.3, one per
-                # surface 0.23 / 85.0)
+                # (design seeds 5 and 6, MTWEAR PH / RA: one pooled shape 0.28 / 72.7, one per
+                # surface 0.36 / 83.7)
                 for surface in ("WL", "WT"):
                     own = _exponential_prior(campaign, mode, climate, ref_c, surface)
                     if own is not None and own["stress_beta_per_k"] == 0.0:
