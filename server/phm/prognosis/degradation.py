@@ -18,15 +18,15 @@ design runs), is the simulator's and the physics' form: Arrhenius insulation dam
 loss grow in proportion to the damage done (small c), Archard wear at a steady load grows
 linearly (large c). With c < -1 and r < 0 the same law is growth that slows down towards -c:
 Archard wear of a drive whose share of the load falls as it wears. Its rate r is tuned by RLS
-on the severity *level* instead of its
-increments: ln|h + c| = a + r k is a straight line in the flight index, so r is the slope of a
-weighted linear regression of the log-level on k. Increments of the filtered severity are a
+on the severity *level* instead of its increments: ln|h + c| = a + r k is a straight line in
+the flight index, so r is the slope of a weighted linear regression of the log-level on k.
+Increments of the filtered severity are a
 noisy, lagged derivative and leave r to the prior for much of a life; the level uses every
 measurement since the alarm with its own independent noise. The intercept is kept at the latest
 flight (a change of coordinates, exact for RLS): before each update ``a <- a + r dk`` and
 ``P <- F P F'`` with F = [[1, dk], [0, 1]], then the regressor is [1, 0]. The observation is
 the measurement inverted to severity, linearised about the filtered estimate h_f:
-y = ln(h_f + c) + (h_obs - h_f) / (h_f + c), with standard deviation sigma_h / (h_f + c); the
+y = ln|h_f + c| + (h_obs - h_f) / (h_f + c), with standard deviation sigma_h / |h_f + c|; the
 RLS runs on y / sigma_y, so P is the parameter covariance itself and s2 the misfit factor.
 
 All functions are pure and work on small numpy arrays; nothing here is random.
