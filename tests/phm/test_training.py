@@ -9,7 +9,7 @@ import pytest
 
 from server.phm.chain import PhmModel, analyze_flight
 from server.phm.evaluate_detection import load_campaign
-from server.phm.prognosis import PrognoserState
+from server.phm.prognosis import PrognoserConfig, PrognoserState
 from server.phm.training import train_phm_model
 
 pytestmark = pytest.mark.slow
@@ -118,3 +118,5 @@ def test_winglet_wear_is_learned_to_slow_down(trained_model) -> None:
     rewear = model.measurement["REWEAR"].config_for("WL2")
     assert rewear.rate_basis == "affine" and rewear.initial_theta[1] < 0
     assert rewear.monotone_rate is False
+    # its growth is floored at the slowest design run's rate near failure, not at 1e-5
+    assert rewear.min_rate > 10 * PrognoserConfig().min_rate
