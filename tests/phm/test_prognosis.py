@@ -346,3 +346,46 @@ def test_scalar_measurement_helpers_match_the_array_ones(model: MeasurementModel
         assert model.invert_one(float(zi)) == pytest.approx(float(model.invert(zi)), abs=1e-12)
         want = float(model.noise_at(si)) / abs(float(model.derivative(si)))
         assert model.severity_noise(float(si)) == pytest.approx(want, rel=1e-12)
+
+
+def _numpy_propagation(h, theta, min_rate, step, block, noise_blocks, horizon):
+    """The prediction loop as it was before it was compiled, for the comparison below."""
+    h = h.copy()
+    rul = np.full(h.size, np.inf)
+    cap, t, i, b = 5.0, 0.0, 0, 0
+    noise = noise_blocks[0]
+    while t < horizon:
+        if i == block:
+            i, b, step = 0, b + 1, step * 2
+            noise = noise_blocks[b]
+        dt = min(float(step), horizon - t)
+        rate = np.maximum(theta[:, 0] + theta[:, 1] * h, min_rate)
+        new = h + rate * dt + np.sqrt(dt) * noise[i]
+        crossed = (new >= 1.0) & (h < 1.0)
+        rul[crossed] = t + dt * (1.0 - h[crossed]) / (new[crossed] - h[crossed])
+        new[crossed] = cap
+        if np.isfinite(rul).all():
+            break
+        h = np.clip(new, 0.0, cap)
+        t += dt
+        i += 1
+    return rul
+
+
+def test_compiled_prediction_loop_matches_the_numpy_one() -> None:
+    from server.phm.prognosis.predictor import propagate_to_threshold
+
+    cfg = PrognoserConfig(prediction_steps=20, max_horizon_flights=400)
+    rng = np.random.default_rng(11)
+    h = rng.uniform(0.2, 0.6, 200)
+    theta = np.column_stack([rng.uniform(0.0, 0.006, 200), rng.uniform(-0.004, 0.004, 200)])
+    got = propagate_to_threshold(h, theta, cfg, np.random.default_rng(5))
+    # the same draws: one block of (prediction_steps, N) normals per block of steps
+    draws = np.random.default_rng(5)
+    blocks = [cfg.process_noise_std * draws.standard_normal((20, 200)) for _ in range(10)]
+    h_ref = float(h.mean())
+    rate_ref = max(float(theta[:, 0].mean() + theta[:, 1].mean() * h_ref), cfg.min_rate)
+    step = max(1, int(np.ceil(min((1.0 - h_ref) / rate_ref, 400.0) / 20)))
+    want = _numpy_propagation(h, theta, cfg.min_rate, step, 20, blocks, 400.0)
+    assert np.isinf(got).any() and np.isfinite(got).any()  # both outcomes exercised
+    np.testing.assert_allclose(got, want, rtol=1e-12)
