@@ -61,5 +61,7 @@ def life_integral(mode: str, position: str, onset_norm: float, growth_c: float) 
     of the estimated reference flight) reaches ``s = 1`` after this integral / (rate d) flights.
     """
     s = np.linspace(onset_norm, 1.0, 401)
-    g = np.array([load_share(mode, position, v) for v in s])
+    doc = table()
+    curve = doc["ratio"].get(mode, {}).get(position)
+    g = np.ones_like(s) if curve is None else np.interp(s, doc["severity_norm"], curve)
     return float(np.trapezoid(1.0 / (g * (s + growth_c)), s))

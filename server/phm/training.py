@@ -42,6 +42,7 @@ from .classification import train_classifier
 from .detection import DetectionResult
 from .evaluate_detection import Campaign, FlightRecord, Pattern, fit_detection, load_campaign
 from .prognosis import MeasurementModel, PrognoserConfig
+from .prognosis.degradation import MIN_LEVEL_GAP
 from .season import SeasonalClimate, StressClock, day_of_year
 
 __all__ = ["training_rows", "fit_measurement_models", "train_phm_model"]
@@ -238,8 +239,8 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     for sn, stress in runs:
         U = np.maximum(sn, 0.0)[:, np.newaxis] + _GROWTH_OFFSETS  # (n, c grid)
         # a saturating shape must stay below its asymptote over the whole run
-        misfit[:, (_GROWTH_OFFSETS < 0) & (U.max(axis=0) > -0.02)] = np.inf
-        Y = np.log(np.maximum(np.abs(U), 0.02))
+        misfit[:, (_GROWTH_OFFSETS < 0) & (U.max(axis=0) > -MIN_LEVEL_GAP)] = np.inf
+        Y = np.log(np.maximum(np.abs(U), MIN_LEVEL_GAP))
         Yc = Y - Y.mean(axis=0)
         for j, tau in enumerate(stress):
             X = np.column_stack([np.ones_like(tau), tau])
@@ -373,9 +374,8 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
                 # growth short of the threshold ran to the 2000-flight horizon (design seeds
                 # 5 and 6: prediction 2.6 -> 1.9 ms, PH / RA 0.015 / 72.4 -> 0.025 / 72.0)
                 floor = prior.get("late_rate_floor") if theta[1] < 0 else None
-                if floor is not None:
-                    base_config = replace(base_config, min_rate=floor)
                 config = replace(base_config, initial_theta=theta, monotone_rate=theta[1] >= 0,
+                                 min_rate=base_config.min_rate if floor is None else floor,
                                  rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]),
                                  rate_bounds=tuple(prior["mid_rate_bounds"]))
                 prior["rls_initial_cov"] = config.rls_initial_cov

@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "MIN_LEVEL_GAP",
     "exponential_law",
     "growth_rate",
     "level_rls_update",
@@ -50,7 +51,7 @@ __all__ = [
 
 
 #: smallest |h + c| of the log-level observation of a saturating law [-]
-_MIN_GAP = 0.02
+MIN_LEVEL_GAP = 0.02
 
 
 def regressor(h: NDArray[np.float64] | float, n_params: int) -> NDArray[np.float64]:
@@ -125,10 +126,10 @@ def log_level_observation(h_obs: float, h_ref: float, sigma_h: float, offset: fl
     """(y, sigma_y): ln|h + c| observed through a severity measurement h_obs with standard
     deviation sigma_h, linearised about the estimate h_ref (h_ref floored at 0, so a negative
     measurement near a healthy state stays finite). For a saturating law (c < -1), |h_ref + c|
-    is kept at least ``_MIN_GAP`` so that an estimate past the asymptote stays finite."""
+    is kept at least ``MIN_LEVEL_GAP`` so that an estimate past the asymptote stays finite."""
     base = max(h_ref, 0.0) + offset
     if offset < 0.0:
-        base = min(base, -_MIN_GAP)
+        base = min(base, -MIN_LEVEL_GAP)
     return math.log(abs(base)) + (h_obs - h_ref) / base, sigma_h / abs(base)
 
 
