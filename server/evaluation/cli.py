@@ -59,6 +59,9 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
     parser.add_argument("--no-latest", action="store_true",
                         help="do not update <HMSM_DATA_DIR>/evaluation/latest.json")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--point-estimate", choices=("median", "mode"), default="median",
+                        help="RUL point estimate the prognostic metrics score: the median "
+                             "(default) or the most probable RUL, the paper's")
     return parser
 
 
@@ -178,7 +181,8 @@ def run_evaluate(args: argparse.Namespace, settings: Settings) -> int:
     t0 = time.perf_counter()
     try:
         result = evaluate_campaign(model, campaign, jobs=max(int(args.jobs), 1),
-                                   progress=progress, timing_flights=args.timing_flights)
+                                   progress=progress, timing_flights=args.timing_flights,
+                                   point_estimate=args.point_estimate)
     finally:
         if bar is not None:
             bar.close()

@@ -66,6 +66,10 @@ __all__ = [
 ALPHA = 0.2
 LAMBDA = 0.5
 N_PREDICTIONS = 10
+#: point estimate scored by the metrics: "median" (RUL q50) or "mode" (the most probable RUL,
+#: the paper's)
+POINT_ESTIMATE = "median"
+_POINT_KEYS = {"median": "q50", "mode": "mode"}
 #: the paper's Table 2: nondimensional prognostic horizon [-], mean relative accuracy [%]
 PAPER_TABLE2: dict[str, tuple[float, float]] = {
     "TTS": (0.11, 64.3), "DMD": (0.55, 75.3), "MTEL": (0.15, 78.2), "MTWEAR": (0.82, 81.2),
@@ -101,6 +105,7 @@ def _rul_dict(rul: Any) -> dict[str, float | None] | None:
     return {"q05": fin(q.get(0.05, math.nan)), "q25": fin(q.get(0.25, math.nan)),
             "q50": fin(rul.median), "q75": fin(q.get(0.75, math.nan)),
             "q95": fin(q.get(0.95, math.nan)), "mean": fin(rul.mean),
+            "mode": fin(rul.most_probable),
             "p_beyond_horizon": float(rul.p_beyond_horizon),
             "severity_mean": float(rul.severity_mean)}
 
@@ -275,13 +280,19 @@ def select_prediction_flights(candidates: Sequence[int], instants: np.ndarray) -
 
 
 def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: float = LAMBDA,
-                      n: int = N_PREDICTIONS) -> dict[str, Any]:
+                      n: int = N_PREDICTIONS, point_estimate: str = POINT_ESTIMATE
+                      ) -> dict[str, Any]:
     """Prognostic metrics of one progressive pattern from its trace.
 
     A selected flight without a RUL distribution (the actuator classified as a mode without
     prognosis) counts as a prediction outside the cone and has no relative accuracy. A median
     beyond the prediction horizon counts as the horizon (``max_horizon_flights``).
+    ``point_estimate`` is the RUL scored: "median" or "mode" (the most probable RUL).
     """
+    if point_estimate not in _POINT_KEYS:
+        raise ValueError(f"point_estimate must be one of {sorted(_POINT_KEYS)}, "
+                         f"got {point_estimate!r}")
+    key = _POINT_KEYS[point_estimate]
     onset = _onset(trace)
     t_eol = float(trace["failure"])
     life = t_eol - onset
@@ -291,7 +302,8 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
                            "detected_index": det, "predictions": [], "ph": 0.0,
                            "ph_flights": 0.0, "ph_from_detection": 0.0, "ph_band": 0.0,
                            "ra": None,
-                           "alpha_lambda": False, "cra": None, "convergence": None}
+                           "alpha_lambda": False, "cra": None, "convergence": None,
+                           "point_estimate": point_estimate}
     if det is None:
         return out
     by_index = {int(f["index"]): f for f in trace["flights"]}
@@ -306,37 +318,37 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
         rul = by_index[i]["rul"]
         if not rul:
             return math.nan
-        return horizon if rul["q50"] is None else float(rul["q50"])
+        return horizon if rul.get(key) is None else float(rul[key])
 
-    med = np.array([point(int(i)) for i in chosen], dtype=float)
+    est = np.array([point(int(i)) for i in chosen], dtype=float)
     times = chosen.astype(float)
     true = t_eol - times
-    ph = metrics.prognostic_horizon(times, med, t_eol, alpha=alpha, bounds="relative", stay=True)
+    ph = metrics.prognostic_horizon(times, est, t_eol, alpha=alpha, bounds="relative", stay=True)
     out["ph_flights"] = ph
     out["ph"] = ph / life
     # Saxena's constant-width bounds, +-alpha x life around the true RUL (time from onset)
-    out["ph_band"] = metrics.prognostic_horizon(times - onset, med, life, alpha=alpha,
+    out["ph_band"] = metrics.prognostic_horizon(times - onset, est, life, alpha=alpha,
                                                 bounds="eol", stay=True) / life
     out["ph_from_detection"] = ph / (t_eol - det)
-    out["alpha_lambda"] = metrics.alpha_lambda(times, med, t_eol, alpha=alpha, lam=lam,
+    out["alpha_lambda"] = metrics.alpha_lambda(times, est, t_eol, alpha=alpha, lam=lam,
                                                t_p=float(det))
-    ok = np.isfinite(med)
+    ok = np.isfinite(est)
     if ok.any():
-        out["ra"] = metrics.mean_relative_accuracy(med[ok], true[ok])
+        out["ra"] = metrics.mean_relative_accuracy(est[ok], true[ok])
         out["cra"] = metrics.cumulative_relative_accuracy(
-            med[ok], true[ok], weights=np.arange(1, int(ok.sum()) + 1, dtype=float))
+            est[ok], true[ok], weights=np.arange(1, int(ok.sum()) + 1, dtype=float))
     if ok.sum() >= 2:
-        err = np.abs(med[ok] - true[ok]) / true[ok]
+        err = np.abs(est[ok] - true[ok]) / true[ok]
         out["convergence"] = metrics.convergence((times[ok] - onset) / life, err,
                                                  t_p=(det - onset) / life)
     out["predictions"] = [
-        {"flight": int(i), "true_rul": float(t), "median": None if not math.isfinite(m) else m,
+        {"flight": int(i), "true_rul": float(t), "point": None if not math.isfinite(m) else m,
          "q05": (by_index[int(i)]["rul"] or {}).get("q05"),
          "q95": (by_index[int(i)]["rul"] or {}).get("q95"),
          "mode_used": by_index[int(i)]["fault_mode"],
          "in_cone": bool(metrics.alpha_bounds_hit(m, t, alpha=alpha)) if math.isfinite(m)
          else False}
-        for i, t, m in zip(chosen, true, med, strict=True)]
+        for i, t, m in zip(chosen, true, est, strict=True)]
     out["instants"] = inst.tolist()
     return out
 
@@ -347,12 +359,14 @@ def _mean(values: Sequence[float | None]) -> float | None:
 
 
 def summarise_prognosis(traces: Sequence[Mapping[str, Any]], *, alpha: float = ALPHA,
-                        lam: float = LAMBDA) -> dict[str, Any]:
+                        lam: float = LAMBDA, point_estimate: str = POINT_ESTIMATE
+                        ) -> dict[str, Any]:
     """Per progressive mode: per-pattern metrics and their averages (PH of an undetected
     pattern counts as 0; RA is averaged over the patterns that have predictions)."""
     out: dict[str, Any] = {}
     for mode in PROGRESSIVE:
-        pats = [pattern_prognosis(t, alpha=alpha, lam=lam) for t in traces
+        pats = [pattern_prognosis(t, alpha=alpha, lam=lam, point_estimate=point_estimate)
+                for t in traces
                 if t["mode"] == mode and t["failure"] is not None]
         if not pats:
             continue
@@ -428,11 +442,13 @@ def evaluate_patterns(model: PhmModel, patterns: Sequence[Pattern], *, jobs: int
 
 def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, jobs: int = 1,
                       progress: Progress | None = None, timing_flights: int = 6,
-                      campaign: Campaign | None = None) -> dict[str, Any]:
+                      campaign: Campaign | None = None,
+                      point_estimate: str = POINT_ESTIMATE) -> dict[str, Any]:
     """Run the chain over every pattern of a campaign and score it (JSON-safe dict).
 
     ``timing_flights`` flights are re-read and their features recomputed (serially) to time
-    feature extraction; 0 skips that measurement.
+    feature extraction; 0 skips that measurement. ``point_estimate``: the RUL the prognostic
+    metrics score, "median" or "mode".
     """
     root = Path(campaign_dir)
     camp = campaign or load_campaign(root, jobs=max(jobs, 1))
@@ -453,12 +469,12 @@ def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, 
                      "aircraft": [{"tail": a.get("tail"), "base": a.get("base"),
                                    "climate": a.get("climate")} for a in camp.aircraft]},
         "settings": {"alpha": ALPHA, "lambda": LAMBDA, "n_predictions": N_PREDICTIONS,
-                     "point_estimate": "median", "ph_normalisation": "failure - onset",
+                     "point_estimate": point_estimate, "ph_normalisation": "failure - onset",
                      "cra_weights": "1..n (growing toward end of life)",
                      "convergence_axis": "(t - onset) / life", "jobs": jobs},
         "detection": summarise_detection(traces),
         "classification": classification_summary(traces, classes),
-        "prognosis": summarise_prognosis(traces),
+        "prognosis": summarise_prognosis(traces, point_estimate=point_estimate),
         "timing": _timing_summary(chain_timing, feat, model),
         "patterns": traces,
     }

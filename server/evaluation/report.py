@@ -66,7 +66,7 @@ def trajectories_figure(result: Mapping[str, Any]) -> go.Figure:
             pr = p["predictions"]
             fig.add_trace(go.Scatter(
                 x=[(q["flight"] - onset) / life for q in pr],
-                y=[None if q["median"] is None else q["median"] / life for q in pr],
+                y=[None if q["point"] is None else q["point"] / life for q in pr],
                 mode="markers", marker={"color": colour, "size": 6}, legendgroup=p["id"],
                 name=f"{p['id']} predictions", showlegend=False), row=1, col=c)
     fig.update_xaxes(title_text="(t - onset) / life [-]", range=[0, 1])

@@ -24,9 +24,10 @@ from server.evaluation.core import (
 def _flight(index: int, *, t_eol: float | None, alarm: bool, probs: dict[str, float] | None,
             q50: float | None = None, new: bool = False, mode: str | None = None
             ) -> dict[str, Any]:
+    # the most probable RUL of these right-skewed test distributions: 0.85 x the median
     rul = None if q50 is None else {"q05": 0.5 * q50, "q25": None, "q50": q50, "q75": None,
-                                     "q95": 1.5 * q50, "mean": q50, "p_beyond_horizon": 0.0,
-                                     "severity_mean": 0.5}
+                                     "q95": 1.5 * q50, "mean": q50, "mode": 0.85 * q50,
+                                     "p_beyond_horizon": 0.0, "severity_mean": 0.5}
     return {"index": index, "severity_norm": 0.0,
             "true_rul": None if t_eol is None else t_eol - index,
             "alarms": ["WL1"] if alarm else [], "new_alarms": ["WL1"] if new else [],
@@ -98,8 +99,24 @@ def test_ph_requires_staying_in_the_cone_and_missing_predictions_count_outside()
     del rul[90]
     p = pattern_prognosis(_progressive(rul))
     assert p["ph"] == 0.0
-    assert len(p["predictions"]) == 8 and p["predictions"][-1]["median"] is None
+    assert len(p["predictions"]) == 8 and p["predictions"][-1]["point"] is None
     assert p["ra"] is not None  # averaged over the 7 predictions that exist
+
+
+def test_the_most_probable_rul_can_be_scored_instead_of_the_median() -> None:
+    # medians exactly on the truth; the modes 15 % low, still inside the cone
+    rul = {i: 100.0 - i for i in range(20, 100, 10)}
+    median = pattern_prognosis(_progressive(rul))
+    mode = pattern_prognosis(_progressive(rul), point_estimate="mode")
+    assert median["ra"] == pytest.approx(1.0) and mode["ra"] == pytest.approx(0.85)
+    assert median["ph"] == pytest.approx(0.8) and mode["ph"] == pytest.approx(0.8)
+    # medians 30 % high: outside the cone; their modes (1.105 x truth) inside
+    rul = {i: 1.3 * (100.0 - i) for i in range(20, 100, 10)}
+    assert pattern_prognosis(_progressive(rul))["ph"] == 0.0
+    mode = pattern_prognosis(_progressive(rul), point_estimate="mode")
+    assert mode["ph"] == pytest.approx(0.8) and mode["ra"] == pytest.approx(1 - 0.105)
+    with pytest.raises(ValueError, match="point_estimate"):
+        pattern_prognosis(_progressive(rul), point_estimate="mean")
 
 
 def test_undetected_pattern_has_zero_horizon_and_counts_in_mode_average() -> None:

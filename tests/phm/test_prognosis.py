@@ -389,3 +389,41 @@ def test_compiled_prediction_loop_matches_the_numpy_one() -> None:
     want = _numpy_propagation(h, theta, cfg.min_rate, step, 20, blocks, 400.0)
     assert np.isinf(got).any() and np.isfinite(got).any()  # both outcomes exercised
     np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def test_most_probable_rul_finds_the_mode_of_a_skewed_distribution() -> None:
+    from server.phm.prognosis.predictor import most_probable_rul
+
+    rng = np.random.default_rng(4)
+    # gamma(k=4, scale=10): mode 30, median about 36.7 -- the mode lies below the median
+    r = rng.gamma(4.0, 10.0, 4000)
+    w = np.full(r.size, 1.0 / r.size)
+    mode = most_probable_rul(r, w)
+    assert 26.0 < mode < 34.0
+    assert mode < float(np.median(r)) - 3.0
+    # weights count: doubling the weight of the particles above 60 moves the mode up
+    w2 = np.where(r > 60.0, 20.0, 1.0)
+    assert most_probable_rul(r, w2 / w2.sum()) > mode
+    # most of the mass beyond the horizon: the most probable outcome is no failure in sight
+    r_inf = np.where(np.arange(r.size) < 0.6 * r.size, np.inf, r)
+    assert most_probable_rul(r_inf, w) == np.inf
+    # a degenerate cloud: its one value
+    assert most_probable_rul(np.full(10, 7.0), np.full(10, 0.1)) == pytest.approx(7.0)
+
+
+def test_rul_distribution_carries_its_mode_through_json() -> None:
+    cfg = PrognoserConfig()
+    pf = ParticleFilterPrognoser(cfg, MODEL)
+    state = ParticleFilterPrognoser.initial_state(cfg, MODEL, rng_seed=3)
+    truth = _truth("lin", 200)
+    for k in range(0, 80, 2):
+        state = pf.update(state, float(MODEL.predict(np.array([truth[k]]))[0]), k)
+    dist = pf.predict(state)
+    assert np.isfinite(dist.most_probable)
+    assert dist.quantiles[0.05] <= dist.most_probable <= dist.quantiles[0.95]
+    back = RulDistribution.from_json(dist.to_json())
+    assert back.most_probable == pytest.approx(dist.most_probable)
+    # documents written before the field existed still load
+    old = json.loads(dist.to_json())
+    del old["most_probable"]
+    assert np.isnan(RulDistribution.from_dict(old).most_probable)
