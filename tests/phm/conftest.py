@@ -47,6 +47,7 @@ def make_actuator(
     noise_a: float = 0.02,
     noise_v: float = 0.2,
     noise_x: float = 2e-6,
+    move_time_scale: float = 1.0,
 ) -> dict[str, np.ndarray]:
     """Synthetic EMA signals from the d-q equations (i_d = 0 control, ideal current loop).
 
@@ -59,6 +60,7 @@ def make_actuator(
     ``bdo`` clips the positive half of phase a's voltage, ``backlash_m`` adds a dead zone
     between shaft and rod: the rod sits on the flank the torque presses, or with
     ``backlash_follows="motion"`` on the side of the last motion (a damping-dominated link).
+    ``move_time_scale`` stretches every move's duration (slower moves, the same targets).
     """
     rng = np.random.default_rng(seed)
     n = int(seconds * FS)
@@ -68,7 +70,7 @@ def make_actuator(
     k, pos = 0, 0.0
     while k < n:
         target = rng.uniform(-0.02, 0.02)
-        m = int(rng.uniform(0.6, 1.5) * FS)
+        m = int(rng.uniform(0.6, 1.5) * move_time_scale * FS)
         h = int(rng.uniform(0.5, 2.0) * FS)
         s = 0.5 - 0.5 * np.cos(np.pi * np.arange(m) / m)
         seg = np.r_[pos + (target - pos) * s, np.full(h, target)]

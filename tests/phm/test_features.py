@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.stats import spearmanr
@@ -111,6 +113,20 @@ def test_mtel_ignores_the_load_level_on_a_healthy_drive() -> None:
 def test_mtel_needs_a_load() -> None:
     """Under a load too light to carry the efficiency term there is no value."""
     assert np.isnan(_feats(drag_nm=0.05, load_gradient=0.0, load_bias_n=100.0)["F_MTEL"])
+
+
+def test_mtel_counts_slow_steady_moves() -> None:
+    """Moves 16 times slower (10-24 s each, as when a long flight stretches the reference
+    cycle) still give the friction ratio of fast moves: F_MTEL counts steps from 1 Hz
+    electrical; with the former 2 Hz too few steps were left for any value."""
+    one_sided = {"load_gradient": 2.0e4, "load_bias_n": 1000.0, "drag_nm": 0.05, "seed": 3}
+    fast = _feats(**one_sided)["F_MTEL"]
+    slow_sig = make_actuator(move_time_scale=16.0, **one_sided)
+    slow, _ = actuator_features(slow_sig, aero_gradient_n_per_m=4.0e4)
+    assert slow["F_MTEL"].value == pytest.approx(fast, rel=0.03)
+    old_cfg = replace(FeatureConfig(), mtel_min_electrical_hz=2.0)
+    old, _ = actuator_features(slow_sig, aero_gradient_n_per_m=4.0e4, config=old_cfg)
+    assert np.isnan(old["F_MTEL"].value)
 
 
 def test_mtwear_grows_with_backlash() -> None:
