@@ -285,8 +285,8 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
     """Prognostic metrics of one progressive pattern from its trace.
 
     A selected flight without a RUL distribution (the actuator classified as a mode without
-    prognosis) counts as a prediction outside the cone and has no relative accuracy. A median
-    beyond the prediction horizon counts as the horizon (``max_horizon_flights``).
+    prognosis) counts as a prediction outside the cone and has no relative accuracy. A point
+    estimate beyond the prediction horizon counts as the horizon (``max_horizon_flights``).
     ``point_estimate`` is the RUL scored: "median" or "mode" (the most probable RUL).
     """
     if point_estimate not in _POINT_KEYS:
