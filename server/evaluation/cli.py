@@ -62,6 +62,10 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
     parser.add_argument("--point-estimate", choices=("median", "mode"), default="median",
                         help="RUL point estimate the prognostic metrics score: the median "
                              "(default) or the most probable RUL, the paper's")
+    parser.add_argument("--noise-free-features", action="store_true",
+                        help="error budget: from a fault's onset the prognosis of the faulty "
+                             "actuator sees its mode's own feature without noise, h(true "
+                             "severity); detection and classification see the real features")
     return parser
 
 
@@ -182,7 +186,8 @@ def run_evaluate(args: argparse.Namespace, settings: Settings) -> int:
     try:
         result = evaluate_campaign(model, campaign, jobs=max(int(args.jobs), 1),
                                    progress=progress, timing_flights=args.timing_flights,
-                                   point_estimate=args.point_estimate)
+                                   point_estimate=args.point_estimate,
+                                   noise_free=args.noise_free_features)
     finally:
         if bar is not None:
             bar.close()

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from server.phm import metrics
-from server.phm.chain import PROGRESSIVE, PhmModel, analyze_flight
+from server.phm.chain import PROGRESSIVE, MeasurementHook, PhmModel, analyze_flight
 from server.phm.evaluate_detection import Campaign, Pattern, load_campaign
 from server.phm.features import POSITIONS
 
@@ -110,26 +110,51 @@ def _rul_dict(rul: Any) -> dict[str, float | None] | None:
             "severity_mean": float(rul.severity_mean)}
 
 
-def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None = None
-                ) -> dict[str, Any]:
+def _noise_free_hook(model: PhmModel, pattern: Pattern, severity_norm: float
+                     ) -> MeasurementHook:
+    """The faulty actuator's own feature (the pattern's mode's) replaced by its noise-free
+    value h(true severity) of the trained measurement model; a flight without a value stays
+    without, the other actuators and features are untouched."""
+    spec = model.measurement[pattern.mode]
+    position = str(pattern.position)
+    value = float(spec.model_for(position).predict(np.array([severity_norm]))[0])
+
+    def hook(pos: str, values: dict[str, float]) -> dict[str, float]:
+        if pos != position or values.get(spec.feature) is None:
+            return values
+        return {**values, spec.feature: value}
+
+    return hook
+
+
+def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None = None,
+                noise_free: bool = False) -> dict[str, Any]:
     """Run the chain over one pattern; return its per-flight trace (JSON-safe).
 
     Per flight: the faulty actuator's alarm, class probabilities, mode in use and RUL quantiles,
     plus the positions alarmed and newly alarmed (all three actuators are monitored).
+    ``noise_free``: from the fault's onset, the prognosis of the faulty actuator sees its
+    mode's own feature without noise, h(true severity) (an error budget: what is left is the
+    degradation law's extrapolation; detection and classification see the real features).
     """
     health = {pos: model.new_health(pos) for pos in POSITIONS}
     seed = pattern_seed(pattern.id)
     faulty = pattern.position if pattern.mode != "healthy" else None
+    budget = noise_free and faulty is not None and pattern.mode in model.measurement
+    onset = int(pattern.onset_flight or 0)
     flights: list[dict[str, Any]] = []
     for rec in pattern.flights:
+        hook = (_noise_free_hook(model, pattern, rec.severity_norm)
+                if budget and rec.index >= onset else None)
         if timer is not None:
             with timer.span("chain"):
                 out = analyze_flight(model, rec.features, health, seed=seed,
                                      flight_index=rec.index, started_at=rec.started_at,
-                                     base=pattern.base)
+                                     base=pattern.base, measurement_hook=hook)
         else:
             out = analyze_flight(model, rec.features, health, seed=seed, flight_index=rec.index,
-                                 started_at=rec.started_at, base=pattern.base)
+                                 started_at=rec.started_at, base=pattern.base,
+                                 measurement_hook=hook)
         o = out.get(faulty) if faulty else None
         flights.append({
             "index": rec.index,
@@ -395,41 +420,44 @@ def summarise_prognosis(traces: Sequence[Mapping[str, Any]], *, alpha: float = A
 
 
 _WORKER_MODEL: PhmModel | None = None
+_WORKER_NOISE_FREE = False
 
 
-def _init_worker(model_doc: dict[str, Any]) -> None:
-    global _WORKER_MODEL
+def _init_worker(model_doc: dict[str, Any], noise_free: bool = False) -> None:
+    global _WORKER_MODEL, _WORKER_NOISE_FREE
     _WORKER_MODEL = PhmModel.from_dict(model_doc)
+    _WORKER_NOISE_FREE = noise_free
 
 
 def _work(pattern: Pattern) -> tuple[dict[str, Any], dict[str, Any]]:
     assert _WORKER_MODEL is not None
     timer = ChainTimer()
     with timer.instrument():
-        trace = run_pattern(_WORKER_MODEL, pattern, timer=timer)
+        trace = run_pattern(_WORKER_MODEL, pattern, timer=timer, noise_free=_WORKER_NOISE_FREE)
     return trace, timer.to_dict()
 
 
 def evaluate_patterns(model: PhmModel, patterns: Sequence[Pattern], *, jobs: int = 1,
-                      progress: Progress | None = None
+                      progress: Progress | None = None, noise_free: bool = False
                       ) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Traces of all patterns (in the given order) and the merged chain timings.
 
     The model goes to the workers as its JSON document (and is rebuilt from it in the serial
-    case too), so the results do not depend on ``jobs``.
+    case too), so the results do not depend on ``jobs``. ``noise_free``: see
+    :func:`run_pattern`.
     """
     doc = model.to_dict()
     order = sorted(range(len(patterns)), key=lambda i: -len(patterns[i].flights))
     results: dict[int, tuple[dict[str, Any], dict[str, Any]]] = {}
     if jobs <= 1:
-        _init_worker(doc)
+        _init_worker(doc, noise_free)
         for k, i in enumerate(order):
             results[i] = _work(patterns[i])
             if progress is not None:
                 progress(k + 1, len(patterns))
     else:
         with ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker,
-                                 initargs=(doc,)) as ex:
+                                 initargs=(doc, noise_free)) as ex:
             futs = {ex.submit(_work, patterns[i]): i for i in order}
             for k, fut in enumerate(as_completed(futs)):
                 results[futs[fut]] = fut.result()
@@ -443,16 +471,19 @@ def evaluate_patterns(model: PhmModel, patterns: Sequence[Pattern], *, jobs: int
 def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, jobs: int = 1,
                       progress: Progress | None = None, timing_flights: int = 6,
                       campaign: Campaign | None = None,
-                      point_estimate: str = POINT_ESTIMATE) -> dict[str, Any]:
+                      point_estimate: str = POINT_ESTIMATE,
+                      noise_free: bool = False) -> dict[str, Any]:
     """Run the chain over every pattern of a campaign and score it (JSON-safe dict).
 
     ``timing_flights`` flights are re-read and their features recomputed (serially) to time
     feature extraction; 0 skips that measurement. ``point_estimate``: the RUL the prognostic
-    metrics score, "median" or "mode".
+    metrics score, "median" or "mode". ``noise_free``: the prognosis sees noise-free own
+    features (an error budget, :func:`run_pattern`).
     """
     root = Path(campaign_dir)
     camp = campaign or load_campaign(root, jobs=max(jobs, 1))
-    traces, chain_timing = evaluate_patterns(model, camp.patterns, jobs=jobs, progress=progress)
+    traces, chain_timing = evaluate_patterns(model, camp.patterns, jobs=jobs, progress=progress,
+                                             noise_free=noise_free)
     classes = ([str(c) for c in model.classifier.classes_.tolist()]
                if model.classifier is not None else [])
     feat = feature_timing(root, n_flights=timing_flights) if timing_flights > 0 else None
@@ -470,6 +501,8 @@ def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, 
                                    "climate": a.get("climate")} for a in camp.aircraft]},
         "settings": {"alpha": ALPHA, "lambda": LAMBDA, "n_predictions": N_PREDICTIONS,
                      "point_estimate": point_estimate, "ph_normalisation": "failure - onset",
+                     "prognosis_features": "noise-free h(true severity)" if noise_free
+                     else "measured",
                      "cra_weights": "1..n (growing toward end of life)",
                      "convergence_axis": "(t - onset) / life", "jobs": jobs},
         "detection": summarise_detection(traces),

@@ -22,7 +22,7 @@ Everything persists as JSON: :class:`PhmModel` (trained, in a model version) and
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -46,6 +46,7 @@ from .season import SeasonalClimate, StressClock, next_flights_per_day
 __all__ = [
     "MODEL_FORMAT",
     "HEALTH_FORMAT",
+    "MeasurementHook",
     "PROGRESSIVE",
     "GENERIC_FEATURES",
     "actuator_feature_names",
@@ -74,6 +75,8 @@ MODEL_FORMAT = "ema-phm-model/5"
 _OLD_MODEL_FORMATS = ("ema-phm-model/1", "ema-phm-model/2", "ema-phm-model/3",
                       "ema-phm-model/4")
 HEALTH_FORMAT = "ema-actuator-health/2"
+#: (position, measurement values) -> the values the prognosis sees: see :func:`analyze_flight`
+MeasurementHook = Callable[[str, dict[str, float]], dict[str, float]]
 PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
 #: the paper's Table 1: one preferential feature per failure mode (tracked by the filter)
 OWN_FEATURE = {"TTS": "F_TTS", "DMD": "F_DMD", "SE": "F_SE", "BDO": "F_BDO", "MTEL": "F_MTEL",
@@ -371,7 +374,9 @@ def _predict(pf: ParticleFilterPrognoser, state: PrognoserState, index: int,
 def analyze_flight(model: PhmModel, features: FlightFeatures,
                    health: dict[str, ActuatorHealth], *, seed: int = 0,
                    flight_index: int | None = None, started_at: datetime | None = None,
-                   base: str | None = None) -> dict[str, ActuatorOutcome]:
+                   base: str | None = None,
+                   measurement_hook: MeasurementHook | None = None
+                   ) -> dict[str, ActuatorOutcome]:
     """Advance every actuator's state by one flight (``health`` is updated in place).
 
     ``flight_index`` is the flight number of this flight when flights in between were not
@@ -382,6 +387,10 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     ``started_at`` (take-off time, timezone-aware) and ``base`` (the aircraft's home base)
     let the prognosis age thermal faults on the season's clock (:mod:`server.phm.season`);
     without them it counts flights.
+
+    ``measurement_hook(position, values)`` may replace the values the prognosis of an
+    actuator sees (and stores in its history) for an error-budget study: the evaluation's
+    noise-free features (``hmsm evaluate --noise-free-features``). Never used in service.
     """
     z_all = model.baseline.zscores(features)
     out: dict[str, ActuatorOutcome] = {}
@@ -399,6 +408,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         if det.new_alarm:
             h.alarm_index = index
         generic = measurement_values(self_residuals(model.baseline, z_all, det), position)
+        if measurement_hook is not None:
+            generic = measurement_hook(position, generic)
         h.history.append((index, generic))
         del h.history[:-_HISTORY_FLIGHTS]
 

@@ -120,3 +120,37 @@ def test_winglet_wear_is_learned_to_slow_down(trained_model) -> None:
     assert rewear.monotone_rate is False
     # its growth is floored at the slowest design run's rate near failure, not at 1e-5
     assert rewear.min_rate > 10 * PrognoserConfig().min_rate
+
+
+def test_noise_free_features_feed_the_prognosis_the_true_severity(design_campaign_dir,
+                                                                  trained_model) -> None:
+    """The evaluation's error budget: with ``noise_free`` the faulty actuator's filter sees
+    h(true severity) from the onset (and stores it in its history), so its severity estimate
+    ends nearer the truth than with the measured feature; detection sees the real features,
+    so the alarm flight does not move."""
+    from server.evaluation.core import run_pattern
+
+    model = PhmModel.from_dict(trained_model[0])
+    campaign = load_campaign(design_campaign_dir, jobs=2)
+    pattern = next(p for p in campaign.patterns if p.mode == "DMD")
+    spec = model.measurement["DMD"]
+
+    def errors(trace):  # |estimated - true severity| where there is a RUL
+        return [abs(f["rul"]["severity_mean"] - f["severity_norm"])
+                for f in trace["flights"] if f["rul"]]
+
+    real = run_pattern(model, pattern)
+    free = run_pattern(model, pattern, noise_free=True)
+    first = [next(f["index"] for f in t["flights"] if f["alarm"]) for t in (real, free)]
+    assert first[0] == first[1]
+    assert sum(errors(free)) < sum(errors(real))
+    assert max(errors(free)[-3:]) < 0.05
+    # the chain itself: the hook's values are what the actuator's history keeps
+    health = {pos: model.new_health(pos) for pos in ("WL1", "WL2", "WT")}
+    rec = pattern.flights[-1]
+    analyze_flight(model, rec.features, health, flight_index=rec.index,
+                   measurement_hook=lambda pos, v: {**v, spec.feature: 0.123}
+                   if pos == pattern.position else v)
+    assert health[str(pattern.position)].history[-1][1][spec.feature] == 0.123
+    others = [p for p in health if p != pattern.position]
+    assert all(health[p].history[-1][1].get(spec.feature) != 0.123 for p in others)
