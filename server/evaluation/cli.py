@@ -65,7 +65,8 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
     parser.add_argument("--noise-free-features", action="store_true",
                         help="error budget: from a fault's onset the prognosis of the faulty "
                              "actuator sees its mode's own feature without noise, h(true "
-                             "severity); detection and classification see the real features")
+                             "severity); detection and classification see the real features; "
+                             "latest.json is left alone")
     return parser
 
 
@@ -195,7 +196,9 @@ def run_evaluate(args: argparse.Namespace, settings: Settings) -> int:
     result["created_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
     result["wall_s"] = time.perf_counter() - t0
     result = _sanitise(result)
-    latest = None if args.no_latest else settings.data_dir / "evaluation" / "latest.json"
+    # a noise-free error budget is no evaluation of the system: the dashboard keeps the last one
+    latest = (None if args.no_latest or args.noise_free_features
+              else settings.data_dir / "evaluation" / "latest.json")
     written = write_outputs(result, out_dir, latest=latest)
     _print_summary(result)
     for p in written:
