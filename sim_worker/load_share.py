@@ -45,13 +45,18 @@ def table() -> dict:
     return doc
 
 
-def load_share(mode: str, position: str, severity_norm: float) -> float:
-    """Simulated over estimated work of the faulty drive (1.0 for modes without an entry)."""
+def _shares(mode: str, position: str, severity_norm: np.ndarray) -> np.ndarray:
+    """:func:`load_share` at every severity of an array."""
     doc = table()
     curve = doc["ratio"].get(mode, {}).get(position)
     if curve is None:
-        return 1.0
-    return float(np.interp(severity_norm, doc["severity_norm"], curve))
+        return np.ones_like(severity_norm, dtype=float)
+    return np.interp(severity_norm, doc["severity_norm"], curve)
+
+
+def load_share(mode: str, position: str, severity_norm: float) -> float:
+    """Simulated over estimated work of the faulty drive (1.0 for modes without an entry)."""
+    return float(_shares(mode, position, np.asarray(severity_norm, dtype=float)))
 
 
 def life_integral(mode: str, position: str, onset_norm: float, growth_c: float) -> float:
@@ -61,7 +66,4 @@ def life_integral(mode: str, position: str, onset_norm: float, growth_c: float) 
     of the estimated reference flight) reaches ``s = 1`` after this integral / (rate d) flights.
     """
     s = np.linspace(onset_norm, 1.0, 401)
-    doc = table()
-    curve = doc["ratio"].get(mode, {}).get(position)
-    g = np.ones_like(s) if curve is None else np.interp(s, doc["severity_norm"], curve)
-    return float(np.trapezoid(1.0 / (g * (s + growth_c)), s))
+    return float(np.trapezoid(1.0 / (_shares(mode, position, s) * (s + growth_c)), s))

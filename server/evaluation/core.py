@@ -33,6 +33,7 @@ import os
 import zlib
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -146,12 +147,7 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
     for rec in pattern.flights:
         hook = (_noise_free_hook(model, pattern, rec.severity_norm)
                 if budget and rec.index >= onset else None)
-        if timer is not None:
-            with timer.span("chain"):
-                out = analyze_flight(model, rec.features, health, seed=seed,
-                                     flight_index=rec.index, started_at=rec.started_at,
-                                     base=pattern.base, measurement_hook=hook)
-        else:
+        with timer.span("chain") if timer is not None else nullcontext():
             out = analyze_flight(model, rec.features, health, seed=seed, flight_index=rec.index,
                                  started_at=rec.started_at, base=pattern.base,
                                  measurement_hook=hook)
