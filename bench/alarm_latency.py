@@ -38,7 +38,7 @@ from server.config import Settings  # noqa: E402
 from server.db import make_engine, make_session_factory, session_scope  # noqa: E402
 from server.flightlog import write_parquet  # noqa: E402
 from server.migrate import upgrade  # noqa: E402
-from server.phm.training import train_phm_model  # noqa: E402
+from server.campaigns import train_from_directory  # noqa: E402
 from server.services import models as model_service  # noqa: E402
 from sim_worker import build_aircraft, healthy, new_fault, simulate_flight  # noqa: E402
 
@@ -71,7 +71,7 @@ def main() -> int:
         from sim_worker import run_campaign
 
         run_campaign("design", design, seed=1, scale="quick", progress=True)
-    model, report = train_phm_model(design, seed=0, jobs=os.cpu_count() or 1)
+    model, report = train_from_directory(design, seed=0, jobs=os.cpu_count() or 1)
     settings = Settings(data_dir=work / "data")
     settings.data_dir.mkdir(parents=True)
     upgrade(settings.effective_database_url)

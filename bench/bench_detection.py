@@ -29,7 +29,7 @@ PAPER_MS = 11.3
 
 def _channels(path: str | None) -> dict[str, np.ndarray]:
     if path:
-        from server.phm.evaluate_detection import read_flight_channels
+        from server.campaigns import read_flight_channels
 
         return read_flight_channels(path)
     from sim_worker.faults import healthy

@@ -51,11 +51,11 @@ START, END = "<!-- bench:load:start -->", "<!-- bench:load:end -->"
 
 
 def _model_payload(campaign_root: Path) -> dict:
-    from server.phm.training import train_phm_model
+    from server.campaigns import train_from_directory
     from tests.conftest import DESIGN_SEED, make_campaign
 
     design = make_campaign("design", DESIGN_SEED, campaign_root)
-    model, _ = train_phm_model(design, seed=0, jobs=os.cpu_count() or 1)
+    model, _ = train_from_directory(design, seed=0, jobs=os.cpu_count() or 1)
     return json.loads(json.dumps(model.to_dict()))
 
 

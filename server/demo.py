@@ -41,8 +41,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
 
     from server.auth import create_key
     from server.db import make_engine, make_session_factory, session_scope
-    from server.jobs.pipeline import load_active_model
-    from server.jobs.training_job import campaign_dir_for, train_into_version
+    from server.jobs.training_job import train_into_version
     from server.migrate import ensure_schema
     from server.models import Aircraft
     from server.services import fleet, test_station
@@ -56,11 +55,11 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     with factory() as session:
         # a model the chain cannot load (an older chain's format) cannot analyse flights
         try:
-            usable = load_active_model(session) is not None
+            usable = model_service.active_model(session=session) is not None
         except ValueError:
             usable = False
     if not usable:
-        design = campaign_dir_for(settings.data_dir, "demo-design")
+        design = model_service.campaign_dir(settings.data_dir, "demo-design")
         manifest = design / "manifest.json"
         # campaigns of older simulators lack the healthy lead flights the detector needs
         if not manifest.exists() or "lead_flights" not in json.loads(manifest.read_text()):

@@ -23,12 +23,15 @@ import gzip
 import io
 import json
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any
 
 import numpy as np
+
+from server.vocabulary import POSITIONS
 
 __all__ = [
     "FORMAT",
@@ -44,6 +47,7 @@ __all__ = [
     "FlightLog",
     "write_parquet",
     "read_parquet",
+    "read_parquet_metadata",
     "read_csv",
     "read_mat",
     "read_flightlog",
@@ -52,7 +56,6 @@ __all__ = [
 ]
 
 FORMAT = "ema-flightlog/1"
-POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
 SIGNALS: tuple[str, ...] = ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")
 NOMINAL_SAMPLE_RATE_HZ = 800.0
 REQUIRED_CHANNELS: tuple[str, ...] = ("t",) + tuple(f"{p}.{s}" for p in POSITIONS for s in SIGNALS)
@@ -315,6 +318,18 @@ def read_parquet(data: bytes) -> FlightLog:
         raise FlightLogError([Issue("non_finite", "A column holds missing (null) values.",
                                     {"error": str(exc)[:300]})]) from None
     return FlightLog(metadata=metadata, channels=channels)
+
+
+def read_parquet_metadata(path: str | os.PathLike[str]) -> FlightMetadata | None:
+    """The metadata of a flight-log Parquet file, read from its footer only and validated as
+    an upload's are (:func:`parse_metadata`); None for a file without metadata."""
+    import pyarrow.parquet as pq
+
+    raw = pq.read_schema(path).metadata or {}
+    if not raw:
+        return None
+    return parse_metadata({k.decode(errors="replace"): v.decode(errors="replace")
+                           for k, v in raw.items()})
 
 
 # --------------------------------------------------------------------------------------------

@@ -7,6 +7,7 @@ Times are timezone-aware UTC everywhere (SQLite keeps no zone, :class:`UTCDateTi
 from __future__ import annotations
 
 from datetime import datetime, timezone
+from enum import StrEnum
 from typing import Any
 
 from sqlalchemy import (
@@ -26,7 +27,10 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
+from server.vocabulary import FAULT_MODES
+
 __all__ = [
+    "JobKind",
     "Base",
     "Aircraft",
     "Actuator",
@@ -169,6 +173,13 @@ class Flight(Base):
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)
 
 
+class JobKind(StrEnum):
+    """The kinds of background work; each has one handler (``server.jobs.handlers``)."""
+
+    ANALYZE_FLIGHT = "analyze_flight"
+    TRAIN_MODEL = "train_model"
+
+
 class Job(Base):
     """A durable unit of background work; ``lock_key`` serialises jobs of one aircraft."""
 
@@ -215,7 +226,6 @@ class ApiKey(Base):
 # ---------------------------------------------------------------------------------------------
 
 ALARM_STATUSES = ("open", "acknowledged", "closed")
-FAULT_MODES = ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR", "REWEAR")
 
 
 class ModelVersion(Base):
@@ -295,7 +305,8 @@ class Alarm(Base):
 
 
 class Prognosis(Base):
-    """One RUL prediction for an actuator after a flight (the points of the RUL cone)."""
+    """One RUL prediction for an actuator after a flight (the points of the RUL cone);
+    ``distribution`` is the filter's :meth:`RulDistribution.to_dict` document as it is."""
 
     __tablename__ = "prognoses"
     __table_args__ = (UniqueConstraint("actuator_id", "flight_id",
@@ -306,11 +317,7 @@ class Prognosis(Base):
     flight_id: Mapped[int] = mapped_column(ForeignKey("flights.id"))
     flight_index: Mapped[int] = mapped_column(Integer)
     fault_mode: Mapped[str] = mapped_column(String(16))
-    severity_mean: Mapped[float] = mapped_column(Float)
-    severity_std: Mapped[float] = mapped_column(Float)
-    rul_quantiles: Mapped[dict[str, float]] = mapped_column(JSON)
-    p_fail_within: Mapped[dict[str, float]] = mapped_column(JSON)
-    histogram: Mapped[dict[str, Any]] = mapped_column(JSON)
+    distribution: Mapped[dict[str, Any]] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 

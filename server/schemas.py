@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Generic, Literal, TypeVar
+from typing import Annotated, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from server.vocabulary import ABRUPT, FAULT_MODES, POSITIONS
 
 __all__ = [
     "Position",
+    "FaultMode",
+    "InjectionCreate",
     "Role",
     "AircraftCreate",
     "AircraftRead",
@@ -23,7 +27,7 @@ __all__ = [
     "Page",
 ]
 
-Position = Literal["WL1", "WL2", "WT"]
+Position = Literal[POSITIONS]  # type: ignore[valid-type]
 Role = Literal["viewer", "uploader", "operator", "admin"]
 _ID = r"^[A-Za-z0-9._-]{1,64}$"
 
@@ -130,3 +134,32 @@ class KeyRead(BaseModel):
 
 class KeyCreated(KeyRead):
     key: str = Field(description="The key itself; shown only now.")
+
+
+# ---------------------------------------------------------------------------------------------
+# Test station (the API's and the dashboard's form share it)
+# ---------------------------------------------------------------------------------------------
+
+FaultMode = Annotated[str, Field(pattern="^(" + "|".join(FAULT_MODES) + ")$")]
+
+
+class InjectionCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    aircraft: str = Field(pattern=r"^[A-Za-z0-9._-]{1,64}$")
+    position: Position
+    fault_mode: FaultMode
+    onset_flight: int = Field(0, ge=0, le=100_000,
+                              description="Aircraft flight number at which the fault appears; "
+                              "0 = the next flight.")
+    time_to_failure_flights: int | None = Field(None, ge=10, le=5000, description=(
+        "Progressive modes: flights from onset to failure (sets the progression rate); "
+        "default: drawn by the simulator's law."))
+    severity: float | None = Field(None, gt=0, le=1.0, description=(
+        "SE/BDO: imposed severity as a fraction of the failure threshold (default 1.0)."))
+
+    @model_validator(mode="after")
+    def _severity_only_a_priori(self) -> InjectionCreate:
+        if self.severity is not None and self.fault_mode not in ABRUPT:
+            raise ValueError("severity is imposed only for SE and BDO; progressive faults "
+                             "start at onset and grow")
+        return self

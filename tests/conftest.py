@@ -112,7 +112,7 @@ def trained_model(design_campaign_dir):  # type: ignore[no-untyped-def]
     """(model JSON, training report) of the PHM chain fitted on the quick design campaign."""
     import json
 
-    from server.phm.training import train_phm_model
+    from server.campaigns import train_from_directory
 
-    model, report = train_phm_model(design_campaign_dir, seed=0, jobs=os.cpu_count() or 1)
+    model, report = train_from_directory(design_campaign_dir, seed=0, jobs=os.cpu_count() or 1)
     return json.loads(json.dumps(model.to_dict())), report

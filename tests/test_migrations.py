@@ -38,3 +38,48 @@ def test_upgrade_downgrade_and_no_drift(settings: Settings) -> None:
     assert set(inspect(engine).get_table_names()) <= {"alembic_version"}
     upgrade(url)  # leave it at head for the next test on this database
     engine.dispose()
+
+
+def test_prognosis_rows_keep_their_rul_across_0004(settings: Settings) -> None:
+    """0004 turns the old five prognosis columns into the RulDistribution document and back."""
+    import sqlalchemy as sa
+
+    from server.phm.prognosis import RulDistribution
+    from server.phm.prognosis.document import rul_quantile
+
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0003")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
+        conn.execute(sa.text("INSERT INTO actuators (id, aircraft_id, position, serial, "
+                             "installed_at) VALUES (1, 1, 'WT', 'S-MIG', CURRENT_TIMESTAMP)"))
+        conn.execute(sa.text(
+            "INSERT INTO flights (id, aircraft_id, flight_code, status, reasons, sha256, "
+            "size_bytes, blob_path, content_kind, flight_metadata, received_at, updated_at) "
+            "VALUES (1, 1, 'F1', 'analyzed', '[]', 'x', 1, 'b', 'parquet', '{}', "
+            "CURRENT_TIMESTAMP, CURRENT_TIMESTAMP)"))
+        conn.execute(sa.text(
+            "INSERT INTO prognoses (actuator_id, flight_id, flight_index, fault_mode, "
+            "severity_mean, severity_std, rul_quantiles, p_fail_within, histogram, created_at) "
+            "VALUES (1, 1, 7, 'DMD', 0.4, 0.05, :q, :p, :h, CURRENT_TIMESTAMP)"),
+            {"q": '{"5": 20.0, "50": 40.0, "95": null}', "p": '{"10": 0.1}',
+             "h": '{"edges": [0.0, 50.0], "mass": [0.9]}'})
+    upgrade(url)
+    with engine.connect() as conn:
+        doc = conn.execute(sa.text("SELECT distribution FROM prognoses")).scalar_one()
+    doc = doc if isinstance(doc, dict) else __import__("json").loads(doc)
+    rul = RulDistribution.from_dict(doc)
+    assert rul_quantile(doc, 0.05) == 20.0 and rul.median == 40.0
+    assert rul.quantiles[0.95] == float("inf") and rul.p_fail_within == {10: 0.1}
+    assert rul.severity_mean == 0.4 and rul.p_beyond_horizon == 0.09999999999999998
+    downgrade(url, "0003")
+    with engine.connect() as conn:
+        row = conn.execute(sa.text("SELECT rul_quantiles, severity_std FROM prognoses")).one()
+    quantiles = row[0] if isinstance(row[0], dict) else __import__("json").loads(row[0])
+    assert quantiles == {"5": 20.0, "50": 40.0, "95": None} and row[1] == 0.05
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

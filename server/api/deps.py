@@ -1,17 +1,15 @@
-"""Dependencies shared by the routers: settings, a DB session, the caller's key and role."""
+"""Dependencies of the API routers: the caller's key and role (bearer key or the dashboard's
+session cookie), plus the shared settings, blob store and session (:mod:`server.dependencies`)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Annotated
 
 from fastapi import Depends, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
-from sqlalchemy.orm import Session
 
 from server.auth import ALLOWED, authenticate, may
-from server.blobstore import BlobStore
-from server.config import Settings
+from server.dependencies import BlobsDep, SessionDep, SettingsDep
 from server.errors import Forbidden, Unauthorized
 from server.models import ApiKey
 
@@ -19,28 +17,6 @@ __all__ = ["SessionDep", "SettingsDep", "BlobsDep", "Reader", "Uploader", "Opera
            "CurrentKey"]
 
 _bearer = HTTPBearer(auto_error=False, description="API key: `Authorization: Bearer hmsm_...`")
-
-
-def get_settings(request: Request) -> Settings:
-    return request.app.state.settings
-
-
-def get_blobs(request: Request) -> BlobStore:
-    return request.app.state.blobs
-
-
-def get_session(request: Request) -> Iterator[Session]:
-    session = request.app.state.session_factory()
-    try:
-        yield session
-    finally:
-        session.rollback()
-        session.close()
-
-
-SettingsDep = Annotated[Settings, Depends(get_settings)]
-BlobsDep = Annotated[BlobStore, Depends(get_blobs)]
-SessionDep = Annotated[Session, Depends(get_session)]
 
 
 def current_key(

@@ -143,6 +143,9 @@ def _ingest(session, blobs, spooled, kind, form_metadata, key):  # type: ignore[
                                                   uploader=key)
         session.commit()
         return flight, duplicate
+    except service.LostRace as race:
+        session.rollback()
+        return service.after_lost_race(session=session, race=race, sha256=spooled.sha256), True
     finally:
         spooled.discard()
 

@@ -27,17 +27,32 @@ class HealthRecordRead(BaseModel):
     class_probabilities: dict[str, float | None] | None
 
 
+class RulDistributionRead(BaseModel):
+    """The particle filter's RUL distribution document (``RulDistribution.to_dict``)."""
+
+    version: int
+    kind: str
+    flight_index: int | None
+    quantiles: list[tuple[float, float | None]] = Field(
+        description="[level (fraction), RUL [flights]] pairs; null beyond the horizon")
+    mean: float | None
+    p_fail_within: list[tuple[int, float]] = Field(
+        description="[horizon [flights], probability of failure within it] pairs")
+    p_beyond_horizon: float
+    histogram_edges: list[float]
+    histogram_mass: list[float]
+    severity_mean: float
+    severity_std: float
+    most_probable: float | None = None
+    hours_per_flight: float | None = None
+
+
 class PrognosisRead(BaseModel):
     model_config = ConfigDict(from_attributes=True)
     flight_id: int
     flight_index: int
     fault_mode: str
-    severity_mean: float
-    severity_std: float
-    rul_quantiles: dict[str, float | None] = Field(
-        description="RUL quantiles [flights]; null when beyond the prediction horizon")
-    p_fail_within: dict[str, float | None]
-    histogram: dict[str, Any]
+    distribution: RulDistributionRead
     created_at: datetime
 
 

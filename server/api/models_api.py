@@ -10,7 +10,6 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Admin, Reader, SessionDep, SettingsDep
 from server.errors import NotFound, Unprocessable
-from server.models import Job
 from server.services import models as service
 
 router = APIRouter(prefix="/models", tags=["models"])
@@ -98,20 +97,18 @@ def activate(model_id: int, session: SessionDep, _: Admin) -> ModelRead:
              summary="Train a model version from a design campaign, as a background job (admin)")
 def train(body: TrainRequest, session: SessionDep, settings: SettingsDep, key: Admin
           ) -> TrainAccepted:
-    from server.jobs.training_job import campaign_dir_for
-
-    directory = campaign_dir_for(settings.data_dir, body.campaign)
+    directory = service.campaign_dir(settings.data_dir, body.campaign)
     if not (directory / "manifest.json").exists() and body.generate is None:
         raise Unprocessable(f"Campaign '{body.campaign}' does not exist under the data "
                             "directory; give 'generate' to simulate it.", code="no_campaign")
     version = service.create_version(session=session, name=body.name or body.campaign,
                                      training={"requested_by": key.name,
                                                "campaign": body.campaign})
-    job = Job(kind="train_model", lock_key="train_model", max_attempts=1,
-              payload={"campaign": body.campaign, "seed": body.seed,
-                       "generate": body.generate.model_dump() if body.generate else None,
-                       "version_id": version.id, "activate": body.activate})
-    session.add(job)
+    job = service.request_training(
+        session=session, version_id=version.id,
+        payload={"campaign": body.campaign, "seed": body.seed,
+                 "generate": body.generate.model_dump() if body.generate else None,
+                 "activate": body.activate})
     session.commit()
     return TrainAccepted(model_id=version.id, job_id=job.id,
                          status_url=f"/api/v1/models/{version.id}")

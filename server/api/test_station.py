@@ -6,39 +6,14 @@ from datetime import datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Query
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Operator, Reader, SessionDep
 from server.models import GroundTruth, Injection
-from server.schemas import Page, Position
+from server.schemas import InjectionCreate, Page
 from server.services import test_station as service
 
 router = APIRouter(prefix="/test-station", tags=["test station"])
-
-FaultMode = Annotated[str, Field(pattern="^(TTS|DMD|SE|BDO|MTEL|MTWEAR|REWEAR)$")]
-
-
-class InjectionCreate(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    aircraft: str = Field(pattern=r"^[A-Za-z0-9._-]{1,64}$")
-    position: Position
-    fault_mode: FaultMode
-    onset_flight: int = Field(0, ge=0, le=100_000,
-                              description="Aircraft flight number at which the fault appears; "
-                              "0 = the next flight.")
-    time_to_failure_flights: int | None = Field(None, ge=10, le=5000, description=(
-        "Progressive modes: flights from onset to failure (sets the progression rate); "
-        "default: drawn by the simulator's law."))
-    severity: float | None = Field(None, gt=0, le=1.0, description=(
-        "SE/BDO: imposed severity as a fraction of the failure threshold (default 1.0)."))
-
-    @model_validator(mode="after")
-    def _severity_only_a_priori(self) -> InjectionCreate:
-        if self.severity is not None and self.fault_mode not in ("SE", "BDO"):
-            raise ValueError("severity is imposed only for SE and BDO; progressive faults "
-                             "start at onset and grow")
-        return self
-
 
 class InjectionRead(BaseModel):
     id: int

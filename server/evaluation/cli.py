@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from server.config import Settings, load_settings
-from server.phm.chain import MODEL_FORMAT, PhmModel
+from server.phm.chain import PhmModel, read_model_document
 
 __all__ = ["add_evaluate_arguments", "run_evaluate", "main_evaluate", "load_model",
            "write_outputs"]
@@ -70,24 +70,18 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
     return parser
 
 
-def _model_from_doc(doc: dict[str, Any]) -> PhmModel:
-    if doc.get("format") != MODEL_FORMAT and isinstance(doc.get("payload"), dict):
-        doc = doc["payload"]
-    return PhmModel.from_dict(doc)
-
-
 def load_model(args: argparse.Namespace, settings: Settings
                ) -> tuple[PhmModel, dict[str, Any]]:
     """The model to evaluate and a description of where it came from."""
     if args.model_json:
         path = Path(args.model_json)
-        return _model_from_doc(json.loads(path.read_text())), {
+        return read_model_document(json.loads(path.read_text())), {
             "source": f"file {path.resolve()}"}
     if args.design:
-        from server.phm.training import train_phm_model
+        from server.campaigns import train_from_directory
 
         t0 = time.perf_counter()
-        model, report = train_phm_model(args.design, seed=args.seed, jobs=args.jobs)
+        model, report = train_from_directory(args.design, seed=args.seed, jobs=args.jobs)
         clf = report.get("classifier") or {}
         return model, {"source": f"trained on {Path(args.design).resolve()} (seed {args.seed})",
                        "training_s": time.perf_counter() - t0,
@@ -97,10 +91,9 @@ def load_model(args: argparse.Namespace, settings: Settings
 
 
 def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, dict[str, Any]]:
-    from sqlalchemy import select
-
     from server.db import make_engine, make_session_factory
-    from server.models import ModelVersion
+    from server.errors import NotFound
+    from server.services import models as model_service
 
     if settings.is_sqlite and not (settings.data_dir / "hmsm.sqlite3").exists() \
             and not settings.database_url:
@@ -110,17 +103,18 @@ def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, 
     try:
         with make_session_factory(engine)() as session:
             if model_id is None:
-                row = session.scalar(select(ModelVersion).where(ModelVersion.active.is_(True)))
+                row = model_service.active_version(session=session)
                 if row is None:
                     raise ValueError("no active model version: pass --design or --model-json, "
                                      "or train one with `hmsm train`")
             else:
-                row = session.get(ModelVersion, model_id)
-                if row is None:
-                    raise ValueError(f"model version {model_id} does not exist")
+                try:
+                    row = model_service.get_version(session=session, version_id=model_id)
+                except NotFound:
+                    raise ValueError(f"model version {model_id} does not exist") from None
             if row.status != "ready":
                 raise ValueError(f"model version {row.id} is {row.status}")
-            return PhmModel.from_dict(row.payload), {
+            return read_model_document(row.payload), {
                 "source": f"model version {row.id} ({row.name})", "model_id": row.id}
     finally:
         engine.dispose()

@@ -39,10 +39,12 @@ from typing import Any
 
 import numpy as np
 
+from server.campaigns import load_campaign
 from server.phm import metrics
-from server.phm.chain import PROGRESSIVE, MeasurementHook, PhmModel, analyze_flight
-from server.phm.evaluate_detection import Campaign, Pattern, load_campaign
-from server.phm.features import POSITIONS
+from server.phm.chain import MeasurementHook, PhmModel, analyze_flight
+from server.phm.dataset import Campaign, Pattern
+from server.phm.prognosis.document import rul_point, rul_quantile
+from server.vocabulary import PAPER_TABLE2, POSITIONS, PROGRESSIVE, alarming_positions
 
 from .timing import ChainTimer, feature_timing
 
@@ -67,15 +69,10 @@ __all__ = [
 ALPHA = 0.2
 LAMBDA = 0.5
 N_PREDICTIONS = 10
-#: point estimate scored by the metrics: "median" (RUL q50) or "mode" (the most probable RUL,
-#: the paper's)
+#: point estimate scored by the metrics: "median" or "mode" (the most probable RUL, the
+#: paper's)
 POINT_ESTIMATE = "median"
-_POINT_KEYS = {"median": "q50", "mode": "mode"}
-#: the paper's Table 2: nondimensional prognostic horizon [-], mean relative accuracy [%]
-PAPER_TABLE2: dict[str, tuple[float, float]] = {
-    "TTS": (0.11, 64.3), "DMD": (0.55, 75.3), "MTEL": (0.15, 78.2), "MTWEAR": (0.82, 81.2),
-    "REWEAR": (0.65, 79.3),
-}
+_POINT_ESTIMATES = ("median", "mode")
 UNDETECTED = "undetected"
 
 Progress = Callable[[int, int], None]
@@ -83,32 +80,12 @@ Progress = Callable[[int, int], None]
 
 def expected_units(mode: str, position: str | None) -> set[str]:
     """Actuators expected to alarm for a fault (both winglet actuators for rod-end wear)."""
-    if position is None or mode == "healthy":
-        return set()
-    if mode == "REWEAR" and position in ("WL1", "WL2"):
-        return {"WL1", "WL2"}
-    return {position}
+    return alarming_positions(mode, position)
 
 
 def pattern_seed(pattern_id: str) -> int:
     """Filter seed of a pattern: a stable hash of its id (independent of worker count)."""
     return zlib.crc32(pattern_id.encode()) & 0x7FFFFFFF
-
-
-def _rul_dict(rul: Any) -> dict[str, float | None] | None:
-    if rul is None:
-        return None
-    q = rul.quantiles
-
-    def fin(v: float) -> float | None:
-        return float(v) if v is not None and math.isfinite(v) else None
-
-    return {"q05": fin(q.get(0.05, math.nan)), "q25": fin(q.get(0.25, math.nan)),
-            "q50": fin(rul.median), "q75": fin(q.get(0.75, math.nan)),
-            "q95": fin(q.get(0.95, math.nan)), "mean": fin(rul.mean),
-            "mode": fin(rul.most_probable),
-            "p_beyond_horizon": float(rul.p_beyond_horizon),
-            "severity_mean": float(rul.severity_mean)}
 
 
 def _noise_free_hook(model: PhmModel, pattern: Pattern, severity_norm: float
@@ -162,7 +139,7 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
             "probs": dict(o.class_probabilities) if o is not None and o.class_probabilities
             else None,
             "fault_mode": o.fault_mode if o is not None else None,
-            "rul": _rul_dict(o.rul) if o is not None else None,
+            "rul": o.rul.to_dict() if o is not None and o.rul is not None else None,
         })
     return {"id": pattern.id, "aircraft": pattern.aircraft, "mode": pattern.mode,
             "position": pattern.position, "onset": pattern.onset_flight,
@@ -310,10 +287,9 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
     estimate beyond the prediction horizon counts as the horizon (``max_horizon_flights``).
     ``point_estimate`` is the RUL scored: "median" or "mode" (the most probable RUL).
     """
-    if point_estimate not in _POINT_KEYS:
-        raise ValueError(f"point_estimate must be one of {sorted(_POINT_KEYS)}, "
+    if point_estimate not in _POINT_ESTIMATES:
+        raise ValueError(f"point_estimate must be one of {sorted(_POINT_ESTIMATES)}, "
                          f"got {point_estimate!r}")
-    key = _POINT_KEYS[point_estimate]
     onset = _onset(trace)
     t_eol = float(trace["failure"])
     life = t_eol - onset
@@ -339,7 +315,8 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
         rul = by_index[i]["rul"]
         if not rul:
             return math.nan
-        return horizon if rul.get(key) is None else float(rul[key])
+        value = rul_point(rul, point_estimate)
+        return horizon if value is None else value
 
     est = np.array([point(int(i)) for i in chosen], dtype=float)
     times = chosen.astype(float)
@@ -364,8 +341,8 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
                                                  t_p=(det - onset) / life)
     out["predictions"] = [
         {"flight": int(i), "true_rul": float(t), "point": None if not math.isfinite(m) else m,
-         "q05": (by_index[int(i)]["rul"] or {}).get("q05"),
-         "q95": (by_index[int(i)]["rul"] or {}).get("q95"),
+         "q05": rul_quantile(by_index[int(i)]["rul"], 0.05),
+         "q95": rul_quantile(by_index[int(i)]["rul"], 0.95),
          "mode_used": by_index[int(i)]["fault_mode"],
          "in_cone": bool(metrics.alpha_bounds_hit(m, t, alpha=alpha)) if math.isfinite(m)
          else False}

@@ -17,9 +17,10 @@ import plotly.graph_objects as go
 import plotly.io as pio
 from plotly.subplots import make_subplots
 
-from server.phm.chain import PROGRESSIVE
+from server.phm.prognosis.document import rul_point, rul_quantile
+from server.vocabulary import PAPER_TABLE2, PROGRESSIVE
 
-from .core import ALPHA, PAPER_TABLE2, pattern_prognosis
+from .core import ALPHA, pattern_prognosis
 
 __all__ = ["trajectories_figure", "rul_band_figure", "write_html_report", "markdown_tables",
            "write_rul_pages"]
@@ -81,7 +82,8 @@ def _point(flight: Mapping[str, Any], trace: Mapping[str, Any]) -> float | None:
     rul = flight.get("rul")
     if not rul:
         return None
-    return float(trace.get("horizon", math.inf)) if rul["q50"] is None else float(rul["q50"])
+    median = rul_point(rul, "median")
+    return float(trace.get("horizon", math.inf)) if median is None else median
 
 
 _ROW_PX = 320  # height of one pattern's panel in the RUL pages [px]
@@ -103,9 +105,9 @@ def rul_band_figure(traces: Sequence[Mapping[str, Any]], mode: str) -> go.Figure
         truth = [f["true_rul"] for f in fl]
         have = [f for f in fl if f["rul"]]
         hx = [f["index"] for f in have]
-        q95 = [f["rul"]["q95"] if f["rul"]["q95"] is not None else tr.get("horizon")
+        q95 = [v if (v := rul_quantile(f["rul"], 0.95)) is not None else tr.get("horizon")
                for f in have]
-        q05 = [f["rul"]["q05"] for f in have]
+        q05 = [rul_quantile(f["rul"], 0.05) for f in have]
         med = [_point(f, tr) for f in have]
         first = r == 1
         fig.add_trace(go.Scatter(x=hx, y=q95, mode="lines", line={"width": 0},

@@ -17,8 +17,9 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from server.phm.chain import PROGRESSIVE, PhmModel
-from server.phm.evaluate_detection import load_campaign
+from server.campaigns import load_campaign
+from server.phm.chain import read_model_document
+from server.vocabulary import PROGRESSIVE
 
 from .core import pattern_prognosis, run_pattern
 from .report import rul_band_figure
@@ -38,11 +39,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.model_json:
         doc = json.loads(Path(args.model_json).read_text())
-        model = PhmModel.from_dict(doc.get("payload", doc) if "format" not in doc else doc)
+        model = read_model_document(doc)
     else:
-        from server.phm.training import train_phm_model
+        from server.campaigns import train_from_directory
 
-        model, _ = train_phm_model(args.design, seed=0)
+        model, _ = train_from_directory(args.design, seed=0)
     campaign = load_campaign(args.campaign)
     pats = [p for p in campaign.patterns if p.mode == args.mode
             and (args.pattern is None or p.id == args.pattern)]

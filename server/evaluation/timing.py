@@ -98,7 +98,7 @@ def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
 
     The flights are spread evenly over the manifest's list (deterministic choice).
     """
-    from server.phm.evaluate_detection import read_flight_channels
+    from server.campaigns import read_flight_channels
     from server.phm.features import FeatureConfig, flight_features
 
     root = Path(campaign_dir)

@@ -12,25 +12,20 @@ from typing import Any
 
 from sqlalchemy.orm import Session, sessionmaker
 
+from server.jobs.context import JobContext
 from server.jobs.queue import ClaimedJob
-from server.jobs.worker import JobContext
 from server.services import models as service
 
-__all__ = ["train_into_version", "train_model_job", "campaign_dir_for"]
-
-
-def campaign_dir_for(data_dir: Path, name: str) -> Path:
-    """A campaign directory under ``<data_dir>/campaigns`` (names are validated by the API)."""
-    return data_dir / "campaigns" / name
+__all__ = ["train_into_version", "train_model_job"]
 
 
 def train_into_version(factory: sessionmaker[Session], version_id: int, design_dir: Path, *,
                        seed: int, activate: bool,
                        progress: Callable[[str, float], None] | None = None) -> dict[str, Any]:
-    from server.phm.training import train_phm_model
+    from server.campaigns import train_from_directory
 
     try:
-        model, report = train_phm_model(design_dir, seed=seed,
+        model, report = train_from_directory(design_dir, seed=seed,
                                         jobs=max(1, min(2, os.cpu_count() or 1)),
                                         progress=progress)
     except Exception:
@@ -50,7 +45,7 @@ def train_into_version(factory: sessionmaker[Session], version_id: int, design_d
 
 def train_model_job(ctx: JobContext, job: ClaimedJob) -> None:
     payload = job.payload
-    directory = campaign_dir_for(ctx.settings.data_dir, payload["campaign"])
+    directory = service.campaign_dir(ctx.settings.data_dir, payload["campaign"])
     if not (directory / "manifest.json").exists():
         if payload.get("generate") is None:
             raise FileNotFoundError(f"campaign {payload['campaign']!r} does not exist")

@@ -13,46 +13,18 @@ import socket
 import threading
 import traceback
 import uuid
-from collections.abc import Callable
-from dataclasses import dataclass
-
-from sqlalchemy.orm import Session, sessionmaker
 
 from server.blobstore import BlobStore
 from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.jobs import queue
+from server.jobs.context import Deferred, Handler, JobContext
+from server.jobs.handlers import HANDLERS
 from server.migrate import ensure_schema
 
-__all__ = ["JobContext", "Worker", "HANDLERS", "Deferred", "run_worker_process"]
+__all__ = ["Worker", "run_worker_process"]
 
 log = logging.getLogger("hmsm.worker")
-
-
-@dataclass
-class JobContext:
-    settings: Settings
-    factory: sessionmaker[Session]
-    blobs: BlobStore
-
-
-Handler = Callable[[JobContext, queue.ClaimedJob], None]
-
-
-class Deferred(Exception):
-    """Raised by a handler that cannot run yet: requeue after ``delay_s``, no attempt used."""
-
-    def __init__(self, reason: str, delay_s: float = 30.0):
-        super().__init__(reason)
-        self.delay_s = delay_s
-HANDLERS: dict[str, Handler] = {}
-
-
-def _default_handlers() -> dict[str, Handler]:
-    from server.jobs.pipeline import analyze_flight_job
-    from server.jobs.training_job import train_model_job
-
-    return {"analyze_flight": analyze_flight_job, "train_model": train_model_job, **HANDLERS}
 
 
 class Worker:
@@ -68,7 +40,7 @@ class Worker:
         blobs = BlobStore(settings.blob_dir, settings.tmp_dir)
         blobs.ensure_dirs()
         self.ctx = JobContext(settings, make_session_factory(engine), blobs)
-        self.handlers = handlers or _default_handlers()
+        self.handlers = dict(HANDLERS) if handlers is None else handlers
 
     def _heartbeat(self, job_id: int, done: threading.Event) -> None:
         while not done.wait(self.lease_s / 3):

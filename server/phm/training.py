@@ -1,6 +1,7 @@
 """Train a :class:`~server.phm.chain.PhmModel` on a design campaign (paper section 4.1-4.2).
 
-1. Features of every flight (cached beside the manifest).
+1. Features of every flight: the campaign arrives with them (:mod:`server.campaigns` reads
+   a campaign directory, :func:`server.campaigns.train_from_directory` trains on one).
 2. Baselines and detection bands on the healthy design flights (leave-one-aircraft-out bands,
    see :mod:`server.phm.evaluate_detection`).
 3. Classifier: one seven-residual vector per faulty flight of the faulty actuator, from the
@@ -17,7 +18,6 @@ Nothing of the verification campaign is read here.
 from __future__ import annotations
 
 import math
-import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import replace
@@ -39,8 +39,9 @@ from .chain import (
     surface_of,
 )
 from .classification import train_classifier
+from .dataset import Campaign, FlightRecord, Pattern
 from .detection import DetectionResult
-from .evaluate_detection import Campaign, FlightRecord, Pattern, fit_detection, load_campaign
+from .evaluate_detection import fit_detection
 from .prognosis import MeasurementModel, PrognoserConfig
 from .prognosis.degradation import MIN_LEVEL_GAP
 from .season import SeasonalClimate, StressClock, day_of_year
@@ -395,18 +396,15 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
     return specs, report
 
 
-def train_phm_model(design_dir: str | os.PathLike[str], *, seed: int = 0,
-                    jobs: int | None = None, progress: Progress | None = None
+def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | None = None
                     ) -> tuple[PhmModel, dict[str, Any]]:
-    """Fit the whole chain on a design campaign; return the model and a JSON-safe report."""
+    """Fit the whole chain on a design campaign whose features are computed; return the
+    model and a JSON-safe report."""
 
     def tick(stage: str, frac: float) -> None:
         if progress is not None:
             progress(stage, frac)
 
-    t0 = time.perf_counter()
-    tick("features", 0.0)
-    campaign = load_campaign(design_dir, jobs=jobs or (os.cpu_count() or 1))
     t_feat = time.perf_counter()
     tick("detection", 0.5)
     detection = fit_detection(campaign)
@@ -428,7 +426,7 @@ def train_phm_model(design_dir: str | os.PathLike[str], *, seed: int = 0,
     tick("done", 1.0)
     n_flights = sum(len(p.flights) for p in campaign.patterns)
     report = {
-        "campaign": {"dir": str(design_dir), "kind": campaign.kind, "seed": campaign.seed,
+        "campaign": {"kind": campaign.kind, "seed": campaign.seed,
                      "patterns": len(campaign.patterns), "flights": n_flights,
                      "aircraft": sorted({p.aircraft for p in campaign.patterns})},
         "seed": seed,
@@ -436,8 +434,7 @@ def train_phm_model(design_dir: str | os.PathLike[str], *, seed: int = 0,
         "measurement": meas_report,
         "detector": {"windows": list(detection.detector.windows),
                      "alarm_confidence": detection.detector.alarm_confidence},
-        "timings_s": {"features": t_feat - t0, "detection": t_det - t_feat,
-                      "classifier": t_clf - t_det, "measurement": t_end - t_clf,
-                      "total": t_end - t0},
+        "timings_s": {"detection": t_det - t_feat, "classifier": t_clf - t_det,
+                      "measurement": t_end - t_clf, "total": t_end - t_feat},
     }
     return model, report

@@ -30,7 +30,6 @@ def create_aircraft(*, session: Session, tail: str, base: str, serials: dict[str
     try:
         session.flush()
     except IntegrityError:  # a concurrent request registered the same tail or serial
-        session.rollback()
         raise Conflict(f"Aircraft '{tail}' or one of its serials was registered concurrently.",
                        code="aircraft_exists") from None
     return aircraft
@@ -114,7 +113,6 @@ def replace_actuator(*, session: Session, actuator_id: int, new_serial: str,
     try:
         session.flush()
     except IntegrityError:
-        session.rollback()
         raise Conflict("The actuator was replaced concurrently.", code="concurrent_change"
                        ) from None
     session.refresh(new, attribute_names=["aircraft"])

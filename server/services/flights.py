@@ -27,13 +27,13 @@ from server.flightlog import (
     check_coherence,
     read_flightlog,
 )
-from server.models import Aircraft, ApiKey, Flight, Job
+from server.models import Aircraft, ApiKey, Flight, Job, JobKind
 from server.services.fleet import installed_serials
 
-__all__ = ["ingest_flight", "get_flight", "list_flights", "decode_flight", "decimated_signals",
-           "ANALYSIS_JOB"]
+__all__ = ["ingest_flight", "LostRace", "after_lost_race", "get_flight", "flight_codes",
+           "list_flights", "decode_flight", "decimated_signals", "ANALYSIS_JOB"]
 
-ANALYSIS_JOB = "analyze_flight"
+ANALYSIS_JOB = JobKind.ANALYZE_FLIGHT
 
 
 def _clean_id(value: Any) -> str | None:
@@ -106,15 +106,27 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
                             lock_key=f"aircraft:{aircraft_id}"))
             session.flush()
     except IntegrityError:
-        # A concurrent upload won the race: same bytes (idempotent) or same flight id (conflict).
-        # Nothing else was written in this unit of work, so rolling it back loses nothing.
-        session.rollback()
-        same = session.scalar(select(Flight).where(Flight.sha256 == upload.sha256))
-        if same is not None:
-            return same, True
-        raise Conflict(f"Flight '{code}' of '{tail}' was uploaded concurrently with other "
-                       "content.", code="flight_exists") from None
+        # A concurrent upload won the race: same bytes (idempotent) or same flight id
+        # (conflict); the caller ends this unit of work and asks again (after_lost_race).
+        raise LostRace(tail, code) from None
     return flight, False
+
+
+class LostRace(Conflict):
+    """A concurrent upload registered the same bytes or the same (aircraft, flight) first."""
+
+    def __init__(self, tail: str | None, code: str | None):
+        super().__init__(f"Flight '{code}' of '{tail}' was uploaded concurrently with other "
+                         "content.", code="flight_exists")
+
+
+def after_lost_race(*, session: Session, race: LostRace, sha256: str) -> Flight:
+    """In a new unit of work after :class:`LostRace`: the flight registered with the same
+    bytes (the upload was idempotent), or the race's conflict raised."""
+    same = session.scalar(select(Flight).where(Flight.sha256 == sha256))
+    if same is None:
+        raise race
+    return same
 
 
 def get_flight(*, session: Session, flight_id: int) -> Flight:
@@ -122,6 +134,14 @@ def get_flight(*, session: Session, flight_id: int) -> Flight:
     if flight is None:
         raise NotFound(f"Flight {flight_id} does not exist.")
     return flight
+
+
+def flight_codes(*, session: Session, flight_ids: list[int]) -> dict[int, str]:
+    """Flight id -> the aircraft's own flight code, for the given flights."""
+    if not flight_ids:
+        return {}
+    return dict(session.execute(select(Flight.id, Flight.flight_code).where(
+        Flight.id.in_(flight_ids))).all())
 
 
 def list_flights(*, session: Session, tail: str | None, status: str | None, limit: int,

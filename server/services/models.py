@@ -1,17 +1,30 @@
-"""PHM model versions: store trained models as JSON, list them, activate one."""
+"""PHM model versions: store trained models as JSON, list them, activate one, and decode the
+one the workers run (cached per database and version)."""
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
-from server.models import ModelVersion, utcnow
+from server.models import Job, JobKind, ModelVersion, utcnow
+from server.phm.chain import PhmModel, read_model_document
+from server.phm.detection import FaultDetector
 
 __all__ = ["create_version", "finish_version", "fail_version", "activate", "get_version",
-           "list_versions", "metrics_of", "store_trained"]
+           "active_version", "list_versions", "metrics_of", "store_trained", "active_model",
+           "decoded_model", "detector_levels", "request_training", "campaign_dir"]
+
+#: decoded models, keyed by (database URL, model version id): a version id alone names
+#: another model in another database served by the same process
+_DECODED: dict[tuple[str, int], PhmModel] = {}
+_DECODED_LOCK = threading.Lock()
+_DECODED_MAX = 4
 
 
 def create_version(*, session: Session, name: str, training: dict[str, Any]) -> ModelVersion:
@@ -76,3 +89,60 @@ def store_trained(*, session: Session, name: str, payload: dict[str, Any],
     row = create_version(session=session, name=name, training={})
     return finish_version(session=session, version_id=row.id, payload=payload, training=report,
                           metrics=metrics_of(report), make_active=make_active)
+
+
+def active_version(*, session: Session) -> ModelVersion | None:
+    return session.scalar(select(ModelVersion).where(ModelVersion.active.is_(True)))
+
+
+def decoded_model(*, session: Session, version_id: int) -> PhmModel:
+    """The chain of a model version, decoded once per process (the document is immutable
+    once the version is ready). Raises ValueError for a document the chain cannot run."""
+    key = (str(session.get_bind().url), int(version_id))
+    with _DECODED_LOCK:
+        if key not in _DECODED:
+            payload = get_version(session=session, version_id=version_id).payload
+            if len(_DECODED) >= _DECODED_MAX:
+                _DECODED.clear()
+            _DECODED[key] = read_model_document(payload)
+        return _DECODED[key]
+
+
+def active_model(*, session: Session) -> tuple[int, PhmModel] | None:
+    """(version id, decoded chain) of the active model version, or None if there is none."""
+    version_id = session.scalar(select(ModelVersion.id).where(ModelVersion.active.is_(True)))
+    if version_id is None:
+        return None
+    return int(version_id), decoded_model(session=session, version_id=int(version_id))
+
+
+def detector_levels(*, session: Session, version_id: int | None, features: Sequence[str]
+                    ) -> tuple[float, float]:
+    """(healthy band, single-flight alarm threshold) in standard errors for the plotted
+    features: the detector's one-flight band (median over the features) and that band plus
+    the standard errors at which the alarm confidence is reached. Without a usable model,
+    the detector's defaults."""
+    detector = FaultDetector()
+    if version_id is not None:
+        try:
+            detector = decoded_model(session=session, version_id=version_id).detector
+        except (NotFound, ValueError):
+            pass
+    bands = detector.bands() if hasattr(detector, "band_") else {}
+    values = sorted(bands[f][0] for f in features if f in bands and bands[f])
+    band = values[len(values) // 2] if values else detector.band_floor
+    return band, band + detector.z_alarm
+
+
+def request_training(*, session: Session, version_id: int, payload: dict[str, Any]) -> Job:
+    """Queue the training job of a model version (one at a time: the lock key)."""
+    job = Job(kind=JobKind.TRAIN_MODEL, lock_key=JobKind.TRAIN_MODEL, max_attempts=1,
+              payload={**payload, "version_id": version_id})
+    session.add(job)
+    session.flush()
+    return job
+
+
+def campaign_dir(data_dir: Path, name: str) -> Path:
+    """A campaign directory under ``<data_dir>/campaigns`` (names are validated by the API)."""
+    return data_dir / "campaigns" / name

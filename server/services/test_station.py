@@ -11,13 +11,13 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound, Unprocessable
-from server.models import FAULT_MODES, Aircraft, GroundTruth, Injection, utcnow
+from server.models import Aircraft, GroundTruth, Injection, utcnow
+from server.vocabulary import FAULT_MODES, PROGRESSIVE
 
 __all__ = ["PROGRESSIVE", "create_injection", "list_injections", "get_injection",
            "cancel_injection", "update_injection_status", "report_ground_truth",
            "list_ground_truth"]
 
-PROGRESSIVE = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
 LIVE = ("pending", "active")
 
 

@@ -9,32 +9,22 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from scipy.special import ndtri
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from server.flightlog import POSITIONS
-from server.models import FAULT_MODES, Flight, ModelVersion
 from server.services import fleet as fleet_service
+from server.services import flights as flight_service
 from server.services import health as health_service
 from server.services import models as model_service
 from server.services import test_station as station_service
+from server.vocabulary import FAULT_MODES, PAPER_TABLE2, POSITIONS, PROGRESSIVE
 
-__all__ = ["PAPER_TABLE2", "STATUS_RANK", "fleet_view", "alarms_view", "actuator_view",
+__all__ = ["STATUS_RANK", "fleet_view", "alarms_view", "actuator_view",
            "models_view", "station_view", "evaluation_view", "health_dict", "prognosis_dict"]
 
-#: the paper's Table 2: prognostic horizon [-] and relative accuracy [%] per progressive mode
-PAPER_TABLE2: dict[str, tuple[float, float]] = {
-    "TTS": (0.11, 64.3), "DMD": (0.55, 75.3), "MTEL": (0.15, 78.2), "MTWEAR": (0.82, 81.2),
-    "REWEAR": (0.65, 79.3),
-}
 STATUS_RANK = {"red": 0, "amber": 1, "green": 2}
-DEFAULT_BAND = 3.0
-ALARM_CONFIDENCE = 0.98
 
 
 def fleet_view(*, session: Session, sort: str = "rul", base: str | None = None,
@@ -86,27 +76,7 @@ def health_dict(row: Any) -> dict[str, Any]:
 
 def prognosis_dict(row: Any) -> dict[str, Any]:
     return {"flight_index": row.flight_index, "flight_id": row.flight_id,
-            "fault_mode": row.fault_mode, "severity_mean": row.severity_mean,
-            "severity_std": row.severity_std, "rul_quantiles": row.rul_quantiles,
-            "p_fail_within": row.p_fail_within, "histogram": row.histogram}
-
-
-def detector_levels(payload: Mapping[str, Any] | None, features: Sequence[str]
-                    ) -> tuple[float, float]:
-    """(healthy band, single-flight alarm threshold) in standard errors for the plotted
-    features: the detector's one-flight band (median over the features), + Phi^-1(0.98)."""
-    det = (payload or {}).get("detector") or {}
-    names = list(det.get("feature_names") or [])
-    band = det.get("band") or []
-    values = []
-    for f in features:
-        if f in names:
-            row = band[names.index(f)] if names.index(f) < len(band) else None
-            if isinstance(row, list) and row:
-                values.append(float(row[0]))
-    b = sorted(values)[len(values) // 2] if values else DEFAULT_BAND
-    level = float(det.get("alarm_confidence", ALARM_CONFIDENCE))
-    return b, b + float(ndtri(level))
+            "fault_mode": row.fault_mode, "distribution": row.distribution}
 
 
 def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> dict[str, Any]:
@@ -137,8 +107,8 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
                 truth_by_code[gt.flight_code] = float(gt.true_rul_flights)
     truth: dict[int, float] = {}
     if truth_by_code and progs:
-        codes = dict(session.execute(select(Flight.id, Flight.flight_code).where(
-            Flight.id.in_([p["flight_id"] for p in progs]))).all())
+        codes = flight_service.flight_codes(session=session,
+                                            flight_ids=[p["flight_id"] for p in progs])
         for p in progs:
             code = codes.get(p["flight_id"])
             if code in truth_by_code:
@@ -148,9 +118,11 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     model_id = next((r.model_version_id for r in reversed(
         health_service.health_records(session=session, actuator_id=actuator_id, limit=1))),
         None)
-    model_row = session.get(ModelVersion, model_id) if model_id else session.scalar(
-        select(ModelVersion).where(ModelVersion.active.is_(True)))
-    band, threshold = detector_levels(model_row.payload if model_row else None, z_names)
+    if model_id is None:
+        active = model_service.active_version(session=session)
+        model_id = None if active is None else active.id
+    band, threshold = model_service.detector_levels(session=session, version_id=model_id,
+                                                    features=z_names)
     latest = records[-1] if records else None
     return {"actuator": actuator, "tail": tail, "records": records, "prognoses": progs,
             "truth": truth, "previous": previous, "alarms": own_alarms, "band": band,
@@ -193,7 +165,7 @@ def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
     aircraft, _ = fleet_service.list_aircraft(session=session, base=None, limit=1000, offset=0)
     return {"items": items, "total": total, "tails": [a.tail for a in aircraft],
             "positions": POSITIONS, "modes": FAULT_MODES,
-            "progressive": station_service.PROGRESSIVE}
+            "progressive": PROGRESSIVE}
 
 
 def evaluation_view(*, data_dir: Path) -> dict[str, Any]:

@@ -32,12 +32,11 @@ from anyio import to_thread
 from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import StreamingResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
-from sqlalchemy import func, select
 from sqlalchemy.orm import Session, sessionmaker
 
 from server.auth import authenticate
 from server.errors import Unauthorized
-from server.models import Alarm, HealthRecord, Injection, ModelVersion, Prognosis
+from server.services.events import snapshot
 
 __all__ = ["router", "snapshot", "diff_events", "POLL_S"]
 
@@ -46,31 +45,6 @@ KEEPALIVE_S = 15.0
 _bearer = HTTPBearer(auto_error=False)
 
 router = APIRouter(tags=["events"])
-
-
-def snapshot(session: Session) -> dict[str, Any]:
-    """Aggregates whose change means a page should refresh (a fixed number of queries)."""
-    alarm = session.execute(select(func.max(Alarm.id), func.max(Alarm.acknowledged_at),
-                                   func.max(Alarm.closed_at))).one()
-    alarm_status = sorted(session.execute(select(Alarm.status, func.count())
-                                          .group_by(Alarm.status)).all())
-    injection = session.execute(select(func.max(Injection.id),
-                                       func.max(Injection.cancelled_at))).one()
-    injection_status = sorted(session.execute(select(Injection.status, func.count())
-                                              .group_by(Injection.status)).all())
-    model = session.execute(select(func.max(ModelVersion.id), func.max(ModelVersion.finished_at),
-                                   func.count())).one()
-    active = session.scalar(select(func.max(ModelVersion.id)).where(
-        ModelVersion.active.is_(True)))
-    return {
-        "alarm": alarm[0] or 0,
-        "alarm-status": json.dumps([str(alarm[1]), str(alarm[2]), alarm_status], default=str),
-        "flight": session.scalar(select(func.max(HealthRecord.id))) or 0,
-        "prognosis": session.scalar(select(func.max(Prognosis.id))) or 0,
-        "injection": json.dumps([injection[0], str(injection[1]), injection_status],
-                                default=str),
-        "model": json.dumps([model[0], str(model[1]), model[2], active], default=str),
-    }
 
 
 def diff_events(before: dict[str, Any], after: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:

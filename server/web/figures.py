@@ -19,8 +19,9 @@ from typing import Any
 
 import plotly.graph_objects as go
 
+from server.phm.prognosis.document import rul_quantile
+
 __all__ = [
-    "QUANTILE_KEYS",
     "figure_json",
     "feature_trends",
     "detection_confidence",
@@ -31,8 +32,6 @@ __all__ = [
     "confusion_matrix",
 ]
 
-#: keys of ``Prognosis.rul_quantiles`` (percent)
-QUANTILE_KEYS = ("5", "25", "50", "75", "95")
 _TEMPLATE = "plotly_white"
 _MARGIN = {"l": 56, "r": 16, "t": 40, "b": 48}
 _PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
@@ -128,8 +127,8 @@ def class_probabilities(records: Sequence[Mapping[str, Any]]) -> go.Figure:
 def severity_band(prognoses: Sequence[Mapping[str, Any]]) -> go.Figure:
     """Estimated normalised fault severity with the particle band (mean +- 2 std)."""
     xs = [int(p["flight_index"]) for p in prognoses]
-    mean = [float(p["severity_mean"]) for p in prognoses]
-    std = [float(p["severity_std"]) for p in prognoses]
+    mean = [float(p["distribution"]["severity_mean"]) for p in prognoses]
+    std = [float(p["distribution"]["severity_std"]) for p in prognoses]
     hi = [m + 2 * s for m, s in zip(mean, std, strict=True)]
     lo = [max(m - 2 * s, 0.0) for m, s in zip(mean, std, strict=True)]
     fig = go.Figure()
@@ -154,10 +153,10 @@ def rul_cone(prognoses: Sequence[Mapping[str, Any]],
     """
     xs = [int(p["flight_index"]) for p in prognoses]
 
-    def q(key: str) -> list[float | None]:
-        return [_finite((p.get("rul_quantiles") or {}).get(key)) for p in prognoses]
+    def q(level: float) -> list[float | None]:
+        return [_finite(rul_quantile(p.get("distribution"), level)) for p in prognoses]
 
-    q5, q50, q95 = q("5"), q("50"), q("95")
+    q5, q50, q95 = q(0.05), q(0.5), q(0.95)
     fig = go.Figure()
     band = [(x, lo, hi) for x, lo, hi in zip(xs, q5, q95, strict=True)
             if lo is not None and hi is not None]
@@ -188,15 +187,15 @@ def rul_histogram(prognosis: Mapping[str, Any] | None) -> go.Figure:
     """The latest RUL distribution (probability mass per bin of RUL in flights)."""
     fig = go.Figure()
     if prognosis:
-        hist = prognosis.get("histogram") or {}
-        edges = [float(e) for e in hist.get("edges", [])]
-        mass = [float(m) for m in hist.get("mass", [])]
+        doc = prognosis.get("distribution") or {}
+        edges = [float(e) for e in doc.get("histogram_edges") or []]
+        mass = [float(m) for m in doc.get("histogram_mass") or []]
         if len(edges) == len(mass) + 1 and mass:
             centres = [(a + b) / 2 for a, b in zip(edges[:-1], edges[1:], strict=True)]
             widths = [b - a for a, b in zip(edges[:-1], edges[1:], strict=True)]
             fig.add_trace(go.Bar(x=centres, y=mass, width=widths, name="probability mass",
                                  marker={"color": "#1f77b4"}))
-        med = _finite((prognosis.get("rul_quantiles") or {}).get("50"))
+        med = _finite(rul_quantile(doc, 0.5))
         if med is not None:
             top = max(mass) if mass else 1.0
             fig.add_trace(go.Scatter(x=[med, med], y=[0, top], mode="lines",

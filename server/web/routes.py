@@ -29,10 +29,12 @@ from fastapi.templating import Jinja2Templates
 from pydantic import ValidationError
 
 import web
-from server.api.deps import SessionDep, SettingsDep
 from server.auth import authenticate, may
+from server.dependencies import SessionDep, SettingsDep
 from server.errors import DomainError
 from server.models import ApiKey
+from server.phm.prognosis.document import rul_quantile
+from server.schemas import InjectionCreate
 from server.services import fleet as fleet_service
 from server.services import health as health_service
 from server.services import models as model_service
@@ -56,6 +58,7 @@ def templates() -> Jinja2Templates:
     t = Jinja2Templates(directory=str(TEMPLATE_DIR))
     t.env.autoescape = True
     t.env.globals["figure_json"] = figures.figure_json
+    t.env.globals["rul_quantile"] = rul_quantile
     return t
 
 
@@ -250,6 +253,7 @@ def replace(request: Request, session: SessionDep, actuator_id: int,
         new = fleet_service.replace_actuator(session=session, actuator_id=actuator_id,
                                              new_serial=serial, note=note.strip() or None)
     except DomainError as exc:
+        session.rollback()
         return _problem(request, key, exc.status_code, exc.message)
     session.commit()
     return RedirectResponse(f"/actuators/{new.id}", status_code=303)
@@ -296,8 +300,6 @@ def inject(request: Request, session: SessionDep, csrf: str = Form(""),
     key = _check_post(request, session, csrf, "operate")
     if not isinstance(key, ApiKey):
         return key
-    from server.api.test_station import InjectionCreate
-
     form = {"aircraft": aircraft, "position": position, "fault_mode": fault_mode,
             "onset_flight": onset_flight, "time_to_failure_flights": time_to_failure_flights}
     try:

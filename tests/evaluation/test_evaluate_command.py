@@ -12,11 +12,11 @@ from typing import Any
 
 import pytest
 
+from server.vocabulary import PAPER_TABLE2
+
 pytestmark = pytest.mark.slow
 
-#: the paper's Table 2 (PH [-], RA [%]), issue 6's minimum per mode
-PAPER_TABLE2 = {"TTS": (0.11, 64.3), "DMD": (0.55, 75.3), "MTEL": (0.15, 78.2),
-                "MTWEAR": (0.82, 81.2), "REWEAR": (0.65, 79.3)}
+#: the paper's Table 2 (PH [-], RA [%]) is issue 6's minimum per mode
 _UNMET = pytest.mark.xfail(strict=True, reason="issue 6 target not reached on the quick "
                            "verification campaign (docs/RESULTS.md, Prognosis)")
 

@@ -19,15 +19,18 @@ from server.evaluation.core import (
     summarise_detection,
     summarise_prognosis,
 )
+from server.phm.prognosis import RulDistribution
 
 
 def _flight(index: int, *, t_eol: float | None, alarm: bool, probs: dict[str, float] | None,
             q50: float | None = None, new: bool = False, mode: str | None = None
             ) -> dict[str, Any]:
     # the most probable RUL of these right-skewed test distributions: 0.85 x the median
-    rul = None if q50 is None else {"q05": 0.5 * q50, "q25": None, "q50": q50, "q75": None,
-                                     "q95": 1.5 * q50, "mean": q50, "mode": 0.85 * q50,
-                                     "p_beyond_horizon": 0.0, "severity_mean": 0.5}
+    rul = None if q50 is None else RulDistribution(
+        flight_index=index, quantiles={0.05: 0.5 * q50, 0.5: q50, 0.95: 1.5 * q50}, mean=q50,
+        p_fail_within={}, p_beyond_horizon=0.0, histogram_edges=np.array([0.0, 1.0]),
+        histogram_mass=np.array([1.0]), severity_mean=0.5, severity_std=0.0,
+        most_probable=0.85 * q50).to_dict()
     return {"index": index, "severity_norm": 0.0,
             "true_rul": None if t_eol is None else t_eol - index,
             "alarms": ["WL1"] if alarm else [], "new_alarms": ["WL1"] if new else [],

@@ -61,15 +61,18 @@ def valid_mat() -> bytes:
     return out.getvalue()
 
 
+def _read(kind: str, data: bytes, metadata: dict[str, str]) -> FlightLog:
+    if kind == "parquet":
+        return read_parquet(data)
+    if kind == "csv":
+        return read_csv(data, metadata)
+    return read_mat(data, metadata)
+
+
 def _decode(kind: str, data: bytes, metadata: dict[str, str] | None = None) -> None:
-    meta = _metadata() if metadata is None else metadata
+    """Decoded, or rejected with a clean FlightLogError; the checks never raise."""
     try:
-        if kind == "parquet":
-            log = read_parquet(data)
-        elif kind == "csv":
-            log = read_csv(data, meta)
-        else:
-            log = read_mat(data, meta)
+        log = _read(kind, data, _metadata() if metadata is None else metadata)
     except FlightLogError as exc:
         assert exc.issues and all(i.code for i in exc.issues)
         return
@@ -102,9 +105,36 @@ def mutated(draw: st.DrawFn, original: bytes) -> bytes:
     return bytes(data)
 
 
+@cache
+def _long_log() -> FlightLog:
+    # long enough for a feature window: a valid file must pass every coherence check
+    return make_log("FZ1", "F2", duration_s=12.0)
+
+
 @pytest.mark.parametrize("kind", ["parquet", "csv", "mat"])
-def test_valid_files_decode(kind: str) -> None:
-    _decode(kind, VALID[kind]())
+def test_valid_files_decode_and_pass_every_check(kind: str) -> None:
+    from server.flightlog import write_parquet
+
+    original = _long_log()
+    names = list(original.channels)
+    if kind == "parquet":
+        data = write_parquet(original)
+    elif kind == "csv":
+        out = io.StringIO()
+        np.savetxt(out, np.column_stack([original.channels[n] for n in names]),
+                   delimiter=",", fmt="%.9g", header=",".join(names), comments="")
+        data = out.getvalue().encode()
+    else:
+        import scipy.io
+
+        buf = io.BytesIO()
+        scipy.io.savemat(buf, {n.replace(".", "_"): v for n, v in original.channels.items()})
+        data = buf.getvalue()
+    log = _read(kind, data, original.metadata.to_strings())  # a rejection fails the test
+    assert set(log.channels) == set(names)
+    for n in names:
+        np.testing.assert_allclose(log.channels[n], original.channels[n], rtol=1e-6)
+    assert check_coherence(log, fleet_serials=serials_for("FZ1")) == []
 
 
 @pytest.mark.parametrize("kind", ["parquet", "csv", "mat"])

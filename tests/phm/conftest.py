@@ -198,14 +198,14 @@ def _campaign(kind: str, seed: int, root: Path, render_every: int | None = None)
 
 @pytest.fixture(scope="session")
 def design_campaign(campaign_root: Path):
-    from server.phm.evaluate_detection import load_campaign
+    from server.campaigns import load_campaign
 
     return load_campaign(_campaign("design", DESIGN_SEED, campaign_root), jobs=2)
 
 
 @pytest.fixture(scope="session")
 def verification_campaign(campaign_root: Path):
-    from server.phm.evaluate_detection import load_campaign
+    from server.campaigns import load_campaign
 
     return load_campaign(_campaign("verification", VERIFICATION_SEED, campaign_root), jobs=2)
 
@@ -215,7 +215,7 @@ def dense_verification_campaign(campaign_root: Path):
     """The verification campaign with every 5th flight of a fault-to-failure run rendered
     (the quick one renders every 20th: three flights of evidence are then 60 flights of a
     170-450-flight life, while an aircraft in service downloads every flight)."""
-    from server.phm.evaluate_detection import load_campaign
+    from server.campaigns import load_campaign
 
     return load_campaign(_campaign("verification", VERIFICATION_SEED, campaign_root,
                                    render_every=5), jobs=2)

@@ -8,16 +8,16 @@ import json
 import pytest
 
 from server.phm.chain import PhmModel, analyze_flight
-from server.phm.evaluate_detection import load_campaign
+from server.campaigns import load_campaign
 from server.phm.prognosis import PrognoserConfig, PrognoserState
-from server.phm.training import train_phm_model
+from server.campaigns import train_from_directory
 
 pytestmark = pytest.mark.slow
 
 
 def test_same_campaign_and_seed_give_the_same_model_json(design_campaign_dir, trained_model
                                                         ) -> None:
-    again, _ = train_phm_model(design_campaign_dir, seed=0, jobs=2)
+    again, _ = train_from_directory(design_campaign_dir, seed=0, jobs=2)
     assert json.dumps(again.to_dict(), sort_keys=True) == json.dumps(trained_model[0],
                                                                      sort_keys=True)
 

@@ -3,9 +3,9 @@
 This stands in for a real simulated run (flights uploaded, analysed by
 ``server.jobs.pipeline.analyze_flight_job`` with an active model) until the pipeline is fast
 enough to run in the browser tests; swap the body for that run when it is. The shapes follow
-what the pipeline stores (``server/jobs/pipeline.py::_store``): health records with
-``scores = {"z", "confidence", "alarm_features"}``, prognoses with ``rul_quantiles`` keyed
-"5".."95", ``histogram = {"edges", "mass"}``, and a model version whose ``metrics["confusion"]``
+what the analysis stores (``server/services/analysis.py``): health records with
+``scores = {"z", "confidence", "alarm_features"}``, prognoses with the filter's
+``RulDistribution.to_dict`` document, and a model version whose ``metrics["confusion"]``
 is :func:`server.phm.classification.confusion`'s output.
 """
 
@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 
+import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -31,6 +32,7 @@ from server.models import (
     ModelVersion,
     Prognosis,
 )
+from server.phm.prognosis import RulDistribution
 
 __all__ = ["SeedResult", "seed_results", "add_alarm", "CONFUSION"]
 
@@ -59,6 +61,21 @@ class SeedResult:
     alarm_id: int
     injection_id: int
     n_flights: int
+
+
+
+def rul_document(flight_index: int, median: float, severity: float, severity_std: float,
+                 edges: list[float], mass: list[float],
+                 spread: tuple[float, float, float, float] = (0.6, 0.85, 1.15, 1.45)) -> dict:
+    """An RUL distribution's JSON document, made by the class the filter returns: the 5, 25,
+    75 and 95 % quantiles at ``spread`` times the median."""
+    q05, q25, q75, q95 = (median * f for f in spread)
+    return RulDistribution(
+        flight_index=flight_index,
+        quantiles={0.05: q05, 0.25: q25, 0.5: median, 0.75: q75, 0.95: q95},
+        mean=median, p_fail_within={10: 0.05, 25: 0.3}, p_beyond_horizon=0.0,
+        histogram_edges=np.asarray(edges), histogram_mass=np.asarray(mass),
+        severity_mean=severity, severity_std=severity_std).to_dict()
 
 
 def _flight(session: Session, aircraft: Aircraft, code: str, started: datetime) -> Flight:
@@ -128,11 +145,8 @@ def seed_results(factory: sessionmaker[Session], *, tail: str, position: str = "
                 total = sum(mass) or 1.0
                 session.add(Prognosis(
                     actuator_id=act.id, flight_id=flight.id, flight_index=i, fault_mode="DMD",
-                    severity_mean=sev, severity_std=0.05 + 0.02 * (1 - sev),
-                    rul_quantiles={"5": med * 0.6, "25": med * 0.85, "50": med,
-                                   "75": med * 1.15, "95": med * 1.45},
-                    p_fail_within={"10": 0.05, "25": 0.3}, histogram={
-                        "edges": edges, "mass": [m / total for m in mass]}))
+                    distribution=rul_document(i, med, sev, 0.05 + 0.02 * (1 - sev), edges,
+                                              [m / total for m in mass])))
                 if first_alarm is None:
                     first_alarm = Alarm(actuator_id=act.id, flight_id=flight.id, status="open",
                                         confidence=conf, fault_mode="DMD",

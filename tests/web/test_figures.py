@@ -7,18 +7,16 @@ import json
 import plotly.graph_objects as go
 
 from server.web import figures
-from tests.web.seed import CONFUSION
+from tests.web.seed import CONFUSION, rul_document
 
 
-def _prognoses(n: int = 10) -> list[dict]:
+def _prognoses(n: int = 10, severity_std: float = 0.02) -> list[dict]:
     out = []
     for i in range(1, n + 1):
         med = 50.0 - 2 * i
-        out.append({"flight_index": i, "fault_mode": "DMD", "severity_mean": 0.05 * i,
-                    "severity_std": 0.02,
-                    "rul_quantiles": {"5": med * 0.6, "25": med * 0.8, "50": med,
-                                      "75": med * 1.2, "95": med * 1.4},
-                    "histogram": {"edges": [0.0, 10.0, 20.0, 30.0], "mass": [0.2, 0.5, 0.3]}})
+        out.append({"flight_index": i, "fault_mode": "DMD", "distribution": rul_document(
+            i, med, 0.05 * i, severity_std, [0.0, 10.0, 20.0, 30.0], [0.2, 0.5, 0.3],
+            spread=(0.6, 0.8, 1.2, 1.4))})
     return out
 
 
@@ -58,7 +56,7 @@ def test_rul_histogram_bars_at_bin_centres_and_median_line() -> None:
 
 
 def test_severity_band_is_mean_plus_minus_two_std_clipped_at_zero() -> None:
-    progs = [dict(p, severity_std=0.03) for p in _prognoses(3)]
+    progs = _prognoses(3, severity_std=0.03)
     fig = figures.severity_band(progs)
     band = fig.data[0]
     assert band.y[0] == 0.05 + 0.06            # upper, first flight

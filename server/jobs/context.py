@@ -1,0 +1,33 @@
+"""What a job handler is given and may raise: the pieces shared by the worker loop and the
+handlers (so that neither imports the other)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from server.blobstore import BlobStore
+from server.config import Settings
+from server.jobs.queue import ClaimedJob
+
+__all__ = ["JobContext", "Handler", "Deferred"]
+
+
+@dataclass
+class JobContext:
+    settings: Settings
+    factory: sessionmaker[Session]
+    blobs: BlobStore
+
+
+Handler = Callable[[JobContext, ClaimedJob], None]
+
+
+class Deferred(Exception):
+    """Raised by a handler that cannot run yet: requeue after ``delay_s``, no attempt used."""
+
+    def __init__(self, reason: str, delay_s: float = 30.0):
+        super().__init__(reason)
+        self.delay_s = delay_s

@@ -1,0 +1,147 @@
+"""One flight through the chain for every actuator of an aircraft: detection, then (after an
+alarm) classification, then (for a progressive mode) prognosis."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+
+import numpy as np
+
+from ..detection import DetectionResult
+from ..features import FlightFeatures
+from ..prognosis import RulDistribution
+from ..season import next_flights_per_day
+from .config import CHAIN
+from .inputs import actuator_feature_names, classifier_vector, measurement_values, self_residuals
+from .model import PhmModel
+from .prognose import prognose
+from .state import ActuatorHealth
+
+__all__ = ["MeasurementHook", "ActuatorOutcome", "analyze_flight"]
+
+#: (position, measurement values) -> the values the prognosis sees: see :func:`analyze_flight`
+MeasurementHook = Callable[[str, dict[str, float]], dict[str, float]]
+
+
+@dataclass
+class ActuatorOutcome:
+    """What one flight said about one actuator."""
+
+    flight_index: int
+    features: dict[str, dict[str, float]]
+    z: dict[str, float]
+    confidence: dict[str, float]
+    max_confidence: float
+    alarm: bool
+    new_alarm: bool
+    alarm_features: list[str]
+    class_probabilities: dict[str, float] | None
+    fault_mode: str | None
+    rul: RulDistribution | None = None
+
+
+def analyze_flight(model: PhmModel, features: FlightFeatures,
+                   health: dict[str, ActuatorHealth], *, seed: int = 0,
+                   flight_index: int | None = None, started_at: datetime | None = None,
+                   base: str | None = None,
+                   measurement_hook: MeasurementHook | None = None
+                   ) -> dict[str, ActuatorOutcome]:
+    """Advance every actuator's state by one flight (``health`` is updated in place).
+
+    ``flight_index`` is the flight number of this flight when flights in between were not
+    analysed (e.g. a campaign that renders every 20th flight): the particle filter then
+    propagates over the gap. Default: ``flights_seen + 1`` (every flight analysed, the
+    service's case). It must increase strictly from flight to flight.
+
+    ``started_at`` (take-off time, timezone-aware) and ``base`` (the aircraft's home base)
+    let the prognosis age thermal faults on the season's clock (:mod:`server.phm.season`);
+    without them it counts flights.
+
+    ``measurement_hook(position, values)`` may replace the values the prognosis of an
+    actuator sees (and stores in its history) for an error-budget study: the evaluation's
+    noise-free features (``hmsm evaluate --noise-free-features``). Never used in service.
+    """
+    z_all = model.baseline.zscores(features)
+    out: dict[str, ActuatorOutcome] = {}
+    for position, h in health.items():
+        index = _advance(h, flight_index)
+        _track_calendar(h, index, started_at)
+        det = model.detector.update(h.detection, z_all)
+        if det.new_alarm:
+            h.alarm_index = index
+        generic = measurement_values(self_residuals(model.baseline, z_all, det), position)
+        if measurement_hook is not None:
+            generic = measurement_hook(position, generic)
+        h.history.append((index, generic))
+        del h.history[:-CHAIN.history_flights]
+        probs = _classify(model, h, position) if det.alarm else None
+        rul = (prognose(model, h, generic, position, index, base=base, seed=seed)
+               if det.alarm else None)
+        out[position] = _outcome(features, z_all, det, h, position, index, probs, rul)
+    return out
+
+
+def _advance(h: ActuatorHealth, flight_index: int | None) -> int:
+    """This flight's index for the actuator: the next one, or the caller's (after a gap)."""
+    if flight_index is None:
+        h.flights_seen += 1
+    else:
+        if h.history and int(flight_index) <= h.history[-1][0]:
+            raise ValueError(f"flight_index must increase: {flight_index} after "
+                             f"{h.history[-1][0]}")
+        h.flights_seen = int(flight_index)
+    return h.flights_seen
+
+
+def _track_calendar(h: ActuatorHealth, index: int, started_at: datetime | None) -> None:
+    """Update the aircraft's flying rate from the take-off times of analysed flights."""
+    if started_at is None:
+        return
+    if h.last_started_at is not None and h.history:
+        h.flights_per_day = next_flights_per_day(
+            h.flights_per_day, index - h.history[-1][0],
+            started_at - datetime.fromisoformat(h.last_started_at))
+    h.last_started_at = started_at.isoformat()
+
+
+def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, float] | None:
+    """Class probabilities from the class evidence accumulated since the alarm (older flights
+    decayed); a change of the leading mode restarts the prognosis on the new mode's feature."""
+    if model.classifier is None:
+        return None
+    logp = model.classifier.predict_log_proba(
+        classifier_vector(h.detection, position)[np.newaxis, :])[0]
+    classes = [str(c) for c in model.classifier.classes_.tolist()]
+    acc = h.class_log_prob or dict.fromkeys(classes, 0.0)
+    acc = {c: CHAIN.class_evidence_decay * acc.get(c, 0.0) + float(lp)
+           for c, lp in zip(classes, logp, strict=True)}
+    h.class_log_prob = acc
+    top = max(acc.values())
+    weights = {c: math.exp(v - top) for c, v in acc.items()}
+    total = sum(weights.values())
+    probs = {c: w / total for c, w in weights.items()}
+    mode = max(probs, key=lambda c: probs[c])
+    if mode != h.fault_mode:
+        h.fault_mode = mode
+        h.prognosis = None
+    return probs
+
+
+def _finite(v: float) -> float | None:
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
+def _outcome(features: FlightFeatures, z_all: dict[str, float], det: DetectionResult,
+             h: ActuatorHealth, position: str, index: int,
+             probs: dict[str, float] | None, rul: RulDistribution | None) -> ActuatorOutcome:
+    names = actuator_feature_names(position)
+    return ActuatorOutcome(
+        flight_index=index,
+        features={n: features.summaries[n].to_dict() for n in names if n in features.summaries},
+        z={n: v for n in names if (v := _finite(z_all.get(n, math.nan))) is not None},
+        confidence=dict(det.confidence), max_confidence=float(det.max_confidence),
+        alarm=det.alarm, new_alarm=det.new_alarm, alarm_features=list(det.alarm_features),
+        class_probabilities=probs, fault_mode=h.fault_mode if det.alarm else None, rul=rul)

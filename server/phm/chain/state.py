@@ -1,0 +1,62 @@
+"""The state of one actuator carried between flights (``ema-actuator-health/2``, JSON)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..detection import DetectionState
+
+__all__ = ["HEALTH_FORMAT", "ActuatorHealth"]
+
+HEALTH_FORMAT = "ema-actuator-health/2"
+
+
+@dataclass
+class ActuatorHealth:
+    """State of one actuator carried between flights (JSON)."""
+
+    position: str
+    detection: DetectionState
+    flights_seen: int = 0
+    #: flight index of the first alarm: the filter starts there (the fault was not known
+    #: before; replaying the healthy flights since installation drags the tuned law down)
+    alarm_index: int | None = None
+    class_log_prob: dict[str, float] | None = None
+    fault_mode: str | None = None
+    prognosis: dict[str, Any] | None = None
+    history: list[tuple[int, dict[str, float]]] = field(default_factory=list)
+    #: take-off time (ISO 8601) of the last flight analysed and the aircraft's flying rate
+    #: [flight/day], for the stress clock (server.phm.season)
+    last_started_at: str | None = None
+    flights_per_day: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": HEALTH_FORMAT, "position": self.position,
+                "detection": self.detection.to_dict(), "flights_seen": self.flights_seen,
+                "alarm_index": self.alarm_index,
+                "class_log_prob": self.class_log_prob, "fault_mode": self.fault_mode,
+                "prognosis": self.prognosis,
+                "history": [[i, z] for i, z in self.history],
+                "last_started_at": self.last_started_at,
+                "flights_per_day": self.flights_per_day}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> ActuatorHealth:
+        if d.get("format") not in (HEALTH_FORMAT, "ema-actuator-health/1"):
+            raise ValueError(f"not a {HEALTH_FORMAT} document")
+        # version 1 kept standardised residuals in the history; they cannot seed a filter that
+        # tracks physical residuals, so that history is dropped (detection state is kept)
+        keep_history = d.get("format") == HEALTH_FORMAT
+        return cls(position=str(d["position"]),
+                   detection=DetectionState.from_dict(d["detection"]),
+                   flights_seen=int(d["flights_seen"]),
+                   alarm_index=None if d.get("alarm_index") is None else int(d["alarm_index"]),
+                   class_log_prob=d.get("class_log_prob"), fault_mode=d.get("fault_mode"),
+                   prognosis=d.get("prognosis"),
+                   history=[(int(i), {k: float(v) for k, v in z.items()})
+                            for i, z in d.get("history", [])] if keep_history else [],
+                   last_started_at=d.get("last_started_at"),
+                   flights_per_day=None if d.get("flights_per_day") is None
+                   else float(d["flights_per_day"]))

@@ -1,0 +1,68 @@
+"""A campaign as the PHM chain's training and evaluation see it: patterns of flights, each
+flight's features with its ground-truth labels (labels never reach the chain at run time).
+
+Pure data; :mod:`server.campaigns` reads campaign directories into these."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from .features import FlightFeatures
+
+__all__ = ["FlightRecord", "Pattern", "Campaign", "is_healthy_flight", "healthy_flights"]
+
+
+@dataclass
+class FlightRecord:
+    """One flight of a pattern with its features and labels."""
+
+    flight: str
+    index: int
+    severity: float
+    severity_norm: float
+    true_rul_flights: float | None
+    ground_temp_c: float | None
+    features: FlightFeatures
+    started_at: datetime | None = None  # take-off time, from the flight log's metadata
+
+
+@dataclass
+class Pattern:
+    """One aircraft's sequence of flights: healthy, or a fault from onset to failure."""
+
+    id: str
+    aircraft: str
+    mode: str
+    position: str | None
+    onset_flight: int | None
+    failure_flight: int | None
+    flights: list[FlightRecord] = field(default_factory=list)
+    base: str | None = None  # the aircraft's home base
+
+
+@dataclass
+class Campaign:
+    kind: str
+    seed: int
+    patterns: list[Pattern]
+    aircraft: list[dict[str, Any]]
+
+
+def is_healthy_flight(p: Pattern, r: FlightRecord) -> bool:
+    """A flight of a healthy pattern, or of a fault pattern before the fault's onset."""
+    if p.mode == "healthy":
+        return True
+    return p.onset_flight is not None and r.index < int(p.onset_flight)
+
+
+def healthy_flights(campaign: Campaign) -> list[tuple[str, list[FlightFeatures]]]:
+    """Healthy flight sequences ``(aircraft, flights in order)``: healthy patterns and the
+    pre-onset flights of fault patterns."""
+    out = []
+    for p in campaign.patterns:
+        seq = [r.features for r in p.flights if is_healthy_flight(p, r)]
+        if seq:
+            out.append((p.aircraft, seq))
+    return out

@@ -1,0 +1,184 @@
+"""Per-flight analysis results: which flight to analyse, the actuators and their stored
+states, the chain run over them, and everything it says stored (health records, states,
+alarms, prognoses). The ``analyze_flight`` job (:mod:`server.jobs.pipeline`) is wiring around
+these; like every service they flush and leave the unit of work to the caller.
+
+A job that runs twice (a worker died after committing, before marking the job done) finds the
+flight's health records and writes nothing again.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from server.models import (
+    Actuator,
+    ActuatorState,
+    Aircraft,
+    Alarm,
+    Flight,
+    HealthRecord,
+    Prognosis,
+    utcnow,
+)
+from server.phm.chain import ActuatorHealth, ActuatorOutcome, PhmModel, analyze_flight
+from server.phm.features import FlightFeatures
+from server.phm.prognosis import RulDistribution
+
+__all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "reject",
+           "store_analysis", "json_safe"]
+
+#: flight states after which there is nothing left to analyse
+_FINISHED = ("analyzed", "rejected")
+
+
+@dataclass(frozen=True)
+class FlightToAnalyse:
+    """What the job needs of a stored flight to decode it."""
+
+    flight_id: int
+    aircraft_id: int
+    blob_path: str
+    sha256: str
+    content_kind: str
+    metadata: dict[str, Any]
+
+
+def flight_to_analyse(*, session: Session, flight_id: int) -> FlightToAnalyse | None:
+    """The flight's stored file and metadata; None if it is gone or already finished."""
+    flight = session.get(Flight, flight_id)
+    if flight is None or flight.status in _FINISHED:
+        return None
+    return FlightToAnalyse(flight.id, flight.aircraft_id, flight.blob_path, flight.sha256,
+                           flight.content_kind, dict(flight.flight_metadata))
+
+
+def mark_analyzing(*, session: Session, flight_id: int) -> None:
+    flight = session.get(Flight, flight_id)
+    if flight is not None:
+        flight.status, flight.updated_at = "analyzing", utcnow()
+        session.flush()
+
+
+def reject(*, session: Session, flight_id: int, reasons: list[dict[str, Any]]) -> None:
+    """The flight cannot be analysed: stored as rejected with machine-readable reasons."""
+    flight = session.get(Flight, flight_id)
+    if flight is not None:
+        flight.status, flight.reasons, flight.updated_at = "rejected", reasons, utcnow()
+        session.flush()
+
+
+def store_analysis(*, session: Session, flight_id: int, features: FlightFeatures,
+                   model_id: int, model: PhmModel) -> None:
+    """Run the chain on the flight's features for every installed actuator not yet analysed
+    on this flight, from its stored state, store what it says and mark the flight analysed."""
+    flight = session.get(Flight, flight_id)
+    if flight is None:
+        return
+    todo = [a for a in _installed(session, flight.aircraft_id)
+            if a.id not in _analysed_on(session, flight_id)]
+    states = {a.id: session.get(ActuatorState, a.id) for a in todo}
+    health = {a.position: _health_of(model, a, states[a.id]) for a in todo}
+    aircraft = session.get(Aircraft, flight.aircraft_id)
+    outcomes = analyze_flight(model, features, health, seed=flight_id,
+                              started_at=flight.started_at,  # aware (UTCDateTime)
+                              base=None if aircraft is None else aircraft.base)
+    for act in todo:
+        out = outcomes[act.position]
+        _store_record(session, flight, act, out, model_id)
+        _store_state(session, flight, act, out, health[act.position], states[act.id])
+        rul = _store_prognosis(session, flight, act, out)
+        _store_alarm(session, flight, act, out, rul)
+    flight.status, flight.updated_at = "analyzed", utcnow()
+    session.flush()
+
+
+def _installed(session: Session, aircraft_id: int) -> list[Actuator]:
+    return list(session.scalars(select(Actuator).where(
+        Actuator.aircraft_id == aircraft_id, Actuator.removed_at.is_(None))))
+
+
+def _analysed_on(session: Session, flight_id: int) -> set[int]:
+    return set(session.scalars(select(HealthRecord.actuator_id).where(
+        HealthRecord.flight_id == flight_id)))
+
+
+def _health_of(model: PhmModel, act: Actuator, state: ActuatorState | None) -> ActuatorHealth:
+    if state is not None and state.detection:
+        return ActuatorHealth.from_dict(state.detection)
+    return model.new_health(act.position)
+
+
+def json_safe(value: Any) -> Any:
+    """JSON that every backend stores: non-finite floats (invalid features) become null."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        return json_safe(value.item())
+    return value
+
+
+def _store_record(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome,
+                  model_id: int) -> None:
+    session.add(HealthRecord(
+        actuator_id=act.id, flight_id=flight.id, model_version_id=model_id,
+        flight_index=out.flight_index, started_at=flight.started_at,
+        features=json_safe(out.features),
+        scores=json_safe({"z": out.z, "confidence": out.confidence,
+                          "alarm_features": out.alarm_features}),
+        confidence=out.max_confidence, alarm=out.alarm,
+        class_probabilities=json_safe(out.class_probabilities)))
+
+
+def _store_state(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome,
+                 health: ActuatorHealth, state: ActuatorState | None) -> None:
+    doc = json_safe(health.to_dict())
+    doc["confidence"] = out.max_confidence
+    if state is None:
+        state = ActuatorState(actuator_id=act.id)
+        session.add(state)
+    state.detection = doc
+    state.flights_seen = out.flight_index
+    state.last_flight_id = flight.id
+    state.fault_mode = out.fault_mode
+    state.updated_at = utcnow()
+
+
+def _store_prognosis(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome
+                     ) -> RulDistribution | None:
+    if out.rul is not None and out.fault_mode is not None:
+        session.add(Prognosis(actuator_id=act.id, flight_id=flight.id,
+                              flight_index=out.flight_index, fault_mode=out.fault_mode,
+                              distribution=json_safe(out.rul.to_dict())))
+    return out.rul
+
+
+def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome,
+                 rul: RulDistribution | None) -> None:
+    """A new alarm is opened; an open one follows the actuator's latest class and RUL."""
+    prob = (out.class_probabilities or {}).get(out.fault_mode or "")
+    median = None if rul is None or not math.isfinite(rul.median) else float(rul.median)
+    if out.new_alarm:
+        session.add(Alarm(actuator_id=act.id, flight_id=flight.id, status="open",
+                          confidence=out.max_confidence, fault_mode=out.fault_mode,
+                          class_probability=prob, features=out.alarm_features,
+                          rul_median_flights=median))
+    elif out.alarm:
+        open_alarm = session.scalar(select(Alarm).where(
+            Alarm.actuator_id == act.id, Alarm.status != "closed").order_by(Alarm.id.desc()))
+        if open_alarm is not None:
+            open_alarm.fault_mode = out.fault_mode
+            open_alarm.class_probability = prob
+            open_alarm.confidence = max(open_alarm.confidence, out.max_confidence)
+            open_alarm.rul_median_flights = median
+    session.flush()

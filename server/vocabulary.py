@@ -1,0 +1,76 @@
+"""The project's shared vocabulary: actuator positions, fault modes, feature names, the
+winglet-pair rule and the paper's reference figures.
+
+One owner for each of these facts; every other module (the simulator, the PHM chain, the
+services, the dashboard) imports them from here. Pure Python, no dependencies, so that
+``server.phm`` and ``sim_worker`` may import it without crossing a layer.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "POSITIONS",
+    "WINGLET_PAIR",
+    "WINGLET_UNIT",
+    "FAULT_MODES",
+    "PROGRESSIVE",
+    "ABRUPT",
+    "ACTUATOR_FEATURES",
+    "GENERIC_FEATURES",
+    "REWEAR_FEATURE",
+    "REWEAR_NAME",
+    "OWN_FEATURE",
+    "PAPER_TABLE2",
+    "is_winglet",
+    "alarming_positions",
+]
+
+#: actuator positions of the half-wing: two winglet-tab drives and the wingtip drive
+POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
+#: the two drives that share the winglet tab
+WINGLET_PAIR: tuple[str, str] = ("WL1", "WL2")
+#: detection unit of the features that belong to the winglet pair, not to one drive
+WINGLET_UNIT = "WL"
+
+#: the seven fault modes (paper section 4.2), one at a time per actuator
+FAULT_MODES: tuple[str, ...] = ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR", "REWEAR")
+#: modes that progress from onset to a failure threshold (the prognosis runs on these)
+PROGRESSIVE: tuple[str, ...] = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
+#: modes imposed a priori at a constant severity (replace now, no RUL)
+ABRUPT: tuple[str, ...] = tuple(m for m in FAULT_MODES if m not in PROGRESSIVE)
+
+#: the six features computed per actuator (paper Table 1)
+ACTUATOR_FEATURES: tuple[str, ...] = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR")
+#: the pair feature: difference of the two winglet LVDTs across reversals
+REWEAR_FEATURE = "F_REWEAR"
+#: its aircraft-level name
+REWEAR_NAME = f"{WINGLET_UNIT}.{REWEAR_FEATURE}"
+#: the seven generic feature names (six per actuator plus the pair's)
+GENERIC_FEATURES: tuple[str, ...] = ACTUATOR_FEATURES + (REWEAR_FEATURE,)
+#: the paper's Table 1: one preferential feature per fault mode (tracked by the filter)
+OWN_FEATURE: dict[str, str] = dict(zip(FAULT_MODES, GENERIC_FEATURES, strict=True))
+
+#: the paper's Table 2: prognostic horizon [-] and relative accuracy [%] per progressive mode
+PAPER_TABLE2: dict[str, tuple[float, float]] = {
+    "TTS": (0.11, 64.3), "DMD": (0.55, 75.3), "MTEL": (0.15, 78.2), "MTWEAR": (0.82, 81.2),
+    "REWEAR": (0.65, 79.3),
+}
+
+
+def is_winglet(position: str | None) -> bool:
+    """Whether a position is one of the winglet-tab pair."""
+    return position in WINGLET_PAIR
+
+
+def alarming_positions(mode: str, position: str | None) -> set[str]:
+    """Actuator positions expected to alarm for a fault of ``mode`` at ``position``.
+
+    Rod-end wear is seen only as the difference of the two winglet LVDTs, so it alarms both
+    winglet drives; every other fault alarms its own actuator. A healthy pattern (no position
+    or mode ``"healthy"``) alarms nothing.
+    """
+    if position is None or mode not in FAULT_MODES:
+        return set()
+    if mode == "REWEAR" and is_winglet(position):
+        return set(WINGLET_PAIR)
+    return {position}

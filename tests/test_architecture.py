@@ -1,0 +1,19 @@
+"""The layer contracts of ``pyproject.toml`` (``[tool.importlinter]``), checked on every run:
+API, dashboard and jobs go through the services; the PHM chain and the simulator import
+nothing of the service; the flight-log contract and the vocabulary stand alone."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_import_contracts_are_kept() -> None:
+    lint = Path(sys.executable).with_name("lint-imports")
+    result = subprocess.run([str(lint), "--no-cache"], cwd=ROOT, capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
+    assert "4 kept, 0 broken" in result.stdout
