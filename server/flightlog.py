@@ -1,6 +1,6 @@
 """Flight-log format v1 (``ema-flightlog/1``): the contract between data sources and the HMSM.
 
-One file per flight download (DESIGN section 3). Canonical encoding is Apache Parquet with zstd
+One file per flight download (docs/ARCHITECTURE.md, Contracts). Canonical encoding is Apache Parquet with zstd
 compression; CSV (plain or gzip) and MATLAB v5 ``.mat`` are accepted on upload with the metadata
 given separately (form fields).
 
@@ -81,7 +81,7 @@ _MAX_ID_LEN = 64
 class PhysicalLimits:
     """Bounds beyond which a recorded value cannot come from a working EMA.
 
-    Values follow REFERENCE.md: the servo motor is rated 12 A_rms (peak 17 A); the check rejects
+    Values follow the simulated servo motor (docs/SIMULATOR.md): rated 12 A_rms (peak 17 A); the check rejects
     currents beyond 3x rated. The rod stroke is +-30 mm about neutral (the simulator's stroke); a
     5 mm margin covers LVDT offset and overtravel into the end stops.
     """

@@ -1,4 +1,4 @@
-"""The job queue, kept in the ``jobs`` table (DESIGN section 6).
+"""The job queue, kept in the ``jobs`` table (durable background work, docs/ARCHITECTURE.md).
 
 Claiming is one atomic ``UPDATE ... WHERE id = (SELECT ... LIMIT 1) RETURNING``: on PostgreSQL the
 inner select takes ``FOR UPDATE SKIP LOCKED`` so concurrent workers never wait on each other; on

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -46,39 +46,52 @@ from .prognosis import MeasurementModel, PrognoserConfig
 from .prognosis.degradation import MIN_LEVEL_GAP
 from .season import SeasonalClimate, StressClock, day_of_year
 
-__all__ = ["training_rows", "fit_measurement_models", "train_phm_model"]
+__all__ = ["TrainingConfig", "TRAINING", "training_rows", "fit_measurement_models",
+           "train_phm_model"]
 
 Progress = Callable[[str, float], None]
-_MIN_SURFACE_FLIGHTS = 12  # design flights needed to fit a surface-specific measurement model
-#: severity random walk of the particle filter [1/sqrt(flight)]: lets the cloud follow a
-#: fault that grows faster or slower than the design prior (selected on the seed-5 design
-#: campaign: 0.004 lagged, 0.02 cost TTS its horizon)
-PROCESS_NOISE_STD = 0.01
-#: the prior standard deviation of r is the design runs' spread times this: six runs per mode
-#: say little about the tails (seed 5: a DMD run 3.7 sd faster than the median)
-RATE_PRIOR_INFLATION = 2.0
-#: forgetting factor of the log-level RLS per unit of its clock (a flight, or a flight at the
-#: reference temperature on the stress clock): memory about 1 / (1 - lambda) = 200 such units
-LEVEL_FORGETTING = 0.995
-#: candidate shapes c of the exponential law (0.01: near-pure exponential; +-10: near-linear;
-#: -1.08 down to -10: growth that slows down, towards -c)
-_GROWTH_OFFSETS = np.concatenate([np.geomspace(0.01, 10.0, 61), -np.geomspace(1.08, 10.0, 31)])
-#: candidate temperature sensitivities of a mode's ageing [1/K] (0: a flight clock; ln 2 / 10 K
-#: = 0.069 is Montsinger's insulation rule, ln 2 / 15 K = 0.046 the SKF grease rule)
-_STRESS_BETAS = np.round(np.arange(0.0, 0.1001, 0.005), 4)
-#: a wear mode (flight clock) whose feature resolves severity to this [-] or better (residual
-#: sigma over the slope of h at mid-life) has its rate tuned on the log-level and its filter
-#: replayed from the growth's onset (change point), not from the alarm: both need the
-#: feature to see the fault's first hundredths. Design seed 1: MTWEAR 0.017 qualifies,
-#: REWEAR 0.19 does not. Chosen on seed 5 (quick, PH / RA): MTWEAR 0.10 / 65.5 -> 0.35 / 86.5;
-#: REWEAR 0.15 / 75.6 -> 0.00 / 54.1 with the level law, 0.16 / 71.7 with the onset replay only
-_PRECISE_WEAR_NOISE = 0.05
-#: a mode ages on the stress clock only if that at least halves the misfit of the flight clock
-#: (design seed 1: TTS, DMD, MTEL fall by 86-93 %, the wear modes by 1-7 %)
-_STRESS_GAIN = 0.5
-#: noise law of the measurement models: "linear", sigma grows with severity (see
-#: server.phm.prognosis.measurement), or "constant"
-MEASUREMENT_NOISE = "linear"
+@dataclass(frozen=True)
+class TrainingConfig:
+    """Tuned constants of training (reasons and the alternatives scored: docs/TUNING.md)."""
+
+    #: [flights] design flights needed to fit a surface-specific measurement model
+    min_surface_flights: int = 12
+    #: [1/sqrt(flight)] severity random walk of every trained filter: lets the cloud follow a
+    #: fault that grows faster or slower than the design prior
+    process_noise_std: float = 0.01
+    #: [-] the rate prior's sd is the design runs' spread times this (few runs per mode say
+    #: little about the tails)
+    rate_prior_inflation: float = 2.0
+    #: [-] forgetting factor of the log-level RLS per unit of its clock: memory about
+    #: 1 / (1 - lambda) = 200 flights (or flights at the reference temperature)
+    level_forgetting: float = 0.995
+    #: [-] candidate shapes c of the exponential law (0.01: near-pure exponential; +-10:
+    #: near-linear; -1.08 down to -10: growth that slows down, towards -c)
+    growth_offsets: tuple[float, ...] = tuple(np.concatenate(
+        [np.geomspace(0.01, 10.0, 61), -np.geomspace(1.08, 10.0, 31)]).tolist())
+    #: [1/K] candidate temperature sensitivities of a mode's ageing (0: a flight clock;
+    #: ln 2 / 10 K = 0.069 Montsinger's insulation rule, ln 2 / 15 K = 0.046 the grease rule)
+    stress_betas: tuple[float, ...] = tuple(np.round(np.arange(0.0, 0.1001, 0.005), 4).tolist())
+    #: [-] a wear mode whose feature resolves severity to this or better (residual sd over
+    #: the slope of h at mid-life) is tuned on the log-level and replayed from the growth's
+    #: onset: both need the feature to see the fault's first hundredths
+    precise_wear_noise: float = 0.05
+    #: [-] a mode ages on the stress clock only if that at least halves the flight clock's
+    #: misfit
+    stress_gain: float = 0.5
+    #: noise law of the measurement models: "linear" (sigma grows with severity) or "constant"
+    measurement_noise: str = "linear"
+    #: [-] relative spread of one mode's rates between runs (spans U(170, 360) flights): the
+    #: first-trial parameters' sd as a share of the rate at mid-life
+    rate_spread: float = 0.35
+    #: [-] bounds of the RLS's initial covariance P0: the floor keeps some adaptation
+    prior_weight_bounds: tuple[float, float] = (1e-2, 1.0)
+
+
+#: the configuration every model is trained with
+TRAINING = TrainingConfig()
+_STRESS_BETAS_ARR = np.asarray(TRAINING.stress_betas)
+_GROWTH_OFFSETS_ARR = np.asarray(TRAINING.growth_offsets)
 
 
 def _faulty_history(model: PhmModel, p: Pattern
@@ -125,9 +138,7 @@ def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, floa
     increments of the design fault-to-failure runs: a least-squares fit *per run*, then the
     median over runs. (One fit pooled over runs is biased towards b < 0: slow runs contribute
     many small increments at high severity, fast runs few large ones.) The median slope may be
-    negative: winglet rod-end wear slows down as the partner drive takes the load (selected on
-    design seeds 5 and 6, REWEAR PH / RA 0.00 / 37.8 with a constant rate, 0.02 / 72.4 with the
-    slope kept)."""
+    negative: winglet rod-end wear slows down as the partner drive takes the load."""
     fits, gaps, late = [], [], []
     for p in _fault_runs(campaign, mode):
         fl = _from_onset(p)
@@ -191,13 +202,13 @@ def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | No
     fl = _from_onset(run)
     k = np.array([r.index for r in fl], dtype=int)
     sn = np.array([r.severity_norm for r in fl], dtype=float)
-    stress = np.tile(k - k[0], (_STRESS_BETAS.size, 1)).astype(float)
+    stress = np.tile(k - k[0], (_STRESS_BETAS_ARR.size, 1)).astype(float)
     dated = [r for r in fl if r.started_at is not None]
     if climate is not None and climate.knows(run.base) and len(dated) >= 2:
         days = (dated[-1].started_at - dated[0].started_at).total_seconds() / 86400.0
         per_day = (dated[-1].index - dated[0].index) / days if days > 0 else None
         if per_day:
-            for j, beta in enumerate(_STRESS_BETAS):
+            for j, beta in enumerate(_STRESS_BETAS_ARR):
                 clock = StressClock(climate, str(run.base), float(beta), ref_c,
                                     dated[0].started_at, dated[0].index, per_day)
                 stress[j] = [clock.between(int(k[0]), int(i)) for i in k]
@@ -236,11 +247,11 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     runs = [_run_clocks(p, climate, ref_c) for p in _fault_runs(campaign, mode, surface)]
     if len(runs) < 2:
         return None
-    misfit = np.zeros((_STRESS_BETAS.size, _GROWTH_OFFSETS.size))
+    misfit = np.zeros((_STRESS_BETAS_ARR.size, _GROWTH_OFFSETS_ARR.size))
     for sn, stress in runs:
-        U = np.maximum(sn, 0.0)[:, np.newaxis] + _GROWTH_OFFSETS  # (n, c grid)
+        U = np.maximum(sn, 0.0)[:, np.newaxis] + _GROWTH_OFFSETS_ARR  # (n, c grid)
         # a saturating shape must stay below its asymptote over the whole run
-        misfit[:, (_GROWTH_OFFSETS < 0) & (U.max(axis=0) > -MIN_LEVEL_GAP)] = np.inf
+        misfit[:, (_GROWTH_OFFSETS_ARR < 0) & (U.max(axis=0) > -MIN_LEVEL_GAP)] = np.inf
         Y = np.log(np.maximum(np.abs(U), MIN_LEVEL_GAP))
         Yc = Y - Y.mean(axis=0)
         for j, tau in enumerate(stress):
@@ -248,15 +259,15 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
             coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
             misfit[j] += ((Y - X @ coef) ** 2).sum(axis=0) / (Yc**2).sum(axis=0)
     jb, jc = np.unravel_index(int(np.argmin(misfit)), misfit.shape)
-    if misfit[jb, jc] > _STRESS_GAIN * misfit[0].min():  # temperature explains little: flights
+    if misfit[jb, jc] > TRAINING.stress_gain * misfit[0].min():  # temperature explains little
         jb, jc = 0, int(np.argmin(misfit[0]))
         ref_c = None
-    beta, c = float(_STRESS_BETAS[jb]), float(_GROWTH_OFFSETS[jc])
+    beta, c = float(_STRESS_BETAS_ARR[jb]), float(_GROWTH_OFFSETS_ARR[jc])
     rates = np.array([np.polyfit(stress[jb], np.log(np.abs(np.maximum(sn, 0.0) + c)), 1)[0]
                       for sn, stress in runs])
     sign = 1.0 if c > 0 else -1.0  # r < 0 for a saturating shape: dh/dk = r (h + c) > 0
     r0 = sign * float(max(sign * np.median(rates), 1e-6))
-    r_std = RATE_PRIOR_INFLATION * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
+    r_std = TRAINING.rate_prior_inflation * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
     mid = rates * (0.5 + c)
     bounds = (max(float(mid.min()) / 1.5, 1e-5), max(float(mid.max()) * 1.5, 2e-5))
     return {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
@@ -271,7 +282,8 @@ def _level_config(base: PrognoserConfig, law: dict[str, Any]) -> PrognoserConfig
     prior and mid-life rate bounds, from :func:`_fit_exponential_law`)."""
     return replace(base, rate_basis="exponential", growth_offset=law["growth_offset"],
                    initial_theta=(0.0, law["rate"]), initial_rate_std=law["rate_std"],
-                   rls_forgetting=LEVEL_FORGETTING, rate_bounds=tuple(law["mid_rate_bounds"]))
+                   rls_forgetting=TRAINING.level_forgetting,
+                   rate_bounds=tuple(law["mid_rate_bounds"]))
 
 
 def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float) -> float:
@@ -280,16 +292,16 @@ def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: floa
     The RLS regresses severity increments y = dh/dk on [1, h]; one increment over ``dk``
     flights has noise about sqrt(2) sigma_h / dk. Patterns of one mode differ in rate by about
     35 % (fault-to-failure spans of U(170, 360) flights), so sigma_theta = 0.35 x the rate at
-    mid-life. P0 = sigma_theta^2 / sigma_y^2, clipped to [1e-2, 1]: a precise feature (TTS)
+    mid-life. P0 = sigma_theta^2 / sigma_y^2, clipped to [0.01, 1]: a precise feature (TTS)
     lets the data re-tune the law at once, a noisy one (wear backlash) leans on the prior. The
     floor keeps some adaptation: the RLS sees increments of the *filtered* severity, less noisy
-    than one measurement (floor and the filter's process noise chosen on a second design
-    campaign, seed 5, never on verification data).
+    than one measurement.
     """
     rate = theta[0] + 0.5 * theta[1]
-    sigma_theta = 0.35 * rate
+    sigma_theta = TRAINING.rate_spread * rate
     sigma_y = math.sqrt(2.0) * noise_in_severity / max(dk, 1.0)
-    return float(np.clip(sigma_theta**2 / max(sigma_y**2, 1e-30), 1e-2, 1.0))
+    low, high = TRAINING.prior_weight_bounds
+    return float(np.clip(sigma_theta**2 / max(sigma_y**2, 1e-30), low, high))
 
 
 def _reference_temperature(campaign: Campaign, climate: SeasonalClimate | None) -> float:
@@ -325,17 +337,17 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         s = np.array([a for a, _ in pairs])
         v = np.array([b for _, b in pairs])
         try:
-            model = MeasurementModel.fit(s, v, noise=MEASUREMENT_NOISE)
+            model = MeasurementModel.fit(s, v, noise=TRAINING.measurement_noise)
         except ValueError as exc:  # no monotone relation: no prognosis for this mode
             report[mode] = {"feature": feature, "error": str(exc)}
             continue
         by_surface = {}
         for surface in ("WL", "WT"):
             sub = [(sn, v) for sn, v, srf in triples if srf == surface]
-            if len(sub) >= _MIN_SURFACE_FLIGHTS:
+            if len(sub) >= TRAINING.min_surface_flights:
                 try:
                     by_surface[surface] = MeasurementModel.fit(
-                        [a for a, _ in sub], [b for _, b in sub], noise=MEASUREMENT_NOISE)
+                        [a for a, _ in sub], [b for _, b in sub], noise=TRAINING.measurement_noise)
                 except ValueError:
                     pass
         resid = v - model.predict(s)  # the residuals' sd over the whole life
@@ -344,7 +356,7 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
             np.array([0.5]))[0])), 1e-12))
         law = _exponential_prior(campaign, mode, climate, ref_c)
         thermal = law is not None and law["stress_beta_per_k"] > 0
-        precise_wear = law is not None and not thermal and noise_sev <= _PRECISE_WEAR_NOISE
+        precise_wear = law is not None and not thermal and noise_sev <= TRAINING.precise_wear_noise
         surface_configs: dict[str, PrognoserConfig] = {}
         if thermal or precise_wear:
             prior = law
@@ -354,8 +366,6 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
             if precise_wear:
                 # a worn winglet drive hands its load to its partner and its wear slows down;
                 # the lone wingtip drive's does not: one shape per surface where runs allow
-                # (design seeds 5 and 6, MTWEAR PH / RA: one pooled shape 0.28 / 72.7, one per
-                # surface 0.36 / 83.7)
                 for surface in ("WL", "WT"):
                     own = _exponential_prior(campaign, mode, climate, ref_c, surface)
                     if own is not None and own["stress_beta_per_k"] == 0.0:
@@ -369,11 +379,9 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
             config = base_config
             if theta is not None:
                 # a growth that slows down (b < 0: a worn winglet drive hands its load to its
-                # partner) keeps its negative slope in the prediction's parameter draws
-                # and its growth never drops below the slowest design run's rate near
-                # failure (/ 1.5): without that floor, parameter draws whose slope stops the
-                # growth short of the threshold ran to the 2000-flight horizon (design seeds
-                # 5 and 6: prediction 2.6 -> 1.9 ms, PH / RA 0.015 / 72.4 -> 0.025 / 72.0)
+                # partner) keeps its negative slope in the prediction's parameter draws, and
+                # never drops below the slowest design run's rate near failure (/ 1.5): draws
+                # whose slope stops short of the threshold would run to the horizon
                 floor = prior.get("late_rate_floor") if theta[1] < 0 else None
                 config = replace(base_config, initial_theta=theta, monotone_rate=theta[1] >= 0,
                                  min_rate=base_config.min_rate if floor is None else floor,
@@ -419,9 +427,9 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
     tick("measurement", 0.9)
     climate = fit_climate(campaign)
     specs, meas_report = fit_measurement_models(
-        campaign, bare, PrognoserConfig(process_noise_std=PROCESS_NOISE_STD), climate)
+        campaign, bare, PrognoserConfig(process_noise_std=TRAINING.process_noise_std), climate)
     model = PhmModel(detection.baseline, detection.detector, classifier, specs,
-                     PrognoserConfig(process_noise_std=PROCESS_NOISE_STD), climate)
+                     PrognoserConfig(process_noise_std=TRAINING.process_noise_std), climate)
     t_end = time.perf_counter()
     tick("done", 1.0)
     n_flights = sum(len(p.flights) for p in campaign.patterns)

@@ -32,7 +32,7 @@ def _h(key: str | None, **extra: str) -> dict[str, str]:
 
 
 def required_roles(method: str, path: str) -> set[str]:
-    """The project's rule (README, DESIGN section 6) for each write endpoint."""
+    """The project's rule (README, "Using the API") for each write endpoint."""
     if path == "/api/v1/flights" and method == "post":
         return {"uploader", "admin"}
     if path.startswith("/api/v1/test-station/"):
