@@ -1,8 +1,8 @@
 """Flight-log format v1 (``ema-flightlog/1``): the contract between data sources and the HMSM.
 
-One file per flight download (docs/ARCHITECTURE.md, Contracts). Canonical encoding is Apache Parquet with zstd
-compression; CSV (plain or gzip) and MATLAB v5 ``.mat`` are accepted on upload with the metadata
-given separately (form fields).
+One file per flight download (docs/ARCHITECTURE.md, Contracts). Canonical encoding is Apache
+Parquet with zstd compression; CSV (plain or gzip) and MATLAB v5 ``.mat`` are accepted on
+upload with the metadata given separately (form fields).
 
 Conventions
 -----------
@@ -39,6 +39,7 @@ __all__ = [
     "SIGNALS",
     "REQUIRED_CHANNELS",
     "OPTIONAL_CHANNELS",
+    "METADATA_FIELDS",
     "NOMINAL_SAMPLE_RATE_HZ",
     "PhysicalLimits",
     "Issue",
@@ -74,6 +75,8 @@ _REQUIRED_METADATA = (
     "actuator_serials",
 )
 _OPTIONAL_METADATA = ("source",)
+#: every metadata field of the format (Parquet key-value metadata, or upload form fields)
+METADATA_FIELDS: tuple[str, ...] = _REQUIRED_METADATA + _OPTIONAL_METADATA
 _MAX_ID_LEN = 64
 
 
@@ -81,9 +84,9 @@ _MAX_ID_LEN = 64
 class PhysicalLimits:
     """Bounds beyond which a recorded value cannot come from a working EMA.
 
-    Values follow the simulated servo motor (docs/SIMULATOR.md): rated 12 A_rms (peak 17 A); the check rejects
-    currents beyond 3x rated. The rod stroke is +-30 mm about neutral (the simulator's stroke); a
-    5 mm margin covers LVDT offset and overtravel into the end stops.
+    Values follow the simulated servo motor (docs/SIMULATOR.md): rated 12 A_rms (peak 17 A);
+    the check rejects currents beyond 3x rated. The rod stroke is +-30 mm about neutral (the
+    simulator's stroke); a 5 mm margin covers LVDT offset and overtravel into the end stops.
     """
 
     rated_current_a_rms: float = 12.0  # A rms

@@ -27,6 +27,7 @@ from server.errors import (
     UnsupportedMediaType,
     error_body,
 )
+from server.flightlog import METADATA_FIELDS
 from server.models import ApiKey
 from server.schemas import FlightAccepted, FlightRead, Page, SignalsRead
 from server.services import flights as service
@@ -35,8 +36,6 @@ router = APIRouter(prefix="/flights", tags=["flights"])
 log = logging.getLogger("hmsm.api")
 
 PARQUET_TYPES = {"application/vnd.apache.parquet", "application/x-parquet"}
-_METADATA_FIELDS = ("format", "aircraft", "flight", "started_at", "block_hours",
-                    "sample_rate_hz", "actuator_serials", "source")
 _UPLOAD_DOC = {
     "requestBody": {
         "required": True,
@@ -45,7 +44,7 @@ _UPLOAD_DOC = {
             "multipart/form-data": {"schema": {
                 "type": "object", "required": ["file"],
                 "properties": {"file": {"type": "string", "format": "binary"},
-                               **{k: {"type": "string"} for k in _METADATA_FIELDS}}}},
+                               **{k: {"type": "string"} for k in METADATA_FIELDS}}}},
         },
     },
     "responses": {
@@ -92,14 +91,14 @@ async def upload(request: Request, session: SessionDep, blobs: BlobsDep, setting
             kind = "parquet"
             spooled = await blobs.spool(request.stream(), max_bytes=settings.max_upload_bytes)
         elif ctype == "multipart/form-data":
-            form = await request.form(max_files=1, max_fields=len(_METADATA_FIELDS) + 1)
+            form = await request.form(max_files=1, max_fields=len(METADATA_FIELDS) + 1)
             file = form.get("file")
             if not isinstance(file, UploadFile):
                 raise BadRequest("The multipart form needs a file field named 'file'.",
                                  code="missing_file")
             kind = _kind_of_file(file)
             form_metadata = {k: str(v) for k, v in form.items()
-                             if k in _METADATA_FIELDS and isinstance(v, str)}
+                             if k in METADATA_FIELDS and isinstance(v, str)}
             spooled = await blobs.spool(_chunks_of(file), max_bytes=settings.max_upload_bytes)
             await form.close()
         else:

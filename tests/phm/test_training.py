@@ -7,10 +7,9 @@ import json
 
 import pytest
 
+from server.campaigns import load_campaign, train_from_directory
 from server.phm.chain import PhmModel, analyze_flight
-from server.campaigns import load_campaign
 from server.phm.prognosis import PrognoserConfig, PrognoserState
-from server.campaigns import train_from_directory
 
 pytestmark = pytest.mark.slow
 
