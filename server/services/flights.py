@@ -1,9 +1,10 @@
 """Flight-log ingest and read-back.
 
 Ingest order (docs/ARCHITECTURE.md, "From an upload to the RUL cone"): the body is already
-spooled to a temporary file with its SHA-256; a known digest answers with the existing flight (idempotent); the file is decoded and
-checked; the bytes are renamed into the content-addressed store; only then the flight row (and,
-for an accepted flight, its analysis job) is flushed. The caller commits.
+spooled to a temporary file with its SHA-256; a known digest answers with the existing flight
+(idempotent); the file is decoded and checked; the bytes are renamed into the
+content-addressed store; only then the flight row (and, for an accepted flight, its analysis
+job) is flushed. The caller commits.
 """
 
 from __future__ import annotations
