@@ -21,6 +21,19 @@ is far more robust than filtering a ratio). The per-flight value is the same fun
 whole-flight means of the accumulators over valid steps (the filter's infinite-memory limit);
 the dispersion is the standard deviation of the filtered 80 Hz series over valid steps.
 
+Layout
+------
+:func:`actuator_features` composes the shared preparation and one function per feature:
+
+* :func:`actuator_steps` (800 Hz -> 80 Hz step quantities, :class:`ActuatorSteps`),
+  :func:`validity_windows` (:class:`ValidityWindows`), :func:`winding_resistance` and
+  :func:`filter_alpha` (the exponential filter's coefficient);
+* :func:`leakage_conductance` (``F_TTS``), :func:`flux_deficit` (``F_DMD``, with
+  :func:`estimated_flux`), :func:`flux_modulation` (``F_SE``), :func:`voltage_imbalance`
+  (``F_BDO``), :func:`friction_ratio` (``F_MTEL``), :func:`screw_gap` (``F_MTWEAR``).
+
+Each feature function takes the 80 Hz arrays its formula needs, so it can be called on its own.
+
 Features (formulas and validity rules are in ``docs/FEATURES.md``):
 
 ``F_TTS``  leakage conductance winding-to-frame [S]: slope of the common-node current on the
@@ -49,6 +62,8 @@ from functools import partial
 import numpy as np
 from scipy.signal import lfilter
 
+from server.vocabulary import ACTUATOR_FEATURES, POSITIONS, REWEAR_NAME, WINGLET_PAIR
+
 __all__ = [
     "FEATURE_VERSION",
     "ACTUATOR_FEATURES",
@@ -57,13 +72,28 @@ __all__ = [
     "REWEAR_NAME",
     "AIRCRAFT_FEATURES",
     "CONDITION_NAMES",
+    "SIGNALS",
     "MotorConstants",
     "FeatureConfig",
     "FeatureTrack",
     "FeatureSummary",
     "FlightFeatures",
+    "ActuatorSteps",
+    "ValidityWindows",
     "block_mean",
     "exp_filter",
+    "filter_alpha",
+    "actuator_steps",
+    "validity_windows",
+    "winding_resistance",
+    "winding_temperature",
+    "leakage_conductance",
+    "flux_deficit",
+    "estimated_flux",
+    "flux_modulation",
+    "voltage_imbalance",
+    "friction_ratio",
+    "screw_gap",
     "actuator_features",
     "rewear_feature",
     "operating_conditions",
@@ -71,18 +101,16 @@ __all__ = [
 ]
 
 #: bumped whenever a feature formula or validity changes (invalidates cached campaign
-#: features); /6: F_MTEL counts moves from 1 Hz electrical, not 2 Hz
+#: features); the history of the bumps is in docs/TUNING.md
 FEATURE_VERSION = "features/6"
-ACTUATOR_FEATURES: tuple[str, ...] = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR")
-POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
-WINGLET_PAIR: tuple[str, str] = ("WL1", "WL2")
-REWEAR_NAME = "WL.F_REWEAR"
 #: the 19 feature names of one aircraft, ``"<position>.<feature>"`` plus ``"WL.F_REWEAR"``
 AIRCRAFT_FEATURES: tuple[str, ...] = tuple(
     f"{p}.{f}" for p in POSITIONS for f in ACTUATOR_FEATURES) + (REWEAR_NAME,)
 #: per-actuator operating conditions used by the baselines
 CONDITION_NAMES: tuple[str, ...] = (
     "temp_ground_c", "temp_mean_c", "load_rms_n", "speed_rms_rad_s", "temp_winding_est_c")
+#: the channels of one actuator the features read (flight-log v1 ``"<position>.<signal>"``)
+SIGNALS: tuple[str, ...] = ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")
 
 
 @dataclass(frozen=True)
@@ -118,62 +146,87 @@ def _default_aero_bias() -> dict[str, float]:
 
 @dataclass(frozen=True)
 class FeatureConfig:
-    """Windows, thresholds and filter of the feature extraction (all SI)."""
+    """Windows, thresholds and filter of the feature extraction (all SI).
 
-    sample_rate_hz: float = 800.0  # Hz, input rate
-    decimation: int = 10  # samples per 80 Hz step
-    max_electrical_hz: float = 80.0  # Hz, transmission limit for current features
-    min_electrical_hz: float = 2.0  # Hz, "moving" for F_DMD / F_SE
-    still_speed_rad_s: float = 0.5  # rad/s, |mean motor speed| of a step below which it is still
-    still_min_s: float = 0.3  # s, a still window lasts at least this
-    min_current_a: float = 0.3  # A (amplitude), current features need this much
-    min_voltage_v: float = 0.5  # V (amplitude), F_TTS / F_BDO need this much
-    ewma_tau_s: float = 5.0  # s of valid time, exponential filter time constant
+    Each field states its unit and why it has its value; the measurements behind the tuned
+    values (and the alternatives scored) are tabled in ``docs/TUNING.md``. ``repr`` of this
+    class is part of the campaign feature-cache key (:mod:`server.phm.evaluate_detection`).
+    """
+
+    #: Hz, rate of the flight-log channels (format v1)
+    sample_rate_hz: float = 800.0
+    #: samples per step: every feature is computed on 80 Hz block means (12.5 ms steps)
+    decimation: int = 10
+    #: Hz electrical, transmission limit of the current features: faster steps are skipped
+    max_electrical_hz: float = 80.0
+    #: Hz electrical, "moving" for F_DMD / F_SE (they read the back-EMF, which vanishes with
+    #: the speed) and F_BDO (a hold's DC voltages depend on where the rotor stopped)
+    min_electrical_hz: float = 2.0
+    #: rad/s, |mean motor speed| of a step below which it is still (no back-EMF: the power
+    #: balance is p = R |i|^2, used for the resistance estimate)
+    still_speed_rad_s: float = 0.5
+    #: s, a still window lasts at least this, so that a move passing through zero speed (a
+    #: reversal) is not taken for a hold
+    still_min_s: float = 0.3
+    #: A (amplitude), least current of a step for F_DMD / F_SE / F_BDO (twice this for the
+    #: resistance estimate): below it the current is of the order of the sensor offsets
+    min_current_a: float = 0.3
+    #: V (amplitude), F_BDO needs this much voltage for its per-phase RMS ratio
+    min_voltage_v: float = 0.5
+    #: s of valid time, time constant of the exponential filter of the 80 Hz tracks
+    ewma_tau_s: float = 5.0
     #: design aero model of the rod load at cruise dynamic pressure, F = -(k x + bias) (+x is
     #: extension): hinge-load gradient k [N/m of rod travel] and bias [N], per position
     aero_gradient_n_per_m: Mapping[str, float] = field(default_factory=_default_aero)
     aero_bias_n: Mapping[str, float] = field(default_factory=_default_aero_bias)
-    cruise_temp_c: float = -40.0  # degC, ambient at cruise (design dynamic pressure)
-    cruise_band_c: float = 3.0  # degC, F_MTEL only where T_amb <= cruise_temp_c + band
+    #: degC, ambient at cruise, where the dynamic pressure is the design one
+    cruise_temp_c: float = -40.0
+    #: degC, F_MTEL only where T_amb <= cruise_temp_c + band (constant dynamic pressure: the
+    #: hinge load is linear in the deflection)
+    cruise_band_c: float = 3.0
     #: N m, F_MTEL's reference torque T_ref = c0 / k0 of the healthy hysteresis line
-    #: W = c0 + k0 |L| (design seed 1, healthy cruise regressions of all drives:
-    #: W = 0.107 + 0.229 |L| N m, residual 0.026 N m): W / (T_ref + |L|) is then k0 whatever
-    #: the load. Physics gives c0 = 2 x 0.04 N m drag and k0 = (1/eta_d - eta_b) / mean
-    #: = 0.22, T_ref 0.36 N m; the measured drag is larger (link damping, the tab's force share)
+    #: W = c0 + k0 |L| measured on healthy cruise flights, so that W / (T_ref + |L|) is k0
+    #: whatever the load. Physics alone gives c0 = 2 x 0.04 N m drag and k0 =
+    #: (1/eta_d - eta_b) / mean = 0.22, T_ref 0.36 N m; the measured drag is larger (link
+    #: damping, the tab's force share)
     mtel_ref_torque_nm: float = 0.47
     #: rad/s^2 of motor acceleration (80 Hz) above which a step is a start or stop of a move,
     #: not the steady motion F_MTEL compares
     steady_accel_rad_s2: float = 30.0
-    #: F_MTEL needs this many steady cruise steps in each direction (0.75 s) and a cruise load
-    #: torque |L| of at least mtel_min_load_nm: under a light load the ratio rests on the drag
-    #: alone and its scatter doubles (design seed 1: flight-to-flight sd 0.025 below 0.3 N m,
-    #: 0.010 above 1 N m)
+    #: steady cruise steps F_MTEL needs in each direction (0.75 s): with one direction barely
+    #: seen there is no hysteresis to measure
     mtel_min_steps: int = 60
+    #: N m, F_MTEL needs a cruise load torque |L| of at least this: under a lighter load the
+    #: ratio rests on the drag alone and its flight-to-flight scatter doubles
     mtel_min_load_nm: float = 0.3
-    #: Hz electrical, "moving" for F_MTEL (F_DMD / F_SE keep min_electrical_hz: they need
-    #: back-EMF, the friction hysteresis does not). Healthy flights of the design campaigns
-    #: (seed 1, six aircraft), share of actuator-flights with a value / within-actuator sd:
-    #: 2 Hz 0.76 / 0.0109 (quick, 60 s), 0.27 / 0.0128 (paper, 120 s: the reference cycle
-    #: stretched over twice the time moves the surfaces half as fast); 1 Hz 0.88 / 0.0105,
-    #: 0.84 / 0.0108; 0.5 Hz 0.89 / 0.0113, 0.90 / 0.0099
+    #: Hz electrical, "moving" for F_MTEL: the friction hysteresis needs no back-EMF, and the
+    #: slow moves of long flights (reference cycle stretched over more time) still count
     mtel_min_electrical_hz: float = 1.0
-    min_r_estimate_blocks: int = 20  # still steps needed to trust the resistance estimate
-    min_valid_steps: int = 40  # steps a flight needs for a feature value (else NaN)
-    min_events: int = 3  # reversals a flight needs for F_REWEAR (else NaN)
+    #: still steps needed to trust the resistance estimate (else the nominal resistance)
+    min_r_estimate_blocks: int = 20
+    #: steps a flight needs for a feature value (else NaN)
+    min_valid_steps: int = 40
+    #: reversals a flight needs for F_REWEAR (else NaN)
+    min_events: int = 3
     #: A of |i_q| above which the motor torque tells the flank the screw bears on: above the
     #: largest drag it may have to overcome (Coulomb 0.04 N m x 1.3 breakaway x 3 with aged
-    #: grease = 0.16 N m = 0.43 A at 0.366 N m/A), so the torque sign is the link-force sign.
-    #: 0.6 A and 40 steps (0.5 s) per flank: on design seed 5, 60 % of flights give a value,
-    #: healthy values stay within 2.4 um of their actuator's median (1 A / 80 steps: 33 %
-    #: and 6 um; 20 steps let a 13 um outlier through)
+    #: grease = 0.16 N m = 0.43 A at 0.366 N m/A), so the torque sign is the link-force sign
     flank_current_a: float = 0.6
-    min_flank_steps: int = 40  # steps a flight needs on each flank for F_MTWEAR (else NaN)
-    electrical_offset_rad: float = 0.0  # rad, resolver zero to d axis (drive commissioning)
-    reversal_speed_m_s: float = 1.0e-3  # m/s of r*omega, "moving" for reversals
-    reversal_skip_m: float = 0.5e-3  # m of travel skipped after a reversal (> largest gap)
-    reversal_blocks: int = 4  # steps averaged on each side of a reversal
-    reversal_max_gap_s: float = 3.0  # s, longest stop between the two runs of a reversal
-    rewear_absolute: bool = True  # F_REWEAR uses |lost motion| (gap side unknown)
+    #: steps a flight needs on each flank for F_MTWEAR (0.5 s; else NaN): fewer let single
+    #: outliers through
+    min_flank_steps: int = 40
+    #: rad, resolver zero to d axis (drive commissioning)
+    electrical_offset_rad: float = 0.0
+    #: m/s of r*omega, "moving" for reversals
+    reversal_speed_m_s: float = 1.0e-3
+    #: m of travel skipped after a reversal, more than the largest gap to be measured
+    reversal_skip_m: float = 0.5e-3
+    #: steps averaged on each side of a reversal
+    reversal_blocks: int = 4
+    #: s, longest stop between the two runs of a reversal
+    reversal_max_gap_s: float = 3.0
+    #: F_REWEAR uses |lost motion|: which side of the gap the rod end starts on is unknown
+    rewear_absolute: bool = True
 
     def __post_init__(self) -> None:
         if self.decimation < 1 or self.sample_rate_hz <= 0 or self.ewma_tau_s <= 0:
@@ -438,7 +491,7 @@ def _event_track(n_steps: int, steps: np.ndarray, vals: np.ndarray, alpha: float
 
 
 # --------------------------------------------------------------------------------------------
-# per actuator
+# shared preparation of one actuator: 80 Hz steps, validity windows, resistance, filter
 # --------------------------------------------------------------------------------------------
 
 
@@ -446,6 +499,328 @@ def _clarke(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np
     alpha = (2.0 * a - b - c) / 3.0
     beta = (b - c) / np.sqrt(3.0)
     return alpha, beta
+
+
+def filter_alpha(config: FeatureConfig | None = None) -> float:
+    """Coefficient of the exponential filter of the 80 Hz tracks, ``1 - exp(-step / tau)``."""
+    cfg = config or FeatureConfig()
+    return 1.0 - np.exp(-cfg.step_s / cfg.ewma_tau_s)
+
+
+@dataclass(frozen=True)
+class ActuatorSteps:
+    """The 80 Hz step quantities of one actuator over one flight.
+
+    Each array has one entry per step: the mean of the step's ``decimation`` samples of an
+    800 Hz quantity (``max`` for ``electrical_hz_peak``). The first ``n_samples`` samples
+    (whole steps) were used.
+    """
+
+    n_samples: int
+    speed: np.ndarray  # rad/s, motor-shaft speed w
+    electrical_hz_peak: np.ndarray  # Hz, p max |w| / 2 pi over the step
+    electrical_hz_mean: np.ndarray  # Hz, p |mean w| / 2 pi
+    current: np.ndarray  # A, current amplitude |i|
+    voltage: np.ndarray  # V, voltage amplitude |v|
+    current_sq: np.ndarray  # A^2, |i|^2
+    power: np.ndarray  # W, v_alpha i_alpha + v_beta i_beta = (2/3) electrical power
+    theta: np.ndarray  # rad, mechanical shaft angle
+    cos_theta: np.ndarray  # -, cos theta
+    sin_theta: np.ndarray  # -, sin theta
+    x: np.ndarray  # m, LVDT rod position
+    i_q: np.ndarray  # A, q-axis (torque) current
+    v_q: np.ndarray  # V, q-axis voltage
+    phase_voltage: np.ndarray  # (n, 3) V, u_a u_b u_c
+    phase_voltage_ms: np.ndarray  # (n, 3) V^2, mean square of each phase about v0 = mean u
+    common_current: np.ndarray  # A, i0 = ia + ib + ic less its flight median (sensor offsets)
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.speed.size)
+
+
+def actuator_steps(sig: Mapping[str, np.ndarray], *, config: FeatureConfig | None = None,
+                   motor: MotorConstants | None = None) -> ActuatorSteps:
+    """800 Hz signals ``ia ib ic va vb vc theta x`` of one actuator -> :class:`ActuatorSteps`.
+
+    The signals are cut to the shortest one and to whole steps; raises ``ValueError`` when
+    fewer than two steps are left.
+    """
+    cfg = config or FeatureConfig()
+    mc = motor or MotorConstants()
+    d = cfg.decimation
+    n = min(len(sig[k]) for k in SIGNALS) // d
+    if n < 2:
+        raise ValueError("flight shorter than two 80 Hz steps")
+    cut = n * d
+
+    def arr(k: str) -> np.ndarray:
+        return np.asarray(sig[k][:cut], dtype=np.float64)
+
+    def blk(a: np.ndarray) -> np.ndarray:
+        return a.reshape(n, d)
+
+    def step_mean(a: np.ndarray) -> np.ndarray:
+        return blk(a).mean(axis=1)
+
+    ia, ib, ic = arr("ia"), arr("ib"), arr("ic")
+    va, vb, vc = arr("va"), arr("vb"), arr("vc")
+    theta, x = arr("theta"), arr("x")
+    i_al, i_be = _clarke(ia, ib, ic)
+    v_al, v_be = _clarke(va, vb, vc)
+    i0 = ia + ib + ic
+    i0 = i0 - np.median(i0)  # sensor offsets of the three channels add up to a constant
+    i2 = i_al * i_al + i_be * i_be  # |i|^2 [A^2]
+    omega = np.gradient(theta, 1.0 / cfg.sample_rate_hz)  # rad/s, 800 Hz
+    v0 = (va + vb + vc) / 3.0
+    th_e = mc.pole_pairs * theta - cfg.electrical_offset_rad
+    ce, se_ = np.cos(th_e), np.sin(th_e)
+
+    w_mean = step_mean(omega)
+    return ActuatorSteps(
+        n_samples=cut,
+        speed=w_mean,
+        electrical_hz_peak=mc.pole_pairs * np.abs(blk(omega)).max(axis=1) / (2.0 * np.pi),
+        electrical_hz_mean=mc.pole_pairs * np.abs(w_mean) / (2.0 * np.pi),
+        current=step_mean(np.sqrt(i2)),
+        voltage=step_mean(np.sqrt(v_al * v_al + v_be * v_be)),
+        current_sq=step_mean(i2),
+        power=step_mean(v_al * i_al + v_be * i_be),
+        theta=step_mean(theta),
+        cos_theta=step_mean(np.cos(theta)),
+        sin_theta=step_mean(np.sin(theta)),
+        x=step_mean(x),
+        i_q=step_mean(-i_al * se_ + i_be * ce),
+        v_q=step_mean(-v_al * se_ + v_be * ce),
+        phase_voltage=np.c_[step_mean(va), step_mean(vb), step_mean(vc)],
+        phase_voltage_ms=np.c_[step_mean((va - v0) ** 2), step_mean((vb - v0) ** 2),
+                               step_mean((vc - v0) ** 2)],
+        common_current=step_mean(i0),
+    )
+
+
+@dataclass(frozen=True)
+class ValidityWindows:
+    """Shared step masks of one actuator (80 Hz, bool)."""
+
+    electrical_ok: np.ndarray  # electrical frequency within the transmission limit
+    current_ok: np.ndarray  # ... and enough current for the current features
+    moving: np.ndarray  # fast enough for a back-EMF (min_electrical_hz)
+    still: np.ndarray  # in a hold of at least still_min_s
+    steady_cruise: np.ndarray  # F_MTEL: steady motion (no start / stop), at cruise
+
+
+def validity_windows(steps: ActuatorSteps, *, config: FeatureConfig | None = None,
+                     t_amb_c: np.ndarray | None = None) -> ValidityWindows:
+    """The shared validity masks of ``steps``.
+
+    ``steady_cruise`` keeps the steps moving faster than ``mtel_min_electrical_hz`` with an
+    acceleration below ``steady_accel_rad_s2`` and, when ``t_amb_c`` (800 Hz, degC) covers the
+    flight, an ambient within ``cruise_band_c`` of ``cruise_temp_c``. It has no current floor:
+    dropping the low-torque steps would drop one direction's moves under a light load.
+    """
+    cfg = config or FeatureConfig()
+    w_mean = steps.speed
+    n = steps.n_steps
+    electrical_ok = steps.electrical_hz_peak < cfg.max_electrical_hz
+    still = _run_length_ok(np.abs(w_mean) < cfg.still_speed_rad_s,
+                           max(1, int(round(cfg.still_min_s / cfg.step_s))))
+    accel = np.gradient(w_mean, cfg.step_s) if n > 1 else np.zeros(n)
+    steady_cruise = (electrical_ok & (steps.electrical_hz_mean > cfg.mtel_min_electrical_hz)
+                     & (np.abs(accel) < cfg.steady_accel_rad_s2))
+    cut = steps.n_samples
+    if t_amb_c is not None and len(t_amb_c) >= cut:
+        t_amb = block_mean(np.asarray(t_amb_c[:cut], dtype=np.float64), cfg.decimation)
+        steady_cruise &= t_amb <= cfg.cruise_temp_c + cfg.cruise_band_c
+    return ValidityWindows(
+        electrical_ok=electrical_ok,
+        current_ok=electrical_ok & (steps.current > cfg.min_current_a),
+        moving=steps.electrical_hz_mean > cfg.min_electrical_hz,
+        still=still,
+        steady_cruise=steady_cruise,
+    )
+
+
+def winding_resistance(steps: ActuatorSteps, still: np.ndarray, *,
+                       config: FeatureConfig | None = None) -> float:
+    """Phase resistance [Ohm] from the power balance ``p = R |i|^2`` of still steps carrying
+    at least twice ``min_current_a``; NaN with fewer than ``min_r_estimate_blocks`` steps."""
+    cfg = config or FeatureConfig()
+    r_sel = still & (steps.current > 2 * cfg.min_current_a)
+    if np.count_nonzero(r_sel) >= cfg.min_r_estimate_blocks:
+        return float(steps.power[r_sel].sum() / steps.current_sq[r_sel].sum())
+    return float("nan")
+
+
+def _resistance_or_nominal(r_hat: float, mc: MotorConstants) -> float:
+    return r_hat if np.isfinite(r_hat) and r_hat > 0 else mc.resistance_ohm
+
+
+def winding_temperature(r_hat: float, motor: MotorConstants | None = None) -> float:
+    """Winding temperature [degC] from the copper's resistance law; NaN without an estimate
+    (a non-positive estimate reads as the nominal resistance)."""
+    mc = motor or MotorConstants()
+    if not np.isfinite(r_hat):
+        return float("nan")
+    r_use = _resistance_or_nominal(r_hat, mc)
+    return float(mc.ref_temp_c + (r_use / mc.resistance_ohm - 1.0) / mc.copper_alpha_per_k)
+
+
+# --------------------------------------------------------------------------------------------
+# one function per feature (80 Hz arrays in, FeatureTrack out)
+# --------------------------------------------------------------------------------------------
+
+
+def leakage_conductance(phase_voltage: np.ndarray, common_current: np.ndarray,
+                        valid: np.ndarray, *, config: FeatureConfig | None = None
+                        ) -> FeatureTrack:
+    """``F_TTS``: leakage conductance of the winding to the frame [S].
+
+    A turn-to-turn short damages the insulation and opens a path from the mid-winding of the
+    faulty phase to the frame: the common-node current is ``i0 = G (v_cm + u_k / 2)``, with the
+    common-mode voltage of a min-max (space-vector) modulator ``v_cm = -(max u + min u) / 2``
+    reconstructed from the three measured phase voltages ``phase_voltage`` (n, 3) [V]. Per
+    phase k, the least-squares slope of ``common_current`` (n,) [A] on ``x_k = v_cm + u_k / 2``
+    (with intercept: sensor offsets) estimates G; the feature is the largest of the three
+    slopes (the faulty phase is not known a priori). A healthy motor gives 0 +- noise whatever
+    the operating point.
+    """
+    cfg = config or FeatureConfig()
+    u_b = phase_voltage
+    v_cm_b = -0.5 * (u_b.max(axis=1) + u_b.min(axis=1))
+    x_tts = v_cm_b[:, np.newaxis] + 0.5 * u_b  # (n, 3) [V]
+    i0_b = common_current
+    acc = np.c_[i0_b, x_tts, x_tts * i0_b[:, np.newaxis], x_tts * x_tts]
+    return _track(acc, valid, _tts_combine, filter_alpha(cfg), cfg.min_valid_steps)
+
+
+def _dmd_combine(f: np.ndarray, psi_nom: float) -> np.ndarray:
+    return 1.0 - (f[:, 0] / f[:, 1]) / psi_nom
+
+
+def flux_deficit(emf: np.ndarray, omega_e: np.ndarray, valid: np.ndarray, *,
+                 config: FeatureConfig | None = None, motor: MotorConstants | None = None
+                 ) -> FeatureTrack:
+    """``F_DMD``: ``1 - psi_hat / psi_nom`` [-], the relative loss of magnet flux.
+
+    ``v_q = R i_q + L di_q/dt + omega_e psi`` (``i_d = 0`` control, ``L_d = L_q``): least
+    squares of the back-EMF ``emf = v_q - R_hat i_q`` [V] on the electrical speed ``omega_e``
+    [rad/s] over ``valid`` steps, ``psi_hat = sum(e w) / sum(w^2)``. The current needed per
+    unit torque scales with ``1 / psi``, so F_DMD is also the relative excess of phase current
+    over the current expected with the nominal flux.
+    """
+    cfg = config or FeatureConfig()
+    mc = motor or MotorConstants()
+    return _track(np.c_[emf * omega_e, omega_e * omega_e], valid,
+                  partial(_dmd_combine, psi_nom=mc.flux_wb), filter_alpha(cfg),
+                  cfg.min_valid_steps)
+
+
+def estimated_flux(f_dmd: float, motor: MotorConstants | None = None) -> float:
+    """Magnet flux [Wb] of the flight from its ``F_DMD`` value, kept within 0.6 to 1.2 times
+    the nominal flux (the nominal flux when F_DMD has no value)."""
+    mc = motor or MotorConstants()
+    psi_nom = mc.flux_wb
+    psi_hat = psi_nom * (1.0 - f_dmd)
+    if not np.isfinite(psi_hat):
+        psi_hat = psi_nom
+    return float(np.clip(psi_hat, 0.6 * psi_nom, 1.2 * psi_nom))
+
+
+def flux_modulation(emf: np.ndarray, omega_e: np.ndarray, cos_theta: np.ndarray,
+                    sin_theta: np.ndarray, valid: np.ndarray, *,
+                    config: FeatureConfig | None = None) -> FeatureTrack:
+    """``F_SE``: relative 1/rev modulation of the magnet flux [-].
+
+    Static eccentricity modulates the flux linkage ``psi (1 + m cos(theta - phi))``; the q-axis
+    back-EMF ``emf = v_q - R_hat i_q = omega_e psi(theta)`` shows it whatever the load and the
+    acceleration (unlike the current). Weighted least squares of ``emf`` on ``omega_e [1,
+    cos theta, sin theta]`` (the step means ``cos_theta``, ``sin_theta`` of the mechanical
+    angle) over ``valid`` steps; ``F_SE = hypot(b, c) / a``.
+    """
+    cfg = config or FeatureConfig()
+    xs = np.c_[omega_e, omega_e * cos_theta, omega_e * sin_theta]
+    acc = _normal_accumulators(xs, emf)
+    return _track(acc, valid, _se_combine, filter_alpha(cfg), cfg.min_valid_steps)
+
+
+def _bdo_combine(f: np.ndarray) -> np.ndarray:
+    rms = np.sqrt(np.maximum(f, 0.0))
+    return rms.std(axis=1) / rms.mean(axis=1)
+
+
+def voltage_imbalance(phase_voltage_ms: np.ndarray, valid: np.ndarray, *,
+                      config: FeatureConfig | None = None) -> FeatureTrack:
+    """``F_BDO``: imbalance of the three phase-voltage RMS values, std / mean over the phases
+    [-], from the per-step mean squares ``phase_voltage_ms`` (n, 3) [V^2] about the neutral.
+    A balanced three-phase set gives 0.
+    """
+    cfg = config or FeatureConfig()
+    return _track(phase_voltage_ms, valid, _bdo_combine, filter_alpha(cfg),
+                  cfg.min_valid_steps)
+
+
+def friction_ratio(torque: np.ndarray, x_rod: np.ndarray, speed: np.ndarray,
+                   valid: np.ndarray, *, config: FeatureConfig | None = None) -> FeatureTrack:
+    """``F_MTEL``: friction ratio of the screw ``W / (T_ref + |L|)`` [-] at cruise.
+
+    Moving against the load torque L the motor gives ``|L| / eta_d + T_c``, moving with it
+    ``|L| eta_b - T_c``: at one deflection the torque of an upward and a downward move differ
+    by the friction both ways, ``W = |L| (1 / eta_d - eta_b) + 2 T_c``, and their mean is about
+    L. Aged grease lowers the efficiencies and raises the drag ``T_c``: W grows on both counts.
+    The hinge load at cruise is the paper's expected aerodynamic load, linear in the
+    deflection, ``F = -(k x + bias)``, with the flight's unknown dynamic-pressure scale and
+    offset: ``L = a + b x``, identified with the friction from the motor ``torque`` [N m]
+    itself by least squares on ``[1, x, s, s x]`` (``x`` the rod position ``x_rod`` [m] about
+    its mean over ``valid`` steps, ``s`` the sign of the motor ``speed``) over ``valid``
+    steps. On a healthy drive ``W = c0 + k0 |L|``, so the ratio with ``T_ref = c0 / k0``
+    (``mtel_ref_torque_nm``) is k0 whatever the load. NaN value with fewer than
+    ``mtel_min_steps`` valid steps in either direction (no hysteresis seen).
+    """
+    cfg = config or FeatureConfig()
+    n = torque.shape[0]
+    x_rel_mm = 1e3 * (x_rod - (x_rod[valid].mean() if valid.any() else 0.0))
+    s_dir = np.sign(speed)
+    acc = _normal_accumulators(np.c_[np.ones(n), x_rel_mm, s_dir, s_dir * x_rel_mm], torque)
+    track = _track(
+        acc, valid,
+        partial(_mtel_combine, ref_torque_nm=cfg.mtel_ref_torque_nm,
+                min_load_nm=cfg.mtel_min_load_nm),
+        filter_alpha(cfg), cfg.min_valid_steps)
+    n_up = int(np.count_nonzero(valid & (s_dir > 0)))
+    if min(n_up, int(np.count_nonzero(valid)) - n_up) < cfg.mtel_min_steps:
+        track.value = float("nan")  # one direction barely seen: no hysteresis
+    return track
+
+
+def screw_gap(x_rod: np.ndarray, nut_position: np.ndarray, i_q: np.ndarray, *,
+              config: FeatureConfig | None = None) -> FeatureTrack:
+    """``F_MTWEAR``: gap of the screw between its two flanks [m].
+
+    The rod (LVDT, ``x_rod`` [m]) sits behind the nut (``nut_position = r theta`` [m]) by the
+    screw's compliance and half its gap on the flank the link force presses:
+    ``x - r theta = c - F / k_s - (gap / 2) sign(F)``. The screw changes flank only when the
+    link force changes sign, which a motion reversal under a one-sided aerodynamic load does
+    not do; the motor torque (``i_q`` [A]) gives the force's sign and, to first order, its
+    size. Least squares of ``x - r theta`` on ``[1, i_q, sign(i_q)]`` over the steps with
+    ``|i_q| > flank_current_a`` (above the largest drag); a flight with fewer than
+    ``min_flank_steps`` such steps on either flank has no value.
+    """
+    cfg = config or FeatureConfig()
+    n = i_q.shape[0]
+    flank = np.abs(i_q) > cfg.flank_current_a
+    side = np.sign(i_q)
+    acc = _normal_accumulators(np.c_[np.ones(n), i_q, side], x_rod - nut_position)
+    track = _track(acc, flank, _flank_combine, filter_alpha(cfg), cfg.min_valid_steps)
+    if min(np.count_nonzero(flank & (side > 0)),
+           np.count_nonzero(flank & (side < 0))) < cfg.min_flank_steps:
+        track.value = float("nan")  # one flank only: the gap was not crossed
+    return track
+
+
+# --------------------------------------------------------------------------------------------
+# per actuator, per flight
+# --------------------------------------------------------------------------------------------
 
 
 def actuator_features(
@@ -475,187 +850,36 @@ def actuator_features(
     """
     cfg = config or FeatureConfig()
     mc = motor or MotorConstants()
-    d = cfg.decimation
-    n = min(len(sig[k]) for k in ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")) // d
-    if n < 2:
-        raise ValueError("flight shorter than two 80 Hz steps")
-    cut = n * d
-
-    def arr(k: str) -> np.ndarray:
-        return np.asarray(sig[k][:cut], dtype=np.float64)
-
-    ia, ib, ic = arr("ia"), arr("ib"), arr("ic")
-    va, vb, vc = arr("va"), arr("vb"), arr("vc")
-    theta, x = arr("theta"), arr("x")
-    alpha = 1.0 - np.exp(-cfg.step_s / cfg.ewma_tau_s)
-    r_screw = mc.screw_radius_m
-
-    # ---- 800 Hz quantities, reshaped into (n, d) blocks -----------------------------------
-    i_al, i_be = _clarke(ia, ib, ic)
-    v_al, v_be = _clarke(va, vb, vc)
-    i0 = ia + ib + ic
-    i0 = i0 - np.median(i0)  # sensor offsets of the three channels add up to a constant
-    i2 = i_al * i_al + i_be * i_be  # |i|^2 [A^2]
-    i_mag = np.sqrt(i2)
-    v_mag = np.sqrt(v_al * v_al + v_be * v_be)
-    p_ab = v_al * i_al + v_be * i_be  # (2/3) x electrical power [W]
-    omega = np.gradient(theta, 1.0 / cfg.sample_rate_hz)  # rad/s, 800 Hz
-    v0 = (va + vb + vc) / 3.0
-
-    def blk(a: np.ndarray) -> np.ndarray:
-        return a.reshape(n, d)
-
-    omega_b = blk(omega)
-    w_mean = omega_b.mean(axis=1)
-    w_absmax = np.abs(omega_b).max(axis=1)
-    f_e_max = mc.pole_pairs * w_absmax / (2.0 * np.pi)
-    f_e_mean = mc.pole_pairs * np.abs(w_mean) / (2.0 * np.pi)
-    i_mag_b = blk(i_mag).mean(axis=1)
-    v_mag_b = blk(v_mag).mean(axis=1)
-    i2_b = blk(i2).mean(axis=1)
-    p_b = blk(p_ab).mean(axis=1)
-    theta_b = blk(theta).mean(axis=1)
-    x_b = blk(x).mean(axis=1)
-
-    current_ok = (f_e_max < cfg.max_electrical_hz) & (i_mag_b > cfg.min_current_a)
-    moving = f_e_mean > cfg.min_electrical_hz
-    still = _run_length_ok(np.abs(w_mean) < cfg.still_speed_rad_s,
-                           max(1, int(round(cfg.still_min_s / cfg.step_s))))
-
-    # ---- resistance (winding temperature) from still steps: p = R |i|^2 -------------------
-    r_sel = still & (i_mag_b > 2 * cfg.min_current_a)
-    if np.count_nonzero(r_sel) >= cfg.min_r_estimate_blocks:
-        r_hat = float(p_b[r_sel].sum() / i2_b[r_sel].sum())
-    else:
-        r_hat = float("nan")
-    r_use = r_hat if np.isfinite(r_hat) and r_hat > 0 else mc.resistance_ohm
-    temp_wind = mc.ref_temp_c + (r_use / mc.resistance_ohm - 1.0) / mc.copper_alpha_per_k
-    if not np.isfinite(r_hat):
-        temp_wind = float("nan")
+    steps = actuator_steps(sig, config=cfg, motor=mc)
+    windows = validity_windows(steps, config=cfg, t_amb_c=t_amb_c)
+    r_hat = winding_resistance(steps, windows.still, config=cfg)
+    omega_e = mc.pole_pairs * steps.speed
+    emf = steps.v_q - _resistance_or_nominal(r_hat, mc) * steps.i_q  # V, q-axis back-EMF
+    rotating = windows.current_ok & windows.moving
 
     tracks: dict[str, FeatureTrack] = {}
+    tracks["F_TTS"] = leakage_conductance(steps.phase_voltage, steps.common_current,
+                                          windows.electrical_ok, config=cfg)
+    tracks["F_DMD"] = flux_deficit(emf, omega_e, rotating, config=cfg, motor=mc)
+    psi_hat = estimated_flux(tracks["F_DMD"].value, mc)
+    tracks["F_SE"] = flux_modulation(emf, omega_e, steps.cos_theta, steps.sin_theta, rotating,
+                                     config=cfg)
+    tracks["F_BDO"] = voltage_imbalance(steps.phase_voltage_ms,
+                                        rotating & (steps.voltage > cfg.min_voltage_v),
+                                        config=cfg)
+    torque = 1.5 * mc.pole_pairs * psi_hat * steps.i_q  # N m, motor torque
+    tracks["F_MTEL"] = friction_ratio(torque, steps.x, steps.speed, windows.steady_cruise,
+                                      config=cfg)
+    tracks["F_MTWEAR"] = screw_gap(steps.x, mc.screw_radius_m * steps.theta, steps.i_q,
+                                   config=cfg)
 
-    # ---- F_TTS: leakage conductance of the winding to the frame [S] ----------------------
-    # A turn-to-turn short damages the insulation and opens a path from the mid-winding of
-    # the faulty phase to the frame: the common-node current is i0 = G (v_cm + u_k / 2), with
-    # the common-mode voltage of a min-max (space-vector) modulator v_cm = -(max u + min u)/2
-    # reconstructed from the three measured phase voltages. Per phase k, the least-squares
-    # slope of i0 on x_k = v_cm + u_k / 2 (with intercept: sensor offsets) estimates G; the
-    # feature is the largest of the three slopes (the faulty phase is not known a priori).
-    # A healthy motor gives 0 +- noise whatever the operating point, unlike var(i0) / |v|.
-    u_b = np.c_[blk(va).mean(axis=1), blk(vb).mean(axis=1), blk(vc).mean(axis=1)]
-    v_cm_b = -0.5 * (u_b.max(axis=1) + u_b.min(axis=1))
-    x_tts = v_cm_b[:, np.newaxis] + 0.5 * u_b  # (n, 3) [V]
-    i0_b = blk(i0).mean(axis=1)
-    tts_acc = np.c_[i0_b, x_tts, x_tts * i0_b[:, np.newaxis], x_tts * x_tts]
-    tts_valid = f_e_max < cfg.max_electrical_hz
-    tracks["F_TTS"] = _track(tts_acc, tts_valid, _tts_combine, alpha, cfg.min_valid_steps)
-
-    # ---- F_DMD: 1 - psi_hat/psi_nom; psi_hat from the q-axis voltage balance ---------------
-    # v_q = R i_q + L di_q/dt + omega_e psi (i_d = 0 control, L_d = L_q): least squares of
-    # (v_q - R_hat i_q) on omega_e over moving steps, psi_hat = sum(e w) / sum(w^2).
-    # The current needed per unit torque scales with 1/psi, so F_DMD is also the relative
-    # excess of phase current over the current expected with the nominal flux.
-    th_e = mc.pole_pairs * theta - cfg.electrical_offset_rad
-    ce, se_ = np.cos(th_e), np.sin(th_e)
-    i_q_b = blk(-i_al * se_ + i_be * ce).mean(axis=1)
-    v_q_b = blk(-v_al * se_ + v_be * ce).mean(axis=1)
-    we_b = mc.pole_pairs * w_mean
-    emf_b = v_q_b - r_use * i_q_b
-    dmd_valid = current_ok & moving
-    psi_nom = mc.flux_wb
-
-    def dmd_combine(f: np.ndarray) -> np.ndarray:
-        return 1.0 - (f[:, 0] / f[:, 1]) / psi_nom
-
-    tracks["F_DMD"] = _track(np.c_[emf_b * we_b, we_b * we_b], dmd_valid, dmd_combine, alpha,
-                             cfg.min_valid_steps)
-    psi_hat = psi_nom * (1.0 - tracks["F_DMD"].value)
-    if not np.isfinite(psi_hat):
-        psi_hat = psi_nom
-    psi_hat = float(np.clip(psi_hat, 0.6 * psi_nom, 1.2 * psi_nom))
-
-    # ---- F_SE: flux modulation at shaft frequency from the back-EMF ----------------------
-    # Static eccentricity modulates the flux linkage psi (1 + m cos(theta - phi)); the q-axis
-    # back-EMF e = v_q - R_hat i_q = omega_e psi(theta) shows it whatever the load and the
-    # acceleration (unlike the current). Weighted least squares of e on omega_e [1, cos theta,
-    # sin theta] over moving current-valid steps; F_SE = hypot(b, c) / a, the relative
-    # 1/rev modulation of the flux [-].
-    se_valid = current_ok & moving
-    cos_b = blk(np.cos(theta)).mean(axis=1)
-    sin_b = blk(np.sin(theta)).mean(axis=1)
-    xs = np.c_[we_b, we_b * cos_b, we_b * sin_b]
-    se_acc = _normal_accumulators(xs, emf_b)
-    tracks["F_SE"] = _track(se_acc, se_valid, _se_combine, alpha, cfg.min_valid_steps)
-
-    # ---- F_BDO: imbalance of per-phase voltage RMS ----------------------------------------
-    ms = np.c_[blk((va - v0) ** 2).mean(axis=1), blk((vb - v0) ** 2).mean(axis=1),
-               blk((vc - v0) ** 2).mean(axis=1)]
-    # rotating windows only: a hold's DC voltages depend on where the rotor stopped
-    bdo_valid = current_ok & moving & (v_mag_b > cfg.min_voltage_v)
-
-    def bdo_combine(f: np.ndarray) -> np.ndarray:
-        rms = np.sqrt(np.maximum(f, 0.0))
-        return rms.std(axis=1) / rms.mean(axis=1)
-
-    tracks["F_BDO"] = _track(ms, bdo_valid, bdo_combine, alpha, cfg.min_valid_steps)
-
-    # ---- F_MTEL: friction of the screw from the torque hysteresis at cruise ------------
-    # Moving against the load torque L the motor gives |L| / eta_d + T_c, moving with it
-    # |L| eta_b - T_c: at one deflection the torque of an upward and a downward move differ by
-    # the friction both ways, W = |L| (1 / eta_d - eta_b) + 2 T_c, and their mean is about L.
-    # Aged grease lowers the efficiencies and raises the drag T_c: W grows on both counts.
-    # The hinge load at cruise is the paper's expected aerodynamic load, linear in the
-    # deflection, F = -(k x + bias), with the flight's unknown dynamic-pressure scale and
-    # offset: L = a + b x, identified with the friction from the motor torque itself by least
-    # squares on [1, x, s, s x] (s = direction of motion) over steady moving steps at cruise
-    # (T_amb <= cruise_temp_c + band when recorded; the whole flight otherwise). On a healthy
-    # drive W = c0 + k0 |L|, so W / (T_ref + |L|) with T_ref = c0 / k0 is k0 whatever the load.
-    torque_b = 1.5 * mc.pole_pairs * psi_hat * i_q_b
-    accel_b = np.gradient(w_mean, cfg.step_s) if n > 1 else np.zeros(n)
-    # no current floor here: dropping the low-torque steps would drop one direction's moves
-    # under a light load
-    mtel_valid = ((f_e_max < cfg.max_electrical_hz) & (f_e_mean > cfg.mtel_min_electrical_hz)
-                  & (np.abs(accel_b) < cfg.steady_accel_rad_s2))
-    if t_amb_c is not None and len(t_amb_c) >= cut:
-        t_amb_b = block_mean(np.asarray(t_amb_c[:cut], dtype=np.float64), d)
-        mtel_valid &= t_amb_b <= cfg.cruise_temp_c + cfg.cruise_band_c
-    x_rel_mm = 1e3 * (x_b - (x_b[mtel_valid].mean() if mtel_valid.any() else 0.0))
-    s_dir = np.sign(w_mean)
-    mtel_acc = _normal_accumulators(np.c_[np.ones(n), x_rel_mm, s_dir, s_dir * x_rel_mm],
-                                    torque_b)
-    tracks["F_MTEL"] = _track(
-        mtel_acc, mtel_valid,
-        partial(_mtel_combine, ref_torque_nm=cfg.mtel_ref_torque_nm,
-                min_load_nm=cfg.mtel_min_load_nm),
-        alpha, cfg.min_valid_steps)
-    n_up = int(np.count_nonzero(mtel_valid & (s_dir > 0)))
-    if min(n_up, int(np.count_nonzero(mtel_valid)) - n_up) < cfg.mtel_min_steps:
-        tracks["F_MTEL"].value = float("nan")  # one direction barely seen: no hysteresis
-
-    # ---- F_MTWEAR: screw gap between the two flanks --------------------------------------
-    # The rod (LVDT) sits behind the nut (r theta) by the screw's compliance and half its gap
-    # on the flank the link force presses: x - r theta = c - F / k_s - (gap / 2) sign(F).
-    # The screw changes flank only when the link force changes sign, which a motion reversal
-    # under a one-sided aerodynamic load does not do (reversal lost motion then saw about
-    # 10 % of the gap); the motor torque (i_q) gives the force's sign and, to first order, its
-    # size. Least squares of x - r theta on [1, i_q, sign(i_q)] over steps with |i_q| above
-    # the largest drag; a flight that did not press both flanks has no value.
-    flank = np.abs(i_q_b) > cfg.flank_current_a
-    side = np.sign(i_q_b)
-    wear_acc = _normal_accumulators(np.c_[np.ones(n), i_q_b, side], x_b - r_screw * theta_b)
-    tracks["F_MTWEAR"] = _track(wear_acc, flank, _flank_combine, alpha, cfg.min_valid_steps)
-    if min(np.count_nonzero(flank & (side > 0)),
-           np.count_nonzero(flank & (side < 0))) < cfg.min_flank_steps:
-        tracks["F_MTWEAR"].value = float("nan")  # one flank only: the gap was not crossed
-
-    load_exp = -(aero_gradient_n_per_m * x_b + aero_bias_n)  # N, design aero load at cruise
+    load_exp = -(aero_gradient_n_per_m * steps.x + aero_bias_n)  # N, design aero load
     extras = {
         "psi_hat_wb": float(psi_hat),
         "r_hat_ohm": r_hat,
-        "temp_winding_est_c": float(temp_wind),
+        "temp_winding_est_c": winding_temperature(r_hat, mc),
         "load_rms_n": float(np.sqrt(np.mean(load_exp ** 2))),
-        "speed_rms_rad_s": float(np.sqrt(np.mean(w_mean ** 2))),
+        "speed_rms_rad_s": float(np.sqrt(np.mean(steps.speed ** 2))),
     }
     return tracks, extras
 
@@ -678,8 +902,7 @@ def rewear_feature(
     xb1, xb2, pos = xb1[:n], xb2[:n], pos[:n]
     vel = np.gradient(pos, cfg.step_s) if n > 1 else np.zeros(n)
     steps, vals = _lost_motion_events(xb1 - xb2, pos, vel, cfg)
-    alpha = 1.0 - np.exp(-cfg.step_s / cfg.ewma_tau_s)
-    return _event_track(n, steps, vals, alpha, absolute=cfg.rewear_absolute,
+    return _event_track(n, steps, vals, filter_alpha(cfg), absolute=cfg.rewear_absolute,
                         min_events=cfg.min_events)
 
 
@@ -717,7 +940,7 @@ def flight_features(
     conditions: dict[str, dict[str, float]] = {}
     tracks_all: dict[str, FeatureTrack] = {}
     for p in POSITIONS:
-        sig = {s: channels[f"{p}.{s}"] for s in ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")}
+        sig = {s: channels[f"{p}.{s}"] for s in SIGNALS}
         tracks, extras = actuator_features(
             sig, aero_gradient_n_per_m=float(cfg.aero_gradient_n_per_m[p]),
             aero_bias_n=float(cfg.aero_bias_n[p]), t_amb_c=channels.get("T_amb"), config=cfg,

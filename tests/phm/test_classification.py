@@ -14,17 +14,19 @@ import numpy as np
 import pytest
 from sklearn.exceptions import NotFittedError
 
+import server.vocabulary as vocabulary
 from server.phm.classification import (
+    CLASSIFIER_DEFAULTS,
     FAULT_MODES,
     FaultClassifier,
     confusion,
     split_by_group,
     train_classifier,
 )
+from server.vocabulary import ACTUATOR_FEATURES, POSITIONS, REWEAR_NAME
 
 N_FEATURES = 19
-FEATURES = [f"{u}.F_{f}" for u in ("WL1", "WL2", "WT")
-            for f in ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR")] + ["WL.F_REWEAR"]
+FEATURES = [f"{u}.{f}" for u in POSITIONS for f in ACTUATOR_FEATURES] + [REWEAR_NAME]
 
 
 def make_data(seed: int, *, patterns_per_mode: int = 8, flights: int = 20,
@@ -210,3 +212,13 @@ def test_class_absent_from_a_calibration_fold() -> None:
     assert "Z" in model.classes_.tolist()
     assert np.isfinite(model.temperature_) and model.temperature_ > 0
     assert 0 < model.calibration_["n_samples"] < X.shape[0]
+
+
+def test_defaults_come_from_the_config() -> None:
+    """FaultClassifier's keyword defaults are ClassifierConfig's; FAULT_MODES is the
+    vocabulary's."""
+    d = CLASSIFIER_DEFAULTS
+    assert FaultClassifier().get_params() == {
+        "C": d.C, "cv": d.cv, "class_weight": d.class_weight, "tol": d.tol,
+        "max_iter": d.max_iter, "random_state": d.random_state}
+    assert FAULT_MODES is vocabulary.FAULT_MODES

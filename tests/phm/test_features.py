@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
+import server.phm.features as features_module
+import server.vocabulary as vocabulary
 from server.phm.features import (
     ACTUATOR_FEATURES,
     AIRCRAFT_FEATURES,
@@ -200,8 +202,7 @@ def test_config_validation() -> None:
 # on simulated campaigns
 # --------------------------------------------------------------------------------------------
 
-OWN_FEATURE = {"TTS": "F_TTS", "DMD": "F_DMD", "MTEL": "F_MTEL", "MTWEAR": "F_MTWEAR",
-               "REWEAR": "F_REWEAR"}
+OWN_FEATURE = {m: vocabulary.OWN_FEATURE[m] for m in vocabulary.PROGRESSIVE}
 
 
 @pytest.mark.slow
@@ -224,3 +225,10 @@ def test_each_feature_is_monotone_with_its_fault(mode: str, design_campaign) -> 
 
 def test_feature_names_cover_table_1() -> None:
     assert set(ACTUATOR_FEATURES) == {"F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR"}
+
+
+def test_vocabulary_names_are_re_exported() -> None:
+    """The names the vocabulary owns are the same objects under server.phm.features."""
+    for name in ("ACTUATOR_FEATURES", "POSITIONS", "WINGLET_PAIR", "REWEAR_NAME"):
+        assert getattr(features_module, name) is getattr(vocabulary, name)
+        assert name in features_module.__all__
