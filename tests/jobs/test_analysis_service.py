@@ -12,24 +12,12 @@ import pytest
 from sqlalchemy import func, select
 
 from server.campaigns import load_campaign
-from server.config import Settings
-from server.db import make_engine, make_session_factory
-from server.migrate import upgrade
 from server.models import Actuator, Alarm, Flight, HealthRecord, Prognosis
 from server.phm.chain import analyze_flight, read_model_document
 from server.services import analysis, fleet
 from server.services import models as model_service
 
 pytestmark = pytest.mark.slow
-
-
-@pytest.fixture
-def factory(settings: Settings):  # type: ignore[no-untyped-def]
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    upgrade(settings.effective_database_url)
-    engine = make_engine(settings.effective_database_url)
-    yield make_session_factory(engine)
-    engine.dispose()
 
 
 def _register(session, campaign, pattern) -> dict[int, object]:  # type: ignore[no-untyped-def]

@@ -5,23 +5,10 @@ from __future__ import annotations
 import threading
 from datetime import timedelta
 
-import pytest
 from sqlalchemy import select, update
 
-from server.config import Settings
-from server.db import make_engine, make_session_factory
 from server.jobs import queue
-from server.migrate import upgrade
 from server.models import Job, utcnow
-
-
-@pytest.fixture
-def factory(settings: Settings):  # type: ignore[no-untyped-def]
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    upgrade(settings.effective_database_url)
-    engine = make_engine(settings.effective_database_url)
-    yield make_session_factory(engine)
-    engine.dispose()
 
 
 def add_jobs(factory, keys: list[str], max_attempts: int = 3) -> list[int]:  # type: ignore[no-untyped-def]
