@@ -102,8 +102,6 @@ def bench_gem(steps: int) -> float:
     return steps / STEP_HZ / (time.perf_counter() - t0)
 
 
-
-
 def write_block(text: str) -> None:
     replace_block(START, END, text)
 
@@ -113,6 +111,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=120.0, help="simulated seconds per run")
     ap.add_argument("--gem-steps", type=int, default=24000, help="gym-electric-motor steps")
     args = ap.parse_args()
+    load = os.getloadavg()[0]  # the cores may be shared: figures drop with other jobs' load
     warm_up()
     one, three = bench_halfwing(args.seconds)
     motor = bench_motor_ours(args.seconds)
@@ -120,7 +119,8 @@ def main() -> None:
     now = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     text = f"""## Simulator (bench/bench_sim.py)
 
-Machine: {cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}, {now}.
+Machine: {cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}, {now};
+load average {load:.1f} at the start.
 One core (numba kernel, single thread), fixed step {STEP_HZ / 1000:.0f} kHz, best of 3 runs of
 {args.seconds:.0f} s simulated; gym-electric-motor 3.0.3 `Cont-CC-PMSM-v0` with the same motor
 parameters and step, {args.gem_steps} steps.

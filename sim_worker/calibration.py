@@ -16,8 +16,10 @@ from typing import Any
 
 import numpy as np
 
+from server.vocabulary import POSITIONS
+
 from .faults import THRESHOLDS, FaultState, healthy
-from .fleet import BASES, POSITIONS, build_aircraft
+from .fleet import BASES, build_aircraft
 from .flight import (
     _summary_from_acc,
     build_scenario,

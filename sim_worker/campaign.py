@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from server.flightlog import write_parquet
+from server.vocabulary import POSITIONS, WINGLET_PAIR
 
 from .faults import (
     A_PRIORI,
@@ -156,11 +157,12 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
 
     for j in range(cfg.healthy_patterns):
         add("healthy", None, j % n_air, cfg.healthy_flights, 0, j)
-    positions = ("WL1", "WL2", "WT")
     for m_i, mode in enumerate(MODES):
         for j in range(cfg.patterns_per_mode):
             ai = (j * 3 + m_i) % n_air
-            pos = ("WL1", "WL2")[j % 2] if mode == "REWEAR" else positions[(j + m_i) % 3]
+            # rod-end wear is seen only across the winglet pair, so it goes on a winglet drive
+            pos = (WINGLET_PAIR[j % 2] if mode == "REWEAR"
+                   else POSITIONS[(j + m_i) % len(POSITIONS)])
             if mode in A_PRIORI:
                 add(mode, pos, ai, cfg.apriori_flights, cfg.apriori_onset, j)
             else:

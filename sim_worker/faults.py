@@ -18,15 +18,16 @@ Progression per flight, on the normalised severity ``s_n = s / threshold``::
 
     s_n+ = s_n + rate * driver(summary) * (s_n + c_mode) * exp(N(0, 0.3^2) - 0.045)
 
-``driver`` is the physics law measured from the flight (REFERENCE.md fault laws): insulation life
-halves per +10 K of mean winding temperature (TTS); magnet loss grows with temperature and current
-loading (DMD); grease life halves per +15 K above 70 degC (MTEL); Archard wear volume grows with
-force times sliding distance on the screw (MTWEAR) and on the rod end (REWEAR). Every driver is
-multiplied by the flight's block hours over 1.5 h. ``rate`` is drawn per pattern so that the
-expected fault-to-failure span at the base's average conditions is ``U(170, 360)`` flights
-(accelerated ageing, as in the paper); actual spans spread further with season and usage. A worn
-drive of the winglet pair does less and less of the work as its backlash grows (its partner holds
-the tab), so winglet wear decelerates: see :mod:`.load_share`.
+``driver`` is the physics law measured from the flight: insulation life halves per +10 K of mean
+winding temperature (TTS; Montsinger, IEC 60085 practice); magnet loss grows with temperature and
+current loading (DMD); grease life halves per +15 K above 70 degC (MTEL; SKF relubrication rule);
+Archard wear volume ``K F_N s / H`` grows with force times sliding distance on the screw (MTWEAR)
+and on the rod end (REWEAR). Every driver is multiplied by the flight's block hours over 1.5 h.
+``rate`` is drawn per pattern so that the expected fault-to-failure span at the base's average
+conditions is ``U(170, 360)`` flights (accelerated ageing, as in the paper); actual spans spread
+further with season and usage. A worn drive of the winglet pair does less and less of the work as
+its backlash grows (its partner holds the tab), so winglet wear decelerates: see
+:mod:`.load_share`.
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
+
+from server.vocabulary import ABRUPT, FAULT_MODES, PROGRESSIVE
 
 from .load_share import life_integral
 
@@ -53,9 +56,8 @@ __all__ = [
     "driver",
 ]
 
-MODES: tuple[str, ...] = ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR", "REWEAR")
-PROGRESSIVE: tuple[str, ...] = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
-A_PRIORI: tuple[str, ...] = ("SE", "BDO")
+MODES: tuple[str, ...] = FAULT_MODES
+A_PRIORI: tuple[str, ...] = ABRUPT  # imposed at a constant severity, no progression
 THRESHOLDS: dict[str, float] = {"TTS": 0.10, "DMD": 0.20, "SE": 0.5, "BDO": 1.0, "MTEL": 0.15,
                                 "MTWEAR": 0.3e-3, "REWEAR": 2.0e-3}
 _ONSET_NORM = 0.05  # onset severity / threshold of the progressive modes

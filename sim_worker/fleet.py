@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from server.vocabulary import POSITIONS, is_winglet
+
 from .params import EmaParams, SurfaceParams
 
 __all__ = [
@@ -31,7 +33,6 @@ __all__ = [
     "annual_mean_temperature",
 ]
 
-POSITIONS: tuple[str, str, str] = ("WL1", "WL2", "WT")
 BASES: dict[str, str] = {"Turin": "temperate", "Vancouver": "cold", "Abu Dhabi": "hot"}
 CLIMATES: dict[str, str] = {v: k for k, v in BASES.items()}
 _CLIMATE_FILES = {"Turin": "climate_turin.csv", "Vancouver": "climate_vancouver.csv",
@@ -43,7 +44,8 @@ WINGLET = SurfaceParams(name="WL", j_kgm2=0.08, arm_m=0.045, hinge_damping_nms=1
 WINGTIP = SurfaceParams(name="WT", j_kgm2=0.04, arm_m=0.040, hinge_damping_nms=8.0,
                         n_actuators=1, aero_stiffness_n_per_m=6.0e4, aero_bias_n=300.0,
                         nominal_load_n=1500.0)
-SURFACE_OF: dict[str, int] = {"WL1": 0, "WL2": 0, "WT": 1}
+#: surface index of each position: 0 the winglet tab (the winglet pair), 1 the wingtip
+SURFACE_OF: dict[str, int] = {pos: 0 if is_winglet(pos) else 1 for pos in POSITIONS}
 
 # production tolerances, 1 sigma relative (or absolute where stated) [est]
 _TOL = {

@@ -15,9 +15,10 @@ import numpy as np
 from scipy.signal import lfilter
 
 from server.flightlog import NOMINAL_SAMPLE_RATE_HZ, FlightLog, FlightMetadata
+from server.vocabulary import POSITIONS
 
 from .faults import ActuatorSummary, FaultState, FlightSummary, fault_entries
-from .fleet import POSITIONS, SURFACE_OF, WINGLET, WINGTIP, Aircraft, draw_ground_temperature
+from .fleet import SURFACE_OF, WINGLET, WINGTIP, Aircraft, draw_ground_temperature
 from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
 from .load_share import WORK_FIELD, load_share
 from .params import OUT_HZ, pack_ema, pack_surface

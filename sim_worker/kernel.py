@@ -8,8 +8,10 @@ temperature and the controller states; per surface the deflection and its rate.
 Subsystems, each a small function below, wired once in :func:`simulate`:
 
 * inverter: averaged legs, pole voltage ``d_k U_dc`` minus the conduction drop; min-max zero
-  sequence (space-vector equivalent); MOSFET base-drive open changes the effective duty by the
-  sign of the leg current (REFERENCE.md inverter faults);
+  sequence (space-vector equivalent); a MOSFET whose base drive is open never turns on while its
+  diode still conducts, so the leg's effective duty follows the sign of the leg current (upper
+  switch open: ``d_eff = d`` while ``i_k < 0``, else 0; lower open: 1 while ``i_k < 0``, else
+  ``d``);
 * PMSM in d-q with R(T), psi(T), magnet loss ``(1 - h)``, static eccentricity as a flux modulation
   by the mechanical angle; turn-to-turn short as a shorted loop on phase a (quasi-static) whose
   reflected current and a winding-to-frame leakage enter the terminal currents;
@@ -19,7 +21,12 @@ Subsystems, each a small function below, wired once in :func:`simulate`:
 * surface: one rigid body per surface with aerodynamic force input and hinge damping;
 * thermal: single body, copper + short-circuit losses, to ambient through R_th;
 * sensors: offset, noise (in-kernel xorshift generator seeded from a numpy Generator),
-  quantisation.
+  quantisation;
+* control: current PI every step, speed PI every 3 steps, position P every 12 steps.
+
+The helpers are compiled with ``inline="always"``: numba inlines them into :func:`simulate` before
+type inference, so the kernel stays one loop with the same floating-point operations, in the same
+order, as a single hand-written function.
 """
 
 from __future__ import annotations
@@ -80,6 +87,9 @@ _ID, _IQ, _TH, _W, _TW, _IW, _WREF, _IQREF, _ICD, _ICQ = range(10)
 _DA, _DB, _DC, _WF, _THPREV, _BDOPOS, _IA, _IB, _IC, _UA = range(10, 20)
 _UB, _UC, _VCM, _PLOSS, _XM, _XROD, _WPREV, _COS, _SIN, _THE = range(20, 30)
 _NST = 30
+# per-EMA coefficients held for one output period (temperature dependent)
+_C_R, _C_RON, _C_PSI, _C_AD, _C_AQ = range(5)
+_NCOEF = 5
 
 
 @njit(cache=True, inline="always")
@@ -103,12 +113,271 @@ def _quant(v: float, lsb: float) -> float:
     return math.floor(v / lsb + 0.5) * lsb
 
 
+# ---- sensors -------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _measure(v: float, noise_rms: float, lsb: float, rng: np.ndarray, k: int) -> float:
+    """One sensor reading: ``v`` (offset already added) plus noise from EMA ``k``'s generator,
+    quantised to the sensor's LSB."""
+    return _quant(v + noise_rms * _noise(rng, k), lsb)
+
+
+@njit(cache=True, inline="always")
+def _sample_currents(par: np.ndarray, k: int, rng: np.ndarray, ia: float, ib: float, ic: float
+                     ) -> tuple[float, float, float]:
+    ni = par[k, P.N_I]
+    lsb_i = par[k, P.LSB_I]
+    return (_measure(ia + par[k, P.OFF_IA], ni, lsb_i, rng, k),
+            _measure(ib + par[k, P.OFF_IB], ni, lsb_i, rng, k),
+            _measure(ic + par[k, P.OFF_IC], ni, lsb_i, rng, k))
+
+
+@njit(cache=True, inline="always")
+def _sample_lvdt(par: np.ndarray, st: np.ndarray, k: int, rng: np.ndarray) -> float:
+    return _measure(st[k, _XROD] + par[k, P.OFF_X], par[k, P.N_X], par[k, P.LSB_X], rng, k)
+
+
+@njit(cache=True, inline="always")
+def _record_signals(out: np.ndarray, j: int, k: int, par: np.ndarray, rng: np.ndarray,
+                    ia_m: float, ib_m: float, ic_m: float, ua: float, ub: float, uc: float,
+                    th_m: float) -> None:
+    """Recorded sensor channels 0-6 at an output instant (the LVDT, channel 7, is sampled
+    after the speed loop)."""
+    nv = par[k, P.N_V]
+    lsb_v = par[k, P.LSB_V]
+    out[j, k, 0] = ia_m
+    out[j, k, 1] = ib_m
+    out[j, k, 2] = ic_m
+    out[j, k, 3] = _measure(ua, nv, lsb_v, rng, k)
+    out[j, k, 4] = _measure(ub, nv, lsb_v, rng, k)
+    out[j, k, 5] = _measure(uc, nv, lsb_v, rng, k)
+    out[j, k, 6] = th_m
+
+
+# ---- frames --------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _electrical_angle(the: float, the_prev: float, c_prev: float, s_prev: float, exact: bool
+                      ) -> tuple[float, float]:
+    """cos and sin of the electrical angle ``the``: exact when ``exact`` (once per output period,
+    which bounds the drift), otherwise the previous step's pair rotated by the small increment."""
+    if exact:
+        return math.cos(the), math.sin(the)
+    d1 = the - the_prev
+    d2 = d1 * d1
+    cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0))
+    sd = d1 * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0)))
+    return c_prev * cd - s_prev * sd, s_prev * cd + c_prev * sd
+
+
+@njit(cache=True, inline="always")
+def _phase_axes(c: float, sn: float) -> tuple[float, float, float, float]:
+    """(cos, sin) of the phase b and phase c axes, -120 and +120 degrees from phase a."""
+    return (-0.5 * c + SQRT3_2 * sn, -0.5 * sn - SQRT3_2 * c,
+            -0.5 * c - SQRT3_2 * sn, -0.5 * sn + SQRT3_2 * c)
+
+
+@njit(cache=True, inline="always")
+def _rotate_small(c: float, sn: float, d: float) -> tuple[float, float]:
+    """(cos, sin) rotated by a small angle ``d`` (first order)."""
+    return c - sn * d, sn + c * d
+
+
+@njit(cache=True, inline="always")
+def _park(xa: float, xb: float, xc: float, c: float, sn: float, cb: float, sb: float,
+          cc: float, sc: float) -> tuple[float, float]:
+    """Amplitude-invariant Park transform of three phase quantities -> (d, q)."""
+    return ((2.0 / 3.0) * (xa * c + xb * cb + xc * cc),
+            -(2.0 / 3.0) * (xa * sn + xb * sb + xc * sc))
+
+
+# ---- inverter ------------------------------------------------------------------------------
+
+
 @njit(cache=True, inline="always")
 def _leg_duty(d: float, i: float, upper_open: float) -> float:
     """Effective duty of a leg with one MOSFET that never turns on (its diode still conducts)."""
     if upper_open > 0.5:
         return d if i < 0.0 else 0.0
     return 1.0 if i < 0.0 else d
+
+
+@njit(cache=True, inline="always")
+def _current_sign_held(i_leg: float, held: float) -> float:
+    """1 while the faulty leg's current flows out of the leg, 0 while into it; ``held`` (the
+    last value) within +-0.05 A, so that the leg does not chatter around zero current."""
+    if i_leg > 0.05:
+        return 1.0
+    if i_leg < -0.05:
+        return 0.0
+    return held
+
+
+@njit(cache=True, inline="always")
+def _open_leg_duties(leg: int, positive: float, upper_open: float, da: float, db: float,
+                     dc: float) -> tuple[float, float, float]:
+    """Duties (a, b, c) as applied with a base-drive-open MOSFET on ``leg``."""
+    isign = 1.0 if positive > 0.5 else -1.0
+    if leg == 0:
+        da = _leg_duty(da, isign, upper_open)
+    elif leg == 1:
+        db = _leg_duty(db, isign, upper_open)
+    else:
+        dc = _leg_duty(dc, isign, upper_open)
+    return da, db, dc
+
+
+@njit(cache=True, inline="always")
+def _phase_voltages(da: float, db: float, dc: float, udc: float, ron: float, ia: float,
+                    ib: float, ic: float) -> tuple[float, float, float, float]:
+    """Averaged legs: pole voltages ``d U_dc`` minus the conduction drop, referred to the motor's
+    floating star point -> (u_a, u_b, u_c, common-mode voltage against the DC mid-point)."""
+    va = da * udc - ron * ia
+    vb = db * udc - ron * ib
+    vc = dc * udc - ron * ic
+    vmean = (va + vb + vc) / 3.0
+    return va - vmean, vb - vmean, vc - vmean, vmean - 0.5 * udc
+
+
+@njit(cache=True, inline="always")
+def _svm_duties(udr: float, uqr: float, cm: float, sm: float, cbm: float, sbm: float,
+                udc: float) -> tuple[float, float, float]:
+    """Voltage reference -> leg duties (a, b, c): inverse Park on the measured angle, min-max
+    zero sequence (space-vector equivalent), clamped to [0, 1]."""
+    uar = udr * cm - uqr * sm
+    ubr = udr * cbm - uqr * sbm
+    ucr = -uar - ubr
+    u0 = -0.5 * (max(uar, max(ubr, ucr)) + min(uar, min(ubr, ucr)))
+    return (min(max(0.5 + (uar + u0) / udc, 0.0), 1.0),
+            min(max(0.5 + (ubr + u0) / udc, 0.0), 1.0),
+            min(max(0.5 + (ucr + u0) / udc, 0.0), 1.0))
+
+
+# ---- PMSM ----------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _pmsm_currents(id_: float, iq: float, ud: float, uq: float, we: float, r: float, ld: float,
+                   lq: float, psi: float, dpsi_dt: float, ad: float, aq: float
+                   ) -> tuple[float, float]:
+    """PMSM d-q current step, exact for frozen speed: ``a = exp(-dt R / L)``.
+
+    L_d di_d/dt = u_d - R i_d + w_e L_q i_q - dpsi/dt;  L_q di_q/dt = u_q - R i_q - w_e (L_d i_d
+    + psi).
+    """
+    # coupling evaluated at the mid-step (trapezoidal predictor) keeps the rotation accurate
+    id_p = ad * id_ + (1.0 - ad) * (ud + we * lq * iq - dpsi_dt) / r
+    iq_p = aq * iq + (1.0 - aq) * (uq - we * (ld * id_ + psi)) / r
+    id_n = ad * id_ + (1.0 - ad) * (ud + we * lq * 0.5 * (iq + iq_p) - dpsi_dt) / r
+    iq_n = aq * iq + (1.0 - aq) * (uq - we * (ld * 0.5 * (id_ + id_p) + psi)) / r
+    return id_n, iq_n
+
+
+@njit(cache=True, inline="always")
+def _pmsm_torque(id_: float, iq: float, pp: float, ld: float, lq: float, psi: float) -> float:
+    return 1.5 * pp * (psi * iq + (ld - lq) * id_ * iq)
+
+
+@njit(cache=True, inline="always")
+def _eccentric_flux(psi: float, eps: float, phi: float, th: float, w: float
+                    ) -> tuple[float, float]:
+    """PM flux linkage and its time derivative with static eccentricity: the air gap, hence the
+    flux, is modulated by the mechanical angle ``th`` (narrowest gap at ``phi``)."""
+    if eps == 0.0:
+        return psi, 0.0
+    ang = th - phi
+    return psi * (1.0 + eps * math.cos(ang)), -psi * eps * math.sin(ang) * w
+
+
+@njit(cache=True, inline="always")
+def _turn_short(sigma: float, r_f: float, g_leak: float, ed: float, eq: float, c: float,
+                sn: float, rs: float, v_frame: float) -> tuple[float, float, float]:
+    """Turn-to-turn short on a fraction ``sigma`` of phase a as a quasi-static shorted loop
+    (``ed``, ``eq``: induced d-q voltages), plus the winding-to-frame leakage at ``v_frame``
+    -> (ampere-turns the healthy part of phase a draws, leakage current, fault losses [W])."""
+    if sigma > 0.0:
+        ea = ed * c - eq * sn
+        i_f = sigma * ea / (r_f + sigma * rs)
+        i0 = g_leak * v_frame
+        return sigma * i_f, i0, i_f * i_f * (r_f + sigma * rs) + i0 * v_frame
+    return 0.0, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _terminal_currents(id_: float, iq: float, c: float, sn: float, cb: float, sb: float,
+                       dlt: float, i0: float) -> tuple[float, float, float]:
+    """Phase currents: magnetising currents plus the shorted loop's reflection and the leakage
+    (both on phase a; the leakage returns through the frame, not through phases b and c)."""
+    ia0 = id_ * c - iq * sn
+    ib0 = id_ * cb - iq * sb
+    return ia0 + (2.0 / 3.0) * dlt + i0, ib0 - dlt / 3.0, -ia0 - ib0 - dlt / 3.0
+
+
+# ---- control -------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _lerp(a: np.ndarray, j: int, jn: int, col: int, frac: float) -> float:
+    """Input channel ``col`` between output samples ``j`` and ``jn`` (linear)."""
+    return a[j, col] + frac * (a[jn, col] - a[j, col])
+
+
+@njit(cache=True, error_model="numpy")
+def _position_loop(par: np.ndarray, st: np.ndarray, xcmd: np.ndarray, j: int, jn: int,
+                   frac: float, rng: np.ndarray, xfb: np.ndarray, nfb: np.ndarray) -> None:
+    """Position P on the consolidated LVDT of each surface (mean of its actuators' LVDTs: the
+    two winglet channels exchange their measurements, which avoids force fight)."""
+    n_ema = par.shape[0]
+    xfb[:] = 0.0
+    nfb[:] = 0.0
+    for k in range(n_ema):
+        xm = _sample_lvdt(par, st, k, rng)
+        st[k, _XM] = xm
+        s = int(par[k, P.SURF])
+        xfb[s] += xm
+        nfb[s] += 1.0
+    for k in range(n_ema):
+        s = int(par[k, P.SURF])
+        wref = par[k, P.KP_X] * (_lerp(xcmd, j, jn, k, frac) - xfb[s] / nfb[s])
+        wmax = par[k, P.WMAX]
+        st[k, _WREF] = min(max(wref, -wmax), wmax)
+
+
+@njit(cache=True, inline="always")
+def _speed_loop(par: np.ndarray, st: np.ndarray, k: int, th_m: float, dt_w: float,
+                a_wf: float) -> None:
+    """Speed PI (leaky, clamped integrator) on the low-passed resolver difference -> i_q
+    reference, limited to the drive's current."""
+    wraw = (th_m - st[k, _THPREV]) / dt_w
+    st[k, _THPREV] = th_m
+    st[k, _WF] += a_wf * (wraw - st[k, _WF])
+    ew = st[k, _WREF] - st[k, _WF]
+    imax = par[k, P.IMAX]
+    iw = st[k, _IW] + dt_w * (par[k, P.KI_W] * ew - st[k, _IW] / par[k, P.LEAK_W])
+    iw = min(max(iw, -imax), imax)
+    st[k, _IW] = iw
+    st[k, _IQREF] = min(max(par[k, P.KP_W] * ew + iw, -imax), imax)
+
+
+@njit(cache=True, inline="always")
+def _current_pi(ed: float, eq: float, ud_ff: float, uq_ff: float, int_d: float, int_q: float,
+                kp: float, ki: float, udc: float, dt: float
+                ) -> tuple[float, float, float, float]:
+    """d-q current PI on the errors (``ed``, ``eq``) plus the decoupling feed-forward -> voltage
+    reference (u_d, u_q) and the integrators. The vector is limited to the inverter's linear
+    range; the integrators hold while it is limited (anti-windup)."""
+    udr = kp * ed + int_d - ud_ff
+    uqr = kp * eq + int_q + uq_ff
+    umax = 0.95 * udc / math.sqrt(3.0)
+    umag = math.sqrt(udr * udr + uqr * uqr)
+    if umag > umax:
+        return udr * (umax / umag), uqr * (umax / umag), int_d, int_q
+    return udr, uqr, int_d + ki * ed * dt, int_q + ki * eq * dt
+
+
+# ---- ball screw, link, surface -------------------------------------------------------------
 
 
 @njit(cache=True, inline="always")
@@ -134,25 +403,126 @@ def _link_force(dx: float, dv: float, half_gap: float, k: float, c: float) -> tu
 
 
 @njit(cache=True, inline="always")
-def _pmsm_currents(id_: float, iq: float, ud: float, uq: float, we: float, r: float, ld: float,
-                   lq: float, psi: float, dpsi_dt: float, ad: float, aq: float
-                   ) -> tuple[float, float]:
-    """PMSM d-q current step, exact for frozen speed: ``a = exp(-dt R / L)``.
-
-    L_d di_d/dt = u_d - R i_d + w_e L_q i_q - dpsi/dt;  L_q di_q/dt = u_q - R i_q - w_e (L_d i_d
-    + psi).
-    """
-    # coupling evaluated at the mid-step (trapezoidal predictor) keeps the rotation accurate
-    id_p = ad * id_ + (1.0 - ad) * (ud + we * lq * iq - dpsi_dt) / r
-    iq_p = aq * iq + (1.0 - aq) * (uq - we * (ld * id_ + psi)) / r
-    id_n = ad * id_ + (1.0 - ad) * (ud + we * lq * 0.5 * (iq + iq_p) - dpsi_dt) / r
-    iq_n = aq * iq + (1.0 - aq) * (uq - we * (ld * 0.5 * (id_ + id_p) + psi)) / r
-    return id_n, iq_n
+def _rod_position(xnut: float, dx: float, fs: float, bl_s: float, bl: float, k_screw: float
+                  ) -> float:
+    """Rod (LVDT) position: behind the nut by the screw's share of compliance and play."""
+    if fs > 0.0:
+        return xnut - fs / k_screw - 0.5 * bl_s
+    if fs < 0.0:
+        return xnut - fs / k_screw + 0.5 * bl_s
+    return xnut - (bl_s / bl) * dx if bl > 0.0 else xnut
 
 
 @njit(cache=True, inline="always")
-def _pmsm_torque(id_: float, iq: float, pp: float, ld: float, lq: float, psi: float) -> float:
-    return 1.5 * pp * (psi * iq + (ld - lq) * id_ * iq)
+def _shaft_speed(w: float, te: float, tl: float, dt: float, jm: float, tc: float, tcs: float,
+                 eta_d: float, eta_b: float) -> tuple[float, float, bool]:
+    """Motor shaft (rotor + screw) under the motor, link and friction torques, Karnopp stick
+    -> (new speed, friction torque, stuck)."""
+    net = te - tl
+    if w == 0.0:
+        direction = 1.0 if net > 0.0 else -1.0
+        if abs(net) <= _screw_friction(tl, direction, tcs, eta_d, eta_b):
+            return 0.0, 0.0, True
+        tf = _screw_friction(tl, direction, tc, eta_d, eta_b)
+        return w + dt / jm * (net - direction * tf), tf, False
+    direction = 1.0 if w > 0.0 else -1.0
+    tf = _screw_friction(tl, direction, tc, eta_d, eta_b)
+    w_n = w + dt / jm * (net - direction * tf)
+    if w_n * w < 0.0 or abs(w_n) < 1e-9:
+        w_n = 0.0  # friction stops the shaft; breakaway is decided on the next step
+    return w_n, tf, False
+
+
+@njit(cache=True, inline="always")
+def _surface_arm(par: np.ndarray, s: int) -> float:
+    for k in range(par.shape[0]):
+        if int(par[k, P.SURF]) == s:
+            return par[k, P.ARM]
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def _surface_step(spar: np.ndarray, s: int, f_aero: float, arm: float, torque: float,
+                  delta: np.ndarray, ddelta: np.ndarray, dt: float) -> None:
+    """One rigid surface about its hinge: aerodynamic moment of its actuators' shares, the link
+    torques and hinge damping (semi-implicit Euler)."""
+    m_aero = spar[s, S.N_ACT] * f_aero * arm
+    m_net = m_aero + torque - spar[s, S.C_H] * ddelta[s]
+    dd = ddelta[s] + dt * m_net / spar[s, S.J]
+    ddelta[s] = dd
+    delta[s] += dt * dd
+
+
+# ---- thermal and slow coefficients ---------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _winding_temperature(par: np.ndarray, st: np.ndarray, k: int, div: int, dt_out: float,
+                         t_amb: float) -> None:
+    """Single-body thermal model over one output period: the period's mean losses against
+    conduction to ambient through R_th."""
+    tw = st[k, _TW]
+    ploss = st[k, _PLOSS] / div
+    tw += dt_out * (ploss - (tw - t_amb) / par[k, P.RTH]) / par[k, P.CTH]
+    st[k, _TW] = tw
+    st[k, _PLOSS] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _period_coefficients(par: np.ndarray, st: np.ndarray, k: int, dt: float, coef: np.ndarray
+                         ) -> None:
+    """Temperature-dependent R_s, R_on and PM flux (with the DMD loss) and the current update's
+    decay factors, held for one output period."""
+    tw = st[k, _TW]
+    dtc = tw - par[k, P.TREF]
+    coef[k, _C_R] = par[k, P.R0] * (1.0 + par[k, P.ALPHA_CU] * dtc)
+    coef[k, _C_RON] = par[k, P.RON] * (1.0 + par[k, P.ALPHA_ON] * (tw - 25.0))
+    coef[k, _C_PSI] = (par[k, P.PSI0] * (1.0 + par[k, P.ALPHA_BR] * dtc)
+                       * (1.0 - par[k, P.DMD_H]))
+    rt = coef[k, _C_R] + coef[k, _C_RON]
+    coef[k, _C_AD] = math.exp(-dt * rt / par[k, P.LD])
+    coef[k, _C_AQ] = math.exp(-dt * rt / par[k, P.LQ])
+
+
+# ---- accounting ----------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _accumulate(acc: np.ndarray, k: int, dt: float, ud: float, uq: float, id_mid: float,
+                iq_mid: float, p_cu: float, p_fault: float, tf: float, tl: float, f: float,
+                rr: float, wm: float, vatt: float) -> None:
+    """Energy audit and the wear drivers' sliding work, integrated every step."""
+    acc[k, A.E_IN] += dt * (1.5 * (ud * id_mid + uq * iq_mid))
+    acc[k, A.E_CU] += dt * p_cu
+    acc[k, A.E_FRIC] += dt * tf * abs(wm)
+    acc[k, A.E_LINK] += dt * tl * wm
+    acc[k, A.E_FAULT] += dt * p_fault
+    acc[k, A.WORK_SCREW] += dt * abs(f) * abs(rr * wm)
+    acc[k, A.TRAVEL] += dt * abs(rr * wm)
+    acc[k, A.WORK_ROD] += dt * abs(f) * abs(vatt)
+
+
+@njit(cache=True, inline="always")
+def _record_truth(acc: np.ndarray, dbg: np.ndarray, j: int, k: int, tw: float, f: float,
+                  id_: float, iq: float, id_mid: float, iq_mid: float, w: float, xrod: float,
+                  te: float, iqref: float) -> None:
+    """Flight-summary sums and the true states at an output instant."""
+    acc[k, A.TW_SUM] += tw
+    acc[k, A.TW_MAX] = max(acc[k, A.TW_MAX], tw)
+    acc[k, A.F2_SUM] += f * f
+    acc[k, A.I2_SUM] += id_ * id_ + iq * iq
+    acc[k, A.N] += 1.0
+    dbg[j, k, D.ID] = id_mid
+    dbg[j, k, D.IQ] = iq_mid
+    dbg[j, k, D.W] = w
+    dbg[j, k, D.TW] = tw
+    dbg[j, k, D.F] = f
+    dbg[j, k, D.XROD] = xrod
+    dbg[j, k, D.TE] = te
+    dbg[j, k, D.IQREF] = iqref
+
+
+# ---- wiring --------------------------------------------------------------------------------
 
 
 @njit(cache=True)
@@ -182,35 +552,28 @@ def simulate_motor(u_dq: np.ndarray, r: float, ld: float, lq: float, psi: float,
         out[n, 2] = w
 
 
-@njit(cache=True, error_model="numpy")
-def _position_loop(par: np.ndarray, st: np.ndarray, xcmd: np.ndarray, j: int, jn: int,
-                   frac: float, rng: np.ndarray, xfb: np.ndarray, nfb: np.ndarray) -> None:
-    """Position P on the consolidated LVDT of each surface (mean of its actuators' LVDTs: the
-    two winglet channels exchange their measurements, which avoids force fight)."""
-    n_ema = par.shape[0]
-    xfb[:] = 0.0
-    nfb[:] = 0.0
-    for k in range(n_ema):
-        xm = _quant(st[k, _XROD] + par[k, P.OFF_X] + par[k, P.N_X] * _noise(rng, k),
-                    par[k, P.LSB_X])
-        st[k, _XM] = xm
-        s = int(par[k, P.SURF])
-        xfb[s] += xm
-        nfb[s] += 1.0
-    for k in range(n_ema):
-        s = int(par[k, P.SURF])
-        xc = xcmd[j, k] + frac * (xcmd[jn, k] - xcmd[j, k])
-        wref = par[k, P.KP_X] * (xc - xfb[s] / nfb[s])
-        wmax = par[k, P.WMAX]
-        st[k, _WREF] = min(max(wref, -wmax), wmax)
-
-
 @njit(cache=True, inline="always")
-def _surface_arm(par: np.ndarray, s: int) -> float:
+def _initial_state(par: np.ndarray, xcmd: np.ndarray, st: np.ndarray, delta: np.ndarray,
+                   acc: np.ndarray) -> None:
+    """At rest at the first command; each surface at the mean of its actuators' commands."""
+    for s in range(delta.shape[0]):
+        cnt = 0.0
+        for k in range(par.shape[0]):
+            if int(par[k, P.SURF]) == s:
+                delta[s] += xcmd[0, k] / par[k, P.ARM]
+                cnt += 1.0
+        if cnt > 0.0:
+            delta[s] /= cnt
     for k in range(par.shape[0]):
-        if int(par[k, P.SURF]) == s:
-            return par[k, P.ARM]
-    return 0.0
+        st[k, _TH] = xcmd[0, k] / par[k, P.R_SCREW]
+        st[k, _THPREV] = st[k, _TH]
+        st[k, _TW] = par[k, P.T0_W]
+        st[k, _DA] = 0.5
+        st[k, _DB] = 0.5
+        st[k, _DC] = 0.5
+        st[k, _XM] = xcmd[0, k]
+        st[k, _XROD] = xcmd[0, k]
+        acc[k, A.TW_MAX] = -1e9
 
 
 @njit(cache=True, error_model="numpy")
@@ -240,9 +603,9 @@ def simulate(
     dt = 1.0 / STEP_HZ
     dt_w = dt * SPEED_DIV
     dt_out = dt * div
-    n_steps = n_out * div
     rng = seeds.copy()
     st = np.zeros((n_ema, _NST))
+    coef = np.zeros((n_ema, _NCOEF))
     delta = np.zeros(n_surf)
     ddelta = np.zeros(n_surf)
     torque_surf = np.zeros(n_surf)
@@ -251,55 +614,24 @@ def simulate(
         arm_surf[s] = _surface_arm(par, s)
     xfb = np.zeros(n_surf)  # consolidated LVDT position per surface
     nfb = np.zeros(n_surf)
-    # per-output-period coefficients
-    r_now = np.zeros(n_ema)
-    psi_now = np.zeros(n_ema)
-    ron_now = np.zeros(n_ema)
-    ad = np.zeros(n_ema)
-    aq = np.zeros(n_ema)
     a_wf = 1.0 - math.exp(-dt_w * 2.0 * math.pi * 1000.0)  # speed-estimate low-pass
-    # initial conditions: at rest at the first command
-    for s in range(n_surf):
-        cnt = 0.0
-        for k in range(n_ema):
-            if int(par[k, P.SURF]) == s:
-                delta[s] += xcmd[0, k] / par[k, P.ARM]
-                cnt += 1.0
-        if cnt > 0.0:
-            delta[s] /= cnt
-    for k in range(n_ema):
-        st[k, _TH] = xcmd[0, k] / par[k, P.R_SCREW]
-        st[k, _THPREV] = st[k, _TH]
-        st[k, _TW] = par[k, P.T0_W]
-        st[k, _DA] = 0.5
-        st[k, _DB] = 0.5
-        st[k, _DC] = 0.5
-        st[k, _XM] = xcmd[0, k]
-        st[k, _XROD] = xcmd[0, k]
-        acc[k, A.TW_MAX] = -1e9
+    _initial_state(par, xcmd, st, delta, acc)
 
-    for step in range(n_steps):
+    # Helpers that take arrays are straight-line code, helpers with branches take and return
+    # scalars: inlining an array argument adds an incref/decref pair, which numba prunes within
+    # straight-line code but not always across branches, and a pair left in this loop costs two
+    # atomic operations per step.
+    for step in range(n_out * div):
         j = step // div
         sub = step - j * div
         frac = sub / div
         jn = j + 1 if j + 1 < n_out else j
-        if sub == 0:
-            # slow updates once per output period: temperatures, coefficients, thermal model
+        record = sub == 0
+        if record:
             for k in range(n_ema):
-                tw = st[k, _TW]
                 if step > 0:
-                    ploss = st[k, _PLOSS] / div
-                    tw += dt_out * (ploss - (tw - tamb[j]) / par[k, P.RTH]) / par[k, P.CTH]
-                    st[k, _TW] = tw
-                    st[k, _PLOSS] = 0.0
-                dtc = tw - par[k, P.TREF]
-                r_now[k] = par[k, P.R0] * (1.0 + par[k, P.ALPHA_CU] * dtc)
-                ron_now[k] = par[k, P.RON] * (1.0 + par[k, P.ALPHA_ON] * (tw - 25.0))
-                psi_now[k] = (par[k, P.PSI0] * (1.0 + par[k, P.ALPHA_BR] * dtc)
-                              * (1.0 - par[k, P.DMD_H]))
-                rt = r_now[k] + ron_now[k]
-                ad[k] = math.exp(-dt * rt / par[k, P.LD])
-                aq[k] = math.exp(-dt * rt / par[k, P.LQ])
+                    _winding_temperature(par, st, k, div, dt_out, tamb[j])
+                _period_coefficients(par, st, k, dt, coef)
         for s in range(n_surf):
             torque_surf[s] = 0.0
         if step % POS_DIV == 0:
@@ -312,252 +644,106 @@ def simulate(
             id_ = st[k, _ID]
             iq = st[k, _IQ]
             the = pp * th
-            if sub == 0:  # exact once per output period, rotated in between
-                c = math.cos(the)
-                sn = math.sin(the)
-            else:
-                d1 = the - st[k, _THE]
-                d2 = d1 * d1
-                cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0))
-                sd = d1 * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0)))
-                c0 = st[k, _COS]
-                s0 = st[k, _SIN]
-                c = c0 * cd - s0 * sd
-                sn = s0 * cd + c0 * sd
+            c, sn = _electrical_angle(the, st[k, _THE], st[k, _COS], st[k, _SIN], record)
             st[k, _COS] = c
             st[k, _SIN] = sn
             st[k, _THE] = the
-            cb = -0.5 * c + SQRT3_2 * sn
-            sb = -0.5 * sn - SQRT3_2 * c
-            cc = -0.5 * c - SQRT3_2 * sn
-            sc = -0.5 * sn + SQRT3_2 * c
-            # ---- inverter: apply the duties decided last step ---------------------------------
+            cb, sb, cc, sc = _phase_axes(c, sn)
+            # ---- inverter: apply the duties decided last step ------------------------------
             udc = par[k, P.UDC]
+            ron = coef[k, _C_RON]
             da = st[k, _DA]
             db = st[k, _DB]
             dc = st[k, _DC]
             leg = int(par[k, P.BDO_LEG])
             if leg >= 0:
-                ileg = st[k, _IA + leg]
-                pos = st[k, _BDOPOS]
-                if ileg > 0.05:
-                    pos = 1.0
-                elif ileg < -0.05:
-                    pos = 0.0
-                st[k, _BDOPOS] = pos
-                isign = 1.0 if pos > 0.5 else -1.0
-                if leg == 0:
-                    da = _leg_duty(da, isign, par[k, P.BDO_UPPER])
-                elif leg == 1:
-                    db = _leg_duty(db, isign, par[k, P.BDO_UPPER])
-                else:
-                    dc = _leg_duty(dc, isign, par[k, P.BDO_UPPER])
-            ron = ron_now[k]
-            va = da * udc - ron * st[k, _IA]
-            vb = db * udc - ron * st[k, _IB]
-            vc = dc * udc - ron * st[k, _IC]
-            vmean = (va + vb + vc) / 3.0
-            ua = va - vmean
-            ub = vb - vmean
-            uc = vc - vmean
-            vcm = vmean - 0.5 * udc
+                st[k, _BDOPOS] = _current_sign_held(st[k, _IA + leg], st[k, _BDOPOS])
+                da, db, dc = _open_leg_duties(leg, st[k, _BDOPOS], par[k, P.BDO_UPPER], da, db,
+                                              dc)
+            ua, ub, uc, vcm = _phase_voltages(da, db, dc, udc, ron, st[k, _IA], st[k, _IB],
+                                              st[k, _IC])
             # the conduction drop is inside the pole voltage; the motor sees the phase voltage
             # plus the drop's own share, so R_on is lumped with R_s in the current update
-            ud = (2.0 / 3.0) * (ua * c + ub * cb + uc * cc) + ron * id_
-            uq = -(2.0 / 3.0) * (ua * sn + ub * sb + uc * sc) + ron * iq
-            # ---- PMSM ----------------------------------------------------------------------
-            rs = r_now[k]
-            psi = psi_now[k]
-            eps = par[k, P.SE_EPS]
-            dpsi_dt = 0.0
-            if eps != 0.0:
-                ang = th - par[k, P.SE_PHI]
-                psi = psi * (1.0 + eps * math.cos(ang))
-                dpsi_dt = -psi_now[k] * eps * math.sin(ang) * w
+            vd, vq = _park(ua, ub, uc, c, sn, cb, sb, cc, sc)
+            ud = vd + ron * id_
+            uq = vq + ron * iq
+            # ---- PMSM: flux, faults, terminal currents --------------------------------------
+            rs = coef[k, _C_R]
+            psi, dpsi_dt = _eccentric_flux(coef[k, _C_PSI], par[k, P.SE_EPS], par[k, P.SE_PHI],
+                                           th, w)
             we = pp * (1.5 * w - 0.5 * st[k, _WPREV])  # mid-step speed, extrapolated
             st[k, _WPREV] = w
-            ld = par[k, P.LD]
-            lq = par[k, P.LQ]
             rt = rs + ron
-            # terminal currents: magnetising currents + shorted-loop reflection + leakage
-            ia0 = id_ * c - iq * sn
-            ib0 = id_ * cb - iq * sb
-            sig = par[k, P.TTS_SIGMA]
-            dlt = 0.0
-            i0 = 0.0
-            p_fault = 0.0
-            if sig > 0.0:
-                ed = ud - rt * id_
-                eq = uq - rt * iq
-                ea = ed * c - eq * sn
-                i_f = sig * ea / (par[k, P.TTS_RF] + sig * rs)
-                dlt = sig * i_f
-                vfault = vcm + 0.5 * ua
-                i0 = par[k, P.TTS_G] * vfault
-                p_fault = i_f * i_f * (par[k, P.TTS_RF] + sig * rs) + i0 * vfault
-            ia = ia0 + (2.0 / 3.0) * dlt + i0
-            ib = ib0 - dlt / 3.0
-            ic = -ia0 - ib0 - dlt / 3.0
+            dlt, i0, p_fault = _turn_short(par[k, P.TTS_SIGMA], par[k, P.TTS_RF],
+                                           par[k, P.TTS_G], ud - rt * id_, uq - rt * iq, c, sn,
+                                           rs, vcm + 0.5 * ua)
+            ia, ib, ic = _terminal_currents(id_, iq, c, sn, cb, sb, dlt, i0)
             st[k, _IA] = ia
             st[k, _IB] = ib
             st[k, _IC] = ic
-            # ---- sensors -------------------------------------------------------------------
-            ni = par[k, P.N_I]
-            lsb_i = par[k, P.LSB_I]
-            ia_m = _quant(ia + par[k, P.OFF_IA] + ni * _noise(rng, k), lsb_i)
-            ib_m = _quant(ib + par[k, P.OFF_IB] + ni * _noise(rng, k), lsb_i)
-            ic_m = _quant(ic + par[k, P.OFF_IC] + ni * _noise(rng, k), lsb_i)
-            th_m = _quant(th + par[k, P.N_TH] * _noise(rng, k), par[k, P.LSB_TH])
-            # measured electrical angle by a first-order rotation of the true one
-            dth = pp * (th_m - th)
-            cm = c - sn * dth
-            sm = sn + c * dth
-            cbm = -0.5 * cm + SQRT3_2 * sm
-            sbm = -0.5 * sm - SQRT3_2 * cm
-            ccm = -0.5 * cm - SQRT3_2 * sm
-            scm = -0.5 * sm + SQRT3_2 * cm
-            id_m = (2.0 / 3.0) * (ia_m * cm + ib_m * cbm + ic_m * ccm)
-            iq_m = -(2.0 / 3.0) * (ia_m * sm + ib_m * sbm + ic_m * scm)
-            if sub == 0:
-                nv = par[k, P.N_V]
-                lsb_v = par[k, P.LSB_V]
-                out[j, k, 0] = ia_m
-                out[j, k, 1] = ib_m
-                out[j, k, 2] = ic_m
-                out[j, k, 3] = _quant(ua + nv * _noise(rng, k), lsb_v)
-                out[j, k, 4] = _quant(ub + nv * _noise(rng, k), lsb_v)
-                out[j, k, 5] = _quant(uc + nv * _noise(rng, k), lsb_v)
-                out[j, k, 6] = th_m
-            # ---- speed loop (4 kHz); the position loop ran before the EMA loop ---------------
+            # ---- sensors; the controller's frame is the true one rotated by the resolver error
+            ia_m, ib_m, ic_m = _sample_currents(par, k, rng, ia, ib, ic)
+            th_m = _measure(th, par[k, P.N_TH], par[k, P.LSB_TH], rng, k)
+            cm, sm = _rotate_small(c, sn, pp * (th_m - th))
+            cbm, sbm, ccm, scm = _phase_axes(cm, sm)
+            id_m, iq_m = _park(ia_m, ib_m, ic_m, cm, sm, cbm, sbm, ccm, scm)
+            if record:
+                _record_signals(out, j, k, par, rng, ia_m, ib_m, ic_m, ua, ub, uc, th_m)
+            # ---- speed loop (4 kHz; the position loop ran before the EMA loop) --------------
             if step % SPEED_DIV == 0:
-                wraw = (th_m - st[k, _THPREV]) / dt_w
-                st[k, _THPREV] = th_m
-                st[k, _WF] += a_wf * (wraw - st[k, _WF])
-                ew = st[k, _WREF] - st[k, _WF]
-                imax = par[k, P.IMAX]
-                iw = st[k, _IW] + dt_w * (par[k, P.KI_W] * ew - st[k, _IW] / par[k, P.LEAK_W])
-                iw = min(max(iw, -imax), imax)
-                st[k, _IW] = iw
-                st[k, _IQREF] = min(max(par[k, P.KP_W] * ew + iw, -imax), imax)
-            if sub == 0:  # LVDT sampled at the recording instant (the loop samples at 1 kHz)
-                out[j, k, 7] = _quant(st[k, _XROD] + par[k, P.OFF_X]
-                                      + par[k, P.N_X] * _noise(rng, k), par[k, P.LSB_X])
-            # ---- current loop (12 kHz) -> duties for the next step ---------------------------
-            kp = par[k, P.KP_I]
-            ki = par[k, P.KI_I]
+                _speed_loop(par, st, k, th_m, dt_w, a_wf)
+            if record:  # LVDT sampled at the recording instant (the loop samples it at 1 kHz)
+                out[j, k, 7] = _sample_lvdt(par, st, k, rng)
+            # ---- current loop (12 kHz) -> duties for the next step --------------------------
             lh = par[k, P.LHAT]
-            weh = pp * st[k, _WF]
-            ed_c = -id_m
-            eq_c = st[k, _IQREF] - iq_m
-            udr = kp * ed_c + st[k, _ICD] - weh * lh * iq_m
-            uqr = kp * eq_c + st[k, _ICQ] + weh * (lh * id_m + par[k, P.PSIHAT])
-            umax = 0.95 * udc / math.sqrt(3.0)
-            umag = math.sqrt(udr * udr + uqr * uqr)
-            if umag > umax:
-                udr *= umax / umag
-                uqr *= umax / umag
-            else:
-                st[k, _ICD] += ki * ed_c * dt
-                st[k, _ICQ] += ki * eq_c * dt
-            uar = udr * cm - uqr * sm
-            ubr = udr * cbm - uqr * sbm
-            ucr = -uar - ubr
-            u0 = -0.5 * (max(uar, max(ubr, ucr)) + min(uar, min(ubr, ucr)))
-            st[k, _DA] = min(max(0.5 + (uar + u0) / udc, 0.0), 1.0)
-            st[k, _DB] = min(max(0.5 + (ubr + u0) / udc, 0.0), 1.0)
-            st[k, _DC] = min(max(0.5 + (ucr + u0) / udc, 0.0), 1.0)
-            # ---- electrical update (exact for frozen speed) ----------------------------------
+            weh = pp * st[k, _WF]  # decoupling on the controller's own speed and parameters
+            udr, uqr, st[k, _ICD], st[k, _ICQ] = _current_pi(
+                -id_m, st[k, _IQREF] - iq_m, weh * lh * iq_m, weh * (lh * id_m + par[k, P.PSIHAT]),
+                st[k, _ICD], st[k, _ICQ], par[k, P.KP_I], par[k, P.KI_I], udc, dt)
+            st[k, _DA], st[k, _DB], st[k, _DC] = _svm_duties(udr, uqr, cm, sm, cbm, sbm, udc)
+            # ---- PMSM electrical update (exact for frozen speed), torque at mid-step --------
+            ld = par[k, P.LD]
+            lq = par[k, P.LQ]
             id_n, iq_n = _pmsm_currents(id_, iq, ud, uq, we, rt, ld, lq, psi, dpsi_dt,
-                                        ad[k], aq[k])
+                                        coef[k, _C_AD], coef[k, _C_AQ])
             id_mid = 0.5 * (id_ + id_n)
             iq_mid = 0.5 * (iq + iq_n)
             te = _pmsm_torque(id_mid, iq_mid, pp, ld, lq, psi)
-            # ---- link, screw friction and motor shaft (Karnopp) ------------------------------
+            # ---- link (screw + rod end), screw friction and motor shaft ---------------------
             s_idx = int(par[k, P.SURF])
             rr = par[k, P.R_SCREW]
             arm = par[k, P.ARM]
             xnut = rr * th
-            xatt = arm * delta[s_idx]
-            vnut = rr * w
             vatt = arm * ddelta[s_idx]
             bl_s = par[k, P.BL_SCREW]
             bl = bl_s + par[k, P.BL_ROD]
-            dx = xnut - xatt
-            f, fs = _link_force(dx, vnut - vatt, 0.5 * bl, par[k, P.K_EQ], par[k, P.C_EQ])
-            # rod (LVDT) position: behind the nut by the screw's share of compliance and play
-            if fs > 0.0:
-                xrod = xnut - fs / par[k, P.K_SCREW] - 0.5 * bl_s
-            elif fs < 0.0:
-                xrod = xnut - fs / par[k, P.K_SCREW] + 0.5 * bl_s
-            else:
-                xrod = xnut - (bl_s / bl) * dx if bl > 0.0 else xnut
+            dx = xnut - arm * delta[s_idx]
+            f, fs = _link_force(dx, rr * w - vatt, 0.5 * bl, par[k, P.K_EQ], par[k, P.C_EQ])
+            xrod = _rod_position(xnut, dx, fs, bl_s, bl, par[k, P.K_SCREW])
             st[k, _XROD] = xrod
             torque_surf[s_idx] += arm * f
             tl = rr * f
-            jm = par[k, P.J]
-            eta_d = par[k, P.ETA_D]
-            eta_b = par[k, P.ETA_B]
-            net = te - tl
-            tf = 0.0
-            stuck = False
-            if w == 0.0:
-                direction = 1.0 if net > 0.0 else -1.0
-                tfs = _screw_friction(tl, direction, par[k, P.TCS], eta_d, eta_b)
-                if abs(net) <= tfs:
-                    w_n = 0.0
-                    stuck = True
-                else:
-                    tf = _screw_friction(tl, direction, par[k, P.TC], eta_d, eta_b)
-                    w_n = w + dt / jm * (net - direction * tf)
-            else:
-                direction = 1.0 if w > 0.0 else -1.0
-                tf = _screw_friction(tl, direction, par[k, P.TC], eta_d, eta_b)
-                w_n = w + dt / jm * (net - direction * tf)
-                if w_n * w < 0.0 or abs(w_n) < 1e-9:
-                    w_n = 0.0
+            w_n, tf, stuck = _shaft_speed(w, te, tl, dt, par[k, P.J], par[k, P.TC],
+                                          par[k, P.TCS], par[k, P.ETA_D], par[k, P.ETA_B])
             st[k, _W] = w_n
             st[k, _TH] = th + dt * w_n
             st[k, _ID] = id_n
             st[k, _IQ] = iq_n
+            # ---- losses (the thermal model's input) and accounting --------------------------
             i2 = id_mid * id_mid + iq_mid * iq_mid
-            p_cu = 1.5 * rt * i2
             st[k, _PLOSS] += 1.5 * rs * i2 + p_fault
-            # ---- accumulators ----------------------------------------------------------------
-            wm = 0.5 * (w + w_n)
-            acc[k, A.E_IN] += dt * (1.5 * (ud * id_mid + uq * iq_mid))
-            acc[k, A.E_CU] += dt * p_cu
-            acc[k, A.E_FRIC] += dt * tf * abs(wm)
-            acc[k, A.E_LINK] += dt * tl * wm
-            acc[k, A.E_FAULT] += dt * p_fault
-            acc[k, A.WORK_SCREW] += dt * abs(f) * abs(rr * wm)
-            acc[k, A.TRAVEL] += dt * abs(rr * wm)
-            acc[k, A.WORK_ROD] += dt * abs(f) * abs(vatt)
+            _accumulate(acc, k, dt, ud, uq, id_mid, iq_mid, 1.5 * rt * i2, p_fault, tf, tl, f,
+                        rr, 0.5 * (w + w_n), vatt)
             if stuck:
                 acc[k, A.STILL_S] += dt
-            if sub == 0:
-                acc[k, A.TW_SUM] += st[k, _TW]
-                acc[k, A.TW_MAX] = max(acc[k, A.TW_MAX], st[k, _TW])
-                acc[k, A.F2_SUM] += f * f
-                acc[k, A.I2_SUM] += id_ * id_ + iq * iq
-                acc[k, A.N] += 1.0
-                dbg[j, k, D.ID] = id_mid
-                dbg[j, k, D.IQ] = iq_mid
-                dbg[j, k, D.W] = w
-                dbg[j, k, D.TW] = st[k, _TW]
-                dbg[j, k, D.F] = f
-                dbg[j, k, D.XROD] = xrod
-                dbg[j, k, D.TE] = te
-                dbg[j, k, D.IQREF] = st[k, _IQREF]
+            if record:
+                _record_truth(acc, dbg, j, k, st[k, _TW], f, id_, iq, id_mid, iq_mid, w, xrod,
+                              te, st[k, _IQREF])
 
-        # ---- surfaces ------------------------------------------------------------------------
         for s in range(n_surf):
-            fa = fext[j, s] + frac * (fext[jn, s] - fext[j, s])
-            m_aero = spar[s, S.N_ACT] * fa * arm_surf[s]
-            m_net = m_aero + torque_surf[s] - spar[s, S.C_H] * ddelta[s]
-            dd = ddelta[s] + dt * m_net / spar[s, S.J]
-            ddelta[s] = dd
-            delta[s] += dt * dd
-            if sub == 0:
+            _surface_step(spar, s, _lerp(fext, j, jn, s, frac), arm_surf[s], torque_surf[s],
+                          delta, ddelta, dt)
+            if record:
                 surf_out[j, s] = delta[s]
 
 

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
+from server.vocabulary import POSITIONS
+
 from .fleet import SURFACE_OF, WINGLET, WINGTIP
 from .params import OUT_HZ
 
@@ -143,7 +145,7 @@ def build_scenario(warp: Warp, ground_temp_c: float, rng: np.random.Generator, *
         f = warp.sigma_f[i] * f_set + warp.sigma_f0_n[i] + gust
         x_surf.append(x)
         f_surf.append(f)
-    x_cmd = np.stack([x_surf[SURFACE_OF[p]] for p in ("WL1", "WL2", "WT")], axis=1)
+    x_cmd = np.stack([x_surf[SURFACE_OF[p]] for p in POSITIONS], axis=1)
     f_ext = np.stack(f_surf, axis=1)
     return Scenario(t=t, x_cmd=np.ascontiguousarray(x_cmd), f_ext=np.ascontiguousarray(f_ext),
                     t_amb=t_amb, q=q)
