@@ -39,7 +39,7 @@ from .faults import (
     healthy,
     new_fault,
 )
-from .fleet import BASES, Aircraft, build_aircraft
+from .fleet import BASES, FLEET_BASES, Aircraft, build_aircraft
 from .flight import (
     estimate_summary,
     flight_start,
@@ -51,7 +51,6 @@ __all__ = ["ScaleConfig", "SCALES", "plan_campaign", "run_campaign", "FORMAT", "
 
 FORMAT = "ema-campaign/1"
 _KIND_CODE = {"design": 1, "verification": 2}
-_BASE_ORDER = ("Turin",) * 4 + ("Vancouver",) * 3 + ("Abu Dhabi",) * 3
 _MAX_FLIGHTS = 2000
 
 
@@ -106,8 +105,8 @@ def fleet_for(kind: str, seed: int, *, bases: tuple[str, ...] | None = None,
     """
     code = _KIND_CODE[kind]
     prefix = "I-DSG" if kind == "design" else "I-VER"
-    order = _BASE_ORDER if not bases else tuple(bases[i % len(bases)]
-                                                 for i in range(len(_BASE_ORDER)))
+    order = FLEET_BASES if not bases else tuple(bases[i % len(bases)]
+                                                 for i in range(len(FLEET_BASES)))
     fleet = [build_aircraft(f"{prefix}{i + 1:02d}", base, _seed(seed, code, i))
              for i, base in enumerate(order)]
     if noise_scale != 1.0:
@@ -147,7 +146,7 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
     cfg = SCALES[scale][kind]
     code = _KIND_CODE[kind]
     specs: list[PatternSpec] = []
-    n_air = len(_BASE_ORDER)
+    n_air = len(FLEET_BASES)
 
     def add(mode: str, position: str | None, ai: int, n_flights: int, onset: int, j: int) -> None:
         number = len(specs)

@@ -35,6 +35,9 @@ __all__ = [
 
 BASES: dict[str, str] = {"Turin": "temperate", "Vancouver": "cold", "Abu Dhabi": "hot"}
 CLIMATES: dict[str, str] = {v: k for k, v in BASES.items()}
+#: the ten aircraft's home bases of a campaign or a simulated fleet (paper section 4.1): four
+#: temperate, three cold, three hot
+FLEET_BASES: tuple[str, ...] = ("Turin",) * 4 + ("Vancouver",) * 3 + ("Abu Dhabi",) * 3
 _CLIMATE_FILES = {"Turin": "climate_turin.csv", "Vancouver": "climate_vancouver.csv",
                   "Abu Dhabi": "climate_abu_dhabi.csv"}
 

@@ -32,14 +32,13 @@ import numpy as np
 from server.flightlog import write_parquet
 
 from .faults import FaultState, advance_fault, healthy, new_fault
-from .fleet import Aircraft, build_aircraft
+from .fleet import FLEET_BASES, Aircraft, build_aircraft
 from .flight import flight_start, reference_summary, simulate_flight
 
 __all__ = ["Api", "ApiError", "SimFleetRunner", "fleet_plan"]
 
 log = logging.getLogger("sim_worker.service")
 
-_BASES = ("Turin",) * 4 + ("Vancouver",) * 3 + ("Abu Dhabi",) * 3
 _RETRYABLE = {429, 500, 502, 503, 504}
 
 
@@ -101,7 +100,7 @@ def _body(response: httpx.Response) -> Any:
 
 def fleet_plan(n_aircraft: int, seed: int, prefix: str = "SIM") -> list[Aircraft]:
     """The simulated fleet: tails SIM01.., bases 4 Turin, 3 Vancouver, 3 Abu Dhabi per ten."""
-    return [build_aircraft(f"{prefix}{i + 1:02d}", _BASES[i % len(_BASES)],
+    return [build_aircraft(f"{prefix}{i + 1:02d}", FLEET_BASES[i % len(FLEET_BASES)],
                            int(np.random.SeedSequence([seed, 7, i]).generate_state(1)[0]))
             for i in range(n_aircraft)]
 
