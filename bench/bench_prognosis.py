@@ -25,12 +25,14 @@ import platform
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from _report import replace_block
 
 from server.phm.prognosis import (
+    GENERIC_CONFIG,
     MeasurementModel,
     ParticleFilterPrognoser,
     PrognoserConfig,
@@ -89,7 +91,8 @@ def _stress_config(n: int, clock: StressClock) -> PrognoserConfig:
     ``_series(clock=clock, c=C_EXP)``, mid-life rate bounds a factor 3 either side."""
     r = math.log((1 + C_EXP) / (H0 + C_EXP)) / float(clock.curve(0, LIFE)[-1])
     mid = r * (0.5 + C_EXP)
-    return PrognoserConfig(
+    return replace(
+        GENERIC_CONFIG,
         n_particles=n,
         rate_basis="exponential",
         growth_offset=C_EXP,
@@ -102,10 +105,11 @@ def _stress_config(n: int, clock: StressClock) -> PrognoserConfig:
 def _warm(
     n: int, z: np.ndarray, clock: StressClock | None = None
 ) -> tuple[ParticleFilterPrognoser, object]:
-    # rate bounds on, as the trained chain configures the filter (life 300 -> rate ~1/300);
-    # with a clock, the exponential law fed the stress since the previous update
+    # rate bounds on, as the trained chain configures the filter (life 300 -> rate ~1/300), and
+    # the generic interface's process noise (GENERIC_CONFIG); with a clock, the exponential law
+    # fed the stress since the previous update
     if clock is None:
-        cfg = PrognoserConfig(n_particles=n, rate_bounds=(1.0 / 900.0, 1.0 / 100.0))
+        cfg = replace(GENERIC_CONFIG, n_particles=n, rate_bounds=(1.0 / 900.0, 1.0 / 100.0))
     else:
         cfg = _stress_config(n, clock)
     pf = ParticleFilterPrognoser(cfg, MODEL)
@@ -190,7 +194,7 @@ def bench_progpy(z: np.ndarray, theta: np.ndarray) -> dict[str, object]:
         is_vectorized = True
         default_parameters = {  # noqa: RUF012
             "x0": {"h": H0},
-            "process_noise": {"h": 0.004},
+            "process_noise": {"h": GENERIC_CONFIG.process_noise_std},
             "measurement_noise": {"z": MODEL.noise_std},
         }
 

@@ -13,17 +13,18 @@ so that hot and cold aircraft, heavy and light flights share one healthy distrib
 
 A flight value resting on fewer than ``min_evidence`` (25 %) of the median number of valid
 windows of the healthy design flights gets no residual (NaN): its sampling noise is at least
-twice the usual (variance ~ 1 / windows), and on the design campaign these few flights (slow
-flights, 2 % of them for the current features) carried most healthy residuals beyond 10
-standard deviations of ``F_SE`` and ``F_BDO``.
+twice the usual (variance ~ 1 / windows), and such flights carried most of the far healthy
+residuals of ``F_SE`` and ``F_BDO`` on the design campaign (docs/TUNING.md, Baselines).
 
-Scikit-learn manner: ``__init__`` stores hyper-parameters, ``fit`` returns ``self``, learned
-attributes end in ``_``. Persisted as JSON (``to_dict`` / ``from_dict``), never pickle.
+The tuned values are the defaults of :class:`BaselineConfig`. Scikit-learn manner:
+``__init__`` stores hyper-parameters, ``fit`` returns ``self``, learned attributes end in ``_``.
+Persisted as JSON (``to_dict`` / ``from_dict``), never pickle.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,6 +33,8 @@ from .features import AIRCRAFT_FEATURES, CONDITION_NAMES, FlightFeatures
 
 __all__ = [
     "BASELINE_FORMAT",
+    "BASELINE_DEFAULTS",
+    "BaselineConfig",
     "DEFAULT_COVARIATES",
     "LinearBaseline",
     "FleetBaseline",
@@ -39,10 +42,44 @@ __all__ = [
 ]
 
 BASELINE_FORMAT = "ema-baseline/1"
-DEFAULT_COVARIATES: tuple[str, ...] = ("temp_ground_c", "temp_mean_c", "load_rms_n",
-                                       "speed_rms_rad_s")
-#: features whose physics depends on the magnet/winding temperature itself
-_WINDING_TEMP_FEATURES = ("F_DMD", "F_MTEL")
+
+
+@dataclass(frozen=True)
+class BaselineConfig:
+    """Hyper-parameters of the healthy baselines; the defaults are the tuned values
+    (docs/TUNING.md, Baselines). A fitted baseline stores its values in its document.
+
+    Attributes
+    ----------
+    covariates:
+        Operating conditions every feature is regressed on [degC, degC, N, rad/s]: ground and
+        mean ambient temperature, rms expected aerodynamic load, rms motor speed; they move
+        the healthy value of the features from flight to flight.
+    winding_temp_features:
+        Generic features that also get the estimated winding temperature [degC] as a
+        covariate: their physics depends on the magnet/winding temperature itself.
+    ridge:
+        L2 penalty on the standardised coefficients [flights' worth]: a light one, so that
+        correlated or constant conditions still give a solvable fit (first-cut value).
+    outlier_k:
+        Residuals beyond this many robust scales are dropped before the one refit [robust
+        sd]: only gross outliers (first-cut value).
+    min_evidence:
+        Fraction of the healthy median number of valid windows a flight value needs to get a
+        residual [-]: below a quarter its sampling noise is at least twice the usual.
+    """
+
+    covariates: tuple[str, ...] = ("temp_ground_c", "temp_mean_c", "load_rms_n",
+                                   "speed_rms_rad_s")
+    winding_temp_features: tuple[str, ...] = ("F_DMD", "F_MTEL")
+    ridge: float = 1.0
+    outlier_k: float = 6.0
+    min_evidence: float = 0.25
+
+
+#: the tuned baselines (``FleetBaseline()``)
+BASELINE_DEFAULTS = BaselineConfig()
+DEFAULT_COVARIATES: tuple[str, ...] = BASELINE_DEFAULTS.covariates
 
 
 def feature_position(name: str) -> str:
@@ -71,8 +108,9 @@ class LinearBaseline:
     outlier_k : residuals beyond ``outlier_k`` robust scales are dropped before the refit.
     """
 
-    def __init__(self, covariates: Sequence[str] = DEFAULT_COVARIATES, *, ridge: float = 1.0,
-                 outlier_k: float = 6.0) -> None:
+    def __init__(self, covariates: Sequence[str] = BASELINE_DEFAULTS.covariates, *,
+                 ridge: float = BASELINE_DEFAULTS.ridge,
+                 outlier_k: float = BASELINE_DEFAULTS.outlier_k) -> None:
         self.covariates = tuple(covariates)
         self.ridge = ridge
         self.outlier_k = outlier_k
@@ -164,7 +202,8 @@ class LinearBaseline:
 
 def _covariates_for(name: str, base: Sequence[str]) -> tuple[str, ...]:
     feat = name.split(".", 1)[1]
-    extra = ("temp_winding_est_c",) if feat in _WINDING_TEMP_FEATURES else ()
+    extra = (("temp_winding_est_c",) if feat in BASELINE_DEFAULTS.winding_temp_features
+             else ())
     return tuple(base) + tuple(c for c in extra if c not in base)
 
 
@@ -180,8 +219,10 @@ class FleetBaseline:
         needs to get a residual (module docstring).
     """
 
-    def __init__(self, covariates: Sequence[str] = DEFAULT_COVARIATES, *, ridge: float = 1.0,
-                 outlier_k: float = 6.0, min_evidence: float = 0.25) -> None:
+    def __init__(self, covariates: Sequence[str] = BASELINE_DEFAULTS.covariates, *,
+                 ridge: float = BASELINE_DEFAULTS.ridge,
+                 outlier_k: float = BASELINE_DEFAULTS.outlier_k,
+                 min_evidence: float = BASELINE_DEFAULTS.min_evidence) -> None:
         unknown = set(covariates) - set(CONDITION_NAMES)
         if unknown:
             raise ValueError(f"unknown covariates {sorted(unknown)}")

@@ -9,10 +9,10 @@ Self-reference: each actuator against its own healthy start
 -----------------------------------------------------------
 Production tolerances (magnet flux, friction, gear play) give every actuator its own offset
 from the fleet baseline; for ``F_DMD`` this offset is four to five times the flight-to-flight
-scatter (design campaign: between-actuator sd 1.2-1.4, within 0.2-0.4, in ``z`` units). The
-residual is therefore modelled as ``z = u + e`` with an actuator offset ``u ~ N(0, tau^2)`` and
-flight noise ``e ~ N(0, sigma^2)``; ``tau`` and ``sigma`` are estimated per generic feature on
-the healthy design sequences. The first ``reference_flights`` valid residuals of each actuator
+scatter on the design campaign (docs/TUNING.md, Detection). The residual is therefore
+modelled as ``z = u + e`` with an actuator offset ``u ~ N(0, tau^2)`` and flight noise
+``e ~ N(0, sigma^2)``; ``tau`` and ``sigma`` are estimated per generic feature on the healthy
+design sequences. The first ``reference_flights`` valid residuals of each actuator
 after installation (or maintenance) form its reference; every flight is tested against the
 flights *before* it::
 
@@ -34,12 +34,11 @@ Running distribution and separation confidence
 For each feature the state keeps the self-referenced residuals of the last ``max(windows)``
 flights with a valid value. For each window length ``w`` (default 1, 3 and 8 flights) the
 running mean of the last ``n = min(w, available)`` residuals, scaled to unit variance, is
-``S_w = sqrt(n) mean(z)``; a window raises no alarm until it holds ``w`` residuals (a median of
-3 values judged against the band of 8 had alarmed healthy drives on their first flights).
-On healthy flights ``|S_w|`` stays inside a band ``b_w`` learned on the healthy flights of the
-*design* campaign (the largest ``|S_w|`` seen there, never less than ``band_floor``). Because
-``S_w`` has unit standard error, the confidence that the running mean lies outside the healthy
-band is
+``S_w = sqrt(n) mean(z)``; a window raises no alarm until it holds ``w`` residuals (its band
+is a full window's). On healthy flights ``|S_w|`` stays inside a band ``b_w`` learned on the
+healthy flights of the *design* campaign (the largest ``|S_w|`` seen there, never less than
+``band_floor``). Because ``S_w`` has unit standard error, the confidence that the running mean
+lies outside the healthy band is
 
     c_w = Phi(|S_w| - b_w),      c = max over w of c_w  in [0, 1],
 
@@ -49,9 +48,7 @@ flight with few cruise moves) then moves ``S_3`` by at most ``6 / sqrt(3)`` and 
 widens the long windows' bands, while a sustained drift is untouched. Windows of
 ``median_from`` (8) flights or more use the running median instead of the mean,
 ``S_w = sqrt(n / (pi/2)) median`` (unit variance on healthy flights too): a minority of odd
-flights does not move it at all (in the live demo two ``F_MTEL`` flights at -11 and -9 among
-eight had raised an alarm on a healthy aircraft), at the cost of a less efficient estimate of a
-slow drift (MTEL detected at 79 % of life instead of 75 % on the seed-5 design campaign). The
+flights does not move it at all, at the cost of a less efficient estimate of a slow drift. The
 one-flight window keeps the raw value, for step faults.
 
 The unit alarms when ``c`` of any of its features reaches ``alarm_confidence`` (0.98, the
@@ -64,7 +61,9 @@ The test is one-sided along each fault's physical direction (``DEFAULT_DIRECTION
 feature grows with its fault), ``|S_w|`` being replaced by ``direction * S_w``, and one
 band serves a generic feature on every position (the largest over the positions).
 
-Everything persists as JSON (``to_dict`` / ``from_dict``), never pickle.
+The tuned values are the defaults of :class:`DetectionConfig` (how they were chosen:
+docs/TUNING.md, Detection). Everything persists as JSON (``to_dict`` / ``from_dict``), never
+pickle.
 """
 
 from __future__ import annotations
@@ -72,14 +71,26 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 from scipy.special import ndtr, ndtri
 
+from server.vocabulary import (
+    GENERIC_FEATURES,
+    OWN_FEATURE,
+    POSITIONS,
+    PROGRESSIVE,
+    REWEAR_FEATURE,
+    WINGLET_UNIT,
+)
+
 __all__ = [
     "DETECTOR_FORMAT",
     "DEFAULT_DIRECTIONS",
+    "DetectionConfig",
+    "DETECTION_DEFAULTS",
     "generic_feature",
     "STATE_FORMAT",
     "UNITS",
@@ -93,21 +104,81 @@ __all__ = [
 ]
 
 DETECTOR_FORMAT = "ema-detector/1"
-#: physical direction of each generic feature under its fault: +1 grows, -1 falls, 0 either
-DEFAULT_DIRECTIONS: dict[str, int] = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1,
-                                      "F_MTEL": 1, "F_MTWEAR": 1, "F_REWEAR": 1}
-#: generic features tested against the fleet rather than the actuator's own first flights (see
-#: FaultDetector, ``fleet_referenced``)
-DEFAULT_FLEET_REFERENCED: tuple[str, ...] = ("F_REWEAR",)
-#: shortest alarm window per generic feature (see FaultDetector, ``min_windows``)
-DEFAULT_MIN_WINDOWS: dict[str, int] = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3,
-                                       "F_REWEAR": 3}
 STATE_FORMAT = "ema-detection-state/2"
 _STATE_FORMATS = (STATE_FORMAT, "ema-detection-state/1")  # /1 had no reference
 #: variance of a sample median over that of the mean (normal samples, large n)
 _MEDIAN_VARIANCE_FACTOR = math.pi / 2
-#: monitored units and the prefix of their feature names
-UNITS: tuple[str, ...] = ("WL1", "WL2", "WT", "WL")
+#: monitored units and the prefix of their feature names: the actuators and the winglet pair
+UNITS: tuple[str, ...] = POSITIONS + (WINGLET_UNIT,)
+
+
+@dataclass(frozen=True)
+class DetectionConfig:
+    """Hyper-parameters of :class:`FaultDetector`; the defaults are the tuned values
+    (docs/TUNING.md, Detection). A fitted detector stores its values in its document.
+
+    Attributes
+    ----------
+    windows:
+        Running-window lengths [flight]: 1 reacts within one flight to step faults (SE, BDO);
+        3 and 8 accumulate the evidence of slow drifts.
+    alarm_confidence:
+        Confidence at which a unit alarms [-]: the paper's 0.98, ``|S_w| >= b_w + 2.05``.
+    band_floor:
+        Smallest band ``b_w`` [standard error]: a feature with few healthy flights still gets
+        at least a 3-standard-error band (first-cut value).
+    band_margin:
+        Added to the largest healthy ``|S_w|`` [standard error]: 0, the band is the largest
+        healthy value itself (floored at ``band_floor``).
+    directions:
+        Generic feature -> +1 (the fault makes it grow), -1 (fall), 0 (either) [-]: every
+        feature grows with its fault, so the test is one-sided.
+    pool_positions:
+        One band per generic feature, the largest over the positions: more healthy flights
+        behind each band, the same physics on every actuator.
+    min_windows:
+        Generic feature -> shortest window allowed to raise an alarm [flight]: 3 for the five
+        progressive faults' features (they build up over hundreds of flights, while single
+        healthy flights stray far); absent (F_SE, F_BDO, step faults): 1.
+    reference_flights:
+        Valid flights of each actuator that form its own reference [flight]: 6 keeps the
+        offset's uncertainty at about 1/4 of the flight scatter's variance and leaves most
+        healthy design flights to learn the bands on; 0 is the pure fleet test.
+    window_clip:
+        Residuals are clipped to +-``window_clip`` in windows longer than one flight
+        [flight-scatter sd]: one odd flight moves ``S_3`` by at most 6 / sqrt(3); ``inf`` off.
+    median_from:
+        Windows of at least this many flights use the running median [flight]: a minority of
+        odd flights does not move the 8-flight statistic; 0 never.
+    fleet_referenced:
+        Generic features tested against the fleet, not the actuator's own first flights [-]:
+        ``F_REWEAR``, whose healthy values are bimodal (a median of 6 first flights is no
+        stable reference) and which a worn rod end moves far beyond any actuator offset.
+    """
+
+    windows: tuple[int, ...] = (1, 3, 8)
+    alarm_confidence: float = 0.98
+    band_floor: float = 3.0
+    band_margin: float = 0.0
+    directions: Mapping[str, int] = field(
+        default_factory=lambda: MappingProxyType(dict.fromkeys(GENERIC_FEATURES, 1)))
+    pool_positions: bool = True
+    min_windows: Mapping[str, int] = field(
+        default_factory=lambda: MappingProxyType({OWN_FEATURE[m]: 3 for m in PROGRESSIVE}))
+    reference_flights: int = 6
+    window_clip: float = 6.0
+    median_from: int = 8
+    fleet_referenced: tuple[str, ...] = (REWEAR_FEATURE,)
+
+
+#: the tuned detector (``FaultDetector()``)
+DETECTION_DEFAULTS = DetectionConfig()
+#: physical direction of each generic feature under its fault: +1 grows, -1 falls, 0 either
+DEFAULT_DIRECTIONS: dict[str, int] = dict(DETECTION_DEFAULTS.directions)
+#: generic features tested against the fleet rather than the actuator's own first flights
+DEFAULT_FLEET_REFERENCED: tuple[str, ...] = DETECTION_DEFAULTS.fleet_referenced
+#: shortest alarm window per generic feature
+DEFAULT_MIN_WINDOWS: dict[str, int] = dict(DETECTION_DEFAULTS.min_windows)
 
 
 def generic_feature(name: str) -> str:
@@ -309,50 +380,39 @@ class FaultDetector:
 
     Parameters
     ----------
+    The fields of :class:`DetectionConfig` (units and reasons there), defaults
+    :data:`DETECTION_DEFAULTS`; ``None`` for a mapping or ``fleet_referenced`` is its default.
+
     windows : running-window lengths in flights.
-    alarm_confidence : confidence at which a unit alarms (0.98).
+    alarm_confidence : confidence at which a unit alarms.
     band_floor : smallest allowed band ``b_w`` (in standard errors).
     band_margin : extra margin added to the largest healthy ``|S_w|`` (standard errors).
     directions : generic feature -> +1 (the fault makes it grow), -1 (fall) or 0 (either);
         the statistic is ``direction * S_w`` (one-sided test), ``|S_w|`` for 0 / unknown.
-    pool_positions : one band per generic feature, the largest over the positions (more
-        healthy flights behind each band, same physics on every actuator).
+    pool_positions : one band per generic feature, the largest over the positions.
     min_windows : generic feature -> shortest window allowed to raise an alarm (flights of
-        evidence). The features of the five progressive faults need 3:
-        these faults build up over hundreds of flights, while single healthy flights stray far
-        (F_MTEL on flights with few cruise moves in one direction, F_DMD when the magnet
-        temperature estimate is off, and in the live demo one healthy flight at 13 units of
-        F_TTS; F_MTWEAR at 9 to 14 units on a flight that barely pressed one screw flank);
-        with the clip, one odd flight then moves ``S_3`` by at most ``6 / sqrt(3)``. F_MTWEAR
-        has a value only on flights that pressed both flanks, so its 3 flights are the last
-        3 such flights. One flight suffices for F_SE and F_BDO, whose faults are steps.
+        evidence; 1 when absent). F_MTWEAR has a value only on flights that pressed both
+        screw flanks, so its 3 flights are the last 3 such flights.
     window_clip : residuals are clipped to +-``window_clip`` in windows longer than one
         flight (module docstring); ``inf`` disables it.
     median_from : windows of at least this many flights use the running median instead of
         the mean (module docstring); 0 never.
     reference_flights : valid flights of each actuator that form its own reference (module
-        docstring). 6 keeps the offset's uncertainty at about 1/4 of the flight scatter's
-        variance and leaves most design healthy flights to learn the bands on; 0 disables the
-        self-reference (pure fleet test).
+        docstring); 0 disables the self-reference (pure fleet test).
     fleet_referenced : generic features that skip the self-reference: their residual is
         taken against the fleet, scaled by the whole healthy scatter sqrt(sigma^2 + tau^2).
-        ``F_REWEAR`` by default: on a healthy pair the mean lost motion per flight is bimodal
-        (about 0.5 um, or 1.5-4 um when a few reversals cross the load's zero; design seed 1:
-        healthy flight-to-flight tail at 5.8 robust sd for the 99th percentile, 7.3 at most),
-        so the median of 6 first flights may sample the low mode and make the pair's ordinary
-        high flights look like wear (a healthy winglet alarmed at flight 113 of a 280-flight
-        run in the dense verification campaign). A worn rod end moves the feature by tens of
-        sd within 10 % of its failure level, so the own reference buys it nothing: REWEAR
-        detection times on design seed 5 (quick and dense) are unchanged.
     """
 
-    def __init__(self, windows: Sequence[int] = (1, 3, 8), *, alarm_confidence: float = 0.98,
-                 band_floor: float = 3.0, band_margin: float = 0.0,
+    def __init__(self, windows: Sequence[int] = DETECTION_DEFAULTS.windows, *,
+                 alarm_confidence: float = DETECTION_DEFAULTS.alarm_confidence,
+                 band_floor: float = DETECTION_DEFAULTS.band_floor,
+                 band_margin: float = DETECTION_DEFAULTS.band_margin,
                  directions: Mapping[str, int] | None = None,
-                 pool_positions: bool = True,
+                 pool_positions: bool = DETECTION_DEFAULTS.pool_positions,
                  min_windows: Mapping[str, int] | None = None,
-                 reference_flights: int = 6, window_clip: float = 6.0,
-                 median_from: int = 8,
+                 reference_flights: int = DETECTION_DEFAULTS.reference_flights,
+                 window_clip: float = DETECTION_DEFAULTS.window_clip,
+                 median_from: int = DETECTION_DEFAULTS.median_from,
                  fleet_referenced: Sequence[str] | None = None) -> None:
         if not windows or min(windows) < 1:
             raise ValueError("windows must be positive flight counts")
@@ -362,9 +422,11 @@ class FaultDetector:
         self.alarm_confidence = float(alarm_confidence)
         self.band_floor = float(band_floor)
         self.band_margin = float(band_margin)
-        self.directions = dict(DEFAULT_DIRECTIONS if directions is None else directions)
+        self.directions = dict(DETECTION_DEFAULTS.directions if directions is None
+                               else directions)
         self.pool_positions = bool(pool_positions)
-        self.min_windows = dict(DEFAULT_MIN_WINDOWS if min_windows is None else min_windows)
+        self.min_windows = dict(DETECTION_DEFAULTS.min_windows if min_windows is None
+                                else min_windows)
         if reference_flights < 0:
             raise ValueError("reference_flights must be >= 0")
         self.reference_flights = int(reference_flights)
@@ -372,8 +434,27 @@ class FaultDetector:
             raise ValueError("window_clip must be positive")
         self.window_clip = float(window_clip)
         self.median_from = int(median_from)
-        self.fleet_referenced = tuple(DEFAULT_FLEET_REFERENCED if fleet_referenced is None
-                                      else fleet_referenced)
+        self.fleet_referenced = tuple(DETECTION_DEFAULTS.fleet_referenced
+                                      if fleet_referenced is None else fleet_referenced)
+
+    @classmethod
+    def from_config(cls, config: DetectionConfig) -> FaultDetector:
+        """An unfitted detector with the hyper-parameters of ``config``."""
+        return cls(config.windows, alarm_confidence=config.alarm_confidence,
+                   band_floor=config.band_floor, band_margin=config.band_margin,
+                   directions=config.directions, pool_positions=config.pool_positions,
+                   min_windows=config.min_windows, reference_flights=config.reference_flights,
+                   window_clip=config.window_clip, median_from=config.median_from,
+                   fleet_referenced=config.fleet_referenced)
+
+    @property
+    def config(self) -> DetectionConfig:
+        """This detector's hyper-parameters."""
+        return DetectionConfig(self.windows, self.alarm_confidence, self.band_floor,
+                               self.band_margin, MappingProxyType(dict(self.directions)),
+                               self.pool_positions, MappingProxyType(dict(self.min_windows)),
+                               self.reference_flights, self.window_clip, self.median_from,
+                               self.fleet_referenced)
 
     def _min_window(self, name: str) -> int:
         return int(self.min_windows.get(generic_feature(name), 1))

@@ -1,12 +1,11 @@
 """Seasonal stress clock: how fast a thermally driven fault ages on each coming flight.
 
-Thermal fault laws age a component faster when it runs hot (REFERENCE.md, fault progression
-laws): insulation life halves per +10 K (Montsinger), grease life per +15 K (SKF), a magnet's
-irreversible loss grows with its temperature. A fault that grew slowly through the winter
-therefore speeds up in spring, and a prognosis that extrapolates the rate of the past months
-runs long or short by a factor of several over a 100-200-flight life (on the seed-5 design
-campaign, a log-level fit on the *true* severity with a flight clock reached a mean relative
-accuracy of 57 % for TTS; with this clock, 93 %).
+Thermal fault laws age a component faster when it runs hot: insulation life halves per +10 K
+(Arrhenius / Montsinger, IEC 60085 practice), grease life per +15 K above 70 degC (the SKF
+relubrication rule), a magnet's irreversible loss grows when it runs hot. A fault that grew
+slowly through the winter therefore speeds up in spring, and a prognosis that extrapolates the
+rate of the past months runs long or short by a factor of several over a 100-200-flight life
+(docs/TUNING.md, Season).
 
 The clock counts **stress** instead of flights: a flight at ground temperature T adds
 ``exp(beta (T - T_ref))`` (1 for a flight at the reference temperature), and the particle
@@ -16,6 +15,7 @@ day averages out over the tens of flights a fault lives, the season does not. ``
 mode is learned on the design runs (``server.phm.training``); wear modes get 0 (a flight clock).
 
 Units: temperatures in degC, beta in 1/K, days of the year from 0 (1 January, 00:00 UTC).
+The clock's fixed settings are the defaults of :class:`SeasonConfig`.
 """
 
 from __future__ import annotations
@@ -28,12 +28,37 @@ from datetime import datetime, timedelta
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SeasonalClimate", "StressClock", "day_of_year", "next_flights_per_day"]
+__all__ = ["SEASON_DEFAULTS", "SeasonConfig", "SeasonalClimate", "StressClock", "day_of_year",
+           "next_flights_per_day"]
 
 _YEAR_DAYS = 365.25
 _OMEGA = 2.0 * math.pi / _YEAR_DAYS
-_MIN_FLIGHTS_PER_BASE = 24  # flights needed to fit a base's annual cycle (3 coefficients)
-_GAP_POINTS = 16  # points of the trapezoid mean of the stress rate between two flights
+
+
+@dataclass(frozen=True)
+class SeasonConfig:
+    """Settings of the climate fit and the stress clock (docs/TUNING.md, Season).
+
+    Attributes
+    ----------
+    min_flights_per_base:
+        Flights with a temperature a base needs before its annual cycle is fitted [flight]:
+        eight per coefficient of the one-harmonic model (3 coefficients).
+    gap_points:
+        Points of the trapezoid mean of the stress rate between two updates [-]: the rate is
+        smooth over a gap of a few flights (one annual harmonic).
+    flying_rate_weight:
+        Weight of the newest observation in the aircraft's exponentially weighted flying
+        rate [-]: a memory of about 10 updates.
+    """
+
+    min_flights_per_base: int = 24
+    gap_points: int = 16
+    flying_rate_weight: float = 0.1
+
+
+#: the settings the chain uses
+SEASON_DEFAULTS = SeasonConfig()
 
 
 def day_of_year(when: datetime) -> float:
@@ -53,7 +78,8 @@ class SeasonalClimate:
     @classmethod
     def fit(cls, bases: Sequence[str], days: Sequence[float], temps: Sequence[float]
             ) -> SeasonalClimate:
-        """Fit every base that has at least 24 flights with a finite temperature."""
+        """Fit every base that has at least ``SeasonConfig.min_flights_per_base`` (24) flights
+        with a finite temperature."""
         b = np.asarray(bases, dtype=object)
         d = np.asarray(days, dtype=float)
         t = np.asarray(temps, dtype=float)
@@ -61,7 +87,7 @@ class SeasonalClimate:
         coef: dict[str, tuple[float, float, float]] = {}
         for base in sorted({str(x) for x in b[ok]}):
             m = ok & (b == base)
-            if m.sum() < _MIN_FLIGHTS_PER_BASE:
+            if m.sum() < SEASON_DEFAULTS.min_flights_per_base:
                 continue
             X = np.column_stack([np.ones(m.sum()), np.cos(_OMEGA * d[m]), np.sin(_OMEGA * d[m])])
             sol, *_ = np.linalg.lstsq(X, t[m], rcond=None)
@@ -122,7 +148,7 @@ class StressClock:
         """Stress accumulated from flight ``first`` to flight ``last`` (last - first flights)."""
         if last <= first:
             return 0.0
-        x = np.linspace(float(first), float(last), _GAP_POINTS)
+        x = np.linspace(float(first), float(last), SEASON_DEFAULTS.gap_points)
         return float(np.trapezoid(self._rate(x), x))
 
     def curve(self, first: int, n_flights: int) -> NDArray[np.float64]:
@@ -136,7 +162,7 @@ class StressClock:
 
 
 def next_flights_per_day(previous: float | None, flights: int, since: timedelta,
-                         weight: float = 0.1) -> float | None:
+                         weight: float = SEASON_DEFAULTS.flying_rate_weight) -> float | None:
     """Exponentially weighted flying rate [flight/day] after ``flights`` flights in ``since``."""
     days = since.total_seconds() / 86400.0
     if flights <= 0 or days <= 0:

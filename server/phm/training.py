@@ -56,9 +56,6 @@ class TrainingConfig:
 
     #: [flights] design flights needed to fit a surface-specific measurement model
     min_surface_flights: int = 12
-    #: [1/sqrt(flight)] severity random walk of every trained filter: lets the cloud follow a
-    #: fault that grows faster or slower than the design prior
-    process_noise_std: float = 0.01
     #: [-] the rate prior's sd is the design runs' spread times this (few runs per mode say
     #: little about the tails)
     rate_prior_inflation: float = 2.0
@@ -427,9 +424,9 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
     tick("measurement", 0.9)
     climate = fit_climate(campaign)
     specs, meas_report = fit_measurement_models(
-        campaign, bare, PrognoserConfig(process_noise_std=TRAINING.process_noise_std), climate)
+        campaign, bare, PrognoserConfig(), climate)
     model = PhmModel(detection.baseline, detection.detector, classifier, specs,
-                     PrognoserConfig(process_noise_std=TRAINING.process_noise_std), climate)
+                     PrognoserConfig(), climate)
     t_end = time.perf_counter()
     tick("done", 1.0)
     n_flights = sum(len(p.flights) for p in campaign.patterns)

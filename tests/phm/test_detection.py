@@ -7,8 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from server.phm.baselines import FleetBaseline, LinearBaseline
+from server.phm.baselines import BASELINE_DEFAULTS, BaselineConfig, FleetBaseline, LinearBaseline
 from server.phm.detection import (
+    DETECTION_DEFAULTS,
+    UNITS,
+    DetectionConfig,
     DetectionState,
     FaultDetector,
     offset_components,
@@ -243,6 +246,33 @@ def test_fleet_baseline_and_model_round_trip() -> None:
     z1, z2 = fb.zscores(f), m2.baseline.zscores(f)
     assert z1 == pytest.approx(z2)
     assert z1["WT.F_DMD"] > 10
+
+
+def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:
+    """``FaultDetector()`` and ``FleetBaseline()`` are the configs' defaults, and a fitted
+    detector's document carries exactly the hyper-parameters (values and key order) it always
+    did, so trained model documents are unchanged."""
+    assert UNITS == ("WL1", "WL2", "WT", "WL")
+    assert DETECTION_DEFAULTS == DetectionConfig() == FaultDetector().config
+    assert FaultDetector.from_config(DetectionConfig(reference_flights=0)).reference_flights == 0
+    rng = np.random.default_rng(4)
+    names = list(AIRCRAFT_FEATURES)
+    doc = FaultDetector().fit([rng.standard_normal((30, len(names)))], names).to_dict()
+    grows = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1, "F_MTEL": 1, "F_MTWEAR": 1,
+             "F_REWEAR": 1}
+    three = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3, "F_REWEAR": 3}
+    want = {"windows": [1, 3, 8], "alarm_confidence": 0.98, "band_floor": 3.0,
+            "band_margin": 0.0, "directions": grows, "pool_positions": True,
+            "min_windows": three, "reference_flights": 6, "window_clip": 6.0, "median_from": 8,
+            "fleet_referenced": ["F_REWEAR"]}
+    assert {k: doc[k] for k in want} == want
+    assert list(doc["directions"]) == list(grows) and list(doc["min_windows"]) == list(three)
+    assert BASELINE_DEFAULTS == BaselineConfig()
+    fb = FleetBaseline()
+    assert (fb.covariates, fb.ridge, fb.outlier_k, fb.min_evidence) == (
+        ("temp_ground_c", "temp_mean_c", "load_rms_n", "speed_rms_rad_s"), 1.0, 6.0, 0.25)
+    lb = LinearBaseline()
+    assert (lb.covariates, lb.ridge, lb.outlier_k) == (BASELINE_DEFAULTS.covariates, 1.0, 6.0)
 
 
 # --------------------------------------------------------------------------------------------

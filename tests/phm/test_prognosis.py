@@ -3,24 +3,44 @@
 from __future__ import annotations
 
 import json
+import math
+import typing
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from server.phm.prognosis import (
+    CONSTANTS,
+    GENERIC_CONFIG,
+    LAWS,
+    RATE_BASES,
+    AffineLaw,
+    ConstantLaw,
+    DegradationLaw,
+    ExponentialLaw,
     MeasurementModel,
     ParticleFilterPrognoser,
     PrognoserConfig,
     PrognoserState,
+    QuadraticLaw,
+    RateBasis,
     RulDistribution,
     effective_sample_size,
+    law_for,
     predict_rul,
     systematic_resample,
     track_rul,
 )
 
 MODEL = MeasurementModel((0.2, 2.0, 0.5), 0.03)  # feature = 0.2 + 2 h + 0.5 h^2 + N(0, 0.03^2)
+
+
+def _config(**changes: object) -> PrognoserConfig:
+    """The generic interface's config (process noise 0.004, the one these synthetic series
+    were measured with) with ``changes``."""
+    return replace(GENERIC_CONFIG, **changes)
 
 
 def _truth(law: str, life: int, h0: float = 0.1) -> np.ndarray:
@@ -42,7 +62,7 @@ def test_rul_converges_to_truth(law: str, life: int, seed: int) -> None:
     rng = np.random.default_rng(seed)
     h = _truth(law, life)
     z = MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
-    cfg = PrognoserConfig()
+    cfg = _config()
     pf = ParticleFilterPrognoser(cfg, MODEL)
     state = pf.initial_state(cfg, MODEL, seed)
     rel_err, covered = [], []
@@ -64,7 +84,7 @@ def test_resampling_only_when_ess_below_half() -> None:
     rng = np.random.default_rng(5)
     h = _truth("exp", 120)
     z = MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
-    cfg = PrognoserConfig(n_particles=200)
+    cfg = _config(n_particles=200)
     pf = ParticleFilterPrognoser(cfg, MODEL)
     state = pf.initial_state(cfg, MODEL, 11)
     seen = {True: 0, False: 0}
@@ -109,7 +129,7 @@ def test_serialise_restore_gives_identical_outputs(tmp_path: Path) -> None:
     rng = np.random.default_rng(9)
     h = _truth("lin", 100)
     z = MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
-    cfg = PrognoserConfig()
+    cfg = _config()
     pf = ParticleFilterPrognoser(cfg, MODEL)
     state = _run(pf, pf.initial_state(cfg, MODEL, 4), z, 0, 40)
     text = state.to_json()
@@ -138,7 +158,7 @@ def test_serialise_restore_gives_identical_outputs(tmp_path: Path) -> None:
 
 
 def test_predict_is_pure_and_repeatable() -> None:
-    cfg = PrognoserConfig(n_particles=100)
+    cfg = _config(n_particles=100)
     pf = ParticleFilterPrognoser(cfg, MODEL)
     state = pf.initial_state(cfg, MODEL, 1)
     for k, s in enumerate(np.linspace(0.2, 0.4, 20)):
@@ -161,7 +181,7 @@ def test_predict_is_pure_and_repeatable() -> None:
 def test_prediction_at_a_flight_without_measurement_counts_the_flights_since() -> None:
     """Flights that bring no value of the feature still use up life: the RUL seen at a later
     flight is the last update's RUL less the flights since, floored at 0."""
-    cfg = PrognoserConfig(n_particles=100)
+    cfg = _config(n_particles=100)
     pf = ParticleFilterPrognoser(cfg, MODEL)
     state = pf.initial_state(cfg, MODEL, 1)
     for k, s in enumerate(np.linspace(0.2, 0.4, 20)):
@@ -182,8 +202,8 @@ def test_rate_bounds_keep_the_tuned_law_plausible() -> None:
     rng = np.random.default_rng(7)
     z = MODEL.predict(np.full(60, 0.2)) + MODEL.noise_std * rng.standard_normal(60)
     lo, hi = 1.0 / 400, 1.0 / 100
-    free_cfg = PrognoserConfig(initial_theta=(0.004, 0.002))
-    bounded_cfg = PrognoserConfig(initial_theta=(0.004, 0.002), rate_bounds=(lo, hi))
+    free_cfg = _config(initial_theta=(0.004, 0.002))
+    bounded_cfg = _config(initial_theta=(0.004, 0.002), rate_bounds=(lo, hi))
     meds = {}
     for name, cfg in (("free", free_cfg), ("bounded", bounded_cfg)):
         pf = ParticleFilterPrognoser(cfg, MODEL)
@@ -219,7 +239,7 @@ def test_config_validation() -> None:
     for kwargs in bad:
         with pytest.raises(ValueError):
             PrognoserConfig(**kwargs)
-    cfg = PrognoserConfig(rate_basis="quadratic", initial_theta=(0.004, 0.0, 0.001),
+    cfg = _config(rate_basis="quadratic", initial_theta=(0.004, 0.0, 0.001),
                           rate_bounds=(0.002, 0.01))
     assert PrognoserConfig.from_json(cfg.to_json()) == cfg
     with pytest.raises(ValueError):
@@ -231,7 +251,7 @@ def test_config_validation() -> None:
 
 
 def test_prognoser_rejects_foreign_state_and_time_going_back() -> None:
-    cfg = PrognoserConfig(n_particles=50)
+    cfg = _config(n_particles=50)
     pf = ParticleFilterPrognoser(cfg, MODEL)
     other = ParticleFilterPrognoser(cfg, MeasurementModel((0.0, 1.0), 0.05))
     state = pf.update(pf.initial_state(cfg, MODEL, 0), 0.5, 3)
@@ -321,7 +341,7 @@ def test_saturating_law_tracks_growth_that_slows_down() -> None:
     h = big_c - (big_c - h0) * np.exp(-mu * k)
     rng = np.random.default_rng(7)
     z = MODEL.predict(h) + MODEL.noise_std * rng.standard_normal(h.size)
-    cfg = PrognoserConfig(rate_basis="exponential", growth_offset=-big_c,
+    cfg = _config(rate_basis="exponential", growth_offset=-big_c,
                           initial_theta=(0.0, -0.6 * mu), initial_rate_std=0.5 * mu,
                           rls_forgetting=0.995)
     pf = ParticleFilterPrognoser(cfg, MODEL)
@@ -375,7 +395,7 @@ def _numpy_propagation(h, theta, min_rate, step, block, noise_blocks, horizon):
 def test_compiled_prediction_loop_matches_the_numpy_one() -> None:
     from server.phm.prognosis.predictor import propagate_to_threshold
 
-    cfg = PrognoserConfig(prediction_steps=20, max_horizon_flights=400)
+    cfg = _config(prediction_steps=20, max_horizon_flights=400)
     rng = np.random.default_rng(11)
     h = rng.uniform(0.2, 0.6, 200)
     theta = np.column_stack([rng.uniform(0.0, 0.006, 200), rng.uniform(-0.004, 0.004, 200)])
@@ -412,7 +432,7 @@ def test_most_probable_rul_finds_the_mode_of_a_skewed_distribution() -> None:
 
 
 def test_rul_distribution_carries_its_mode_through_json() -> None:
-    cfg = PrognoserConfig()
+    cfg = _config()
     pf = ParticleFilterPrognoser(cfg, MODEL)
     state = ParticleFilterPrognoser.initial_state(cfg, MODEL, rng_seed=3)
     truth = _truth("lin", 200)
@@ -427,3 +447,181 @@ def test_rul_distribution_carries_its_mode_through_json() -> None:
     old = json.loads(dist.to_json())
     del old["most_probable"]
     assert np.isnan(RulDistribution.from_dict(old).most_probable)
+
+
+# -- degradation laws ----------------------------------------------------------------------------
+
+H_GRID = np.linspace(0.0, 1.4, 15)
+
+
+@pytest.mark.parametrize(
+    ("law", "theta", "closed_form"),
+    [
+        (ConstantLaw(), (0.003,), lambda h: 0.003 + 0.0 * h),
+        (AffineLaw(), (0.003, 0.002), lambda h: 0.003 + 0.002 * h),
+        (QuadraticLaw(), (0.003, -0.001, 0.004), lambda h: 0.003 - 0.001 * h + 0.004 * h**2),
+    ],
+)
+def test_polynomial_laws_match_their_closed_forms(law, theta, closed_form) -> None:  # noqa: ANN001
+    """g(h) = theta . [1, h, h^2, ...] floored at min_rate; phi(h) the powers of h; the first
+    trial is a constant rate; the RLS prior is rls_initial_cov I and s2 = q^2; the RLS measures
+    the increment of the filtered severity against phi at the previous estimate."""
+    theta = np.array(theta)
+    p = theta.size
+    assert law.n_params == p and isinstance(law, DegradationLaw)
+    g = closed_form(H_GRID)
+    np.testing.assert_allclose(law.growth_rate(H_GRID, theta, 1e-9), np.maximum(g, 1e-9),
+                               rtol=1e-13)
+    np.testing.assert_allclose(law.growth_rate(H_GRID, -theta, 1e-4), 1e-4)  # never heals
+    phi = law.regressor(H_GRID)
+    assert phi.shape == (H_GRID.size, p)
+    np.testing.assert_allclose(phi, H_GRID[:, np.newaxis] ** np.arange(p), rtol=1e-15)
+    np.testing.assert_allclose(phi @ theta, g, rtol=1e-13, atol=1e-18)
+    assert law.coefficients(theta) is theta  # already the polynomial the prediction runs
+    assert law.first_trial(0.004) == (0.004,) + (0.0,) * (p - 1)
+    cfg = _config(rate_basis=law.rate_basis, rls_initial_cov=0.3)
+    cov, s2 = law.prior(cfg)
+    np.testing.assert_array_equal(cov, 0.3 * np.eye(p))
+    assert s2 == cfg.process_noise_std**2
+    state = ParticleFilterPrognoser.initial_state(cfg, MODEL, 0)
+    state = replace(state, last_estimate=0.4, flight_index=10)
+    step = law.rls_measurement(state, 0.43, 1.0, 3.0, MODEL, cfg)
+    np.testing.assert_allclose(step.phi, 0.4 ** np.arange(p))
+    assert step.y == pytest.approx(0.01) and step.forgetting == cfg.rls_forgetting
+    assert step.theta is state.theta and step.cov is state.cov
+
+
+@pytest.mark.parametrize(("offset", "rate"), [(0.1, 0.01), (1.78, 0.002), (-1.5, -0.004)])
+def test_exponential_law_matches_its_closed_form(offset: float, rate: float) -> None:
+    """dh/dk = r (h + c) whatever the intercept a of theta = (a, r); first trial r giving the
+    initial rate at mid-life; prior diag(1, (0.35 r)^2), s2 = 1; the first measurement sets
+    a = ln|h + c| with its whitened variance; the RLS measures the log-level whitened by its
+    noise, with the intercept moved to the new flight and forgetting lambda ** dk."""
+    law = ExponentialLaw(offset)
+    assert law.n_params == 2 and isinstance(law, DegradationLaw)
+    h = H_GRID[H_GRID + offset > 0] if offset > 0 else H_GRID[H_GRID < 1.3]
+    for a in (0.0, -1.7):
+        theta = np.array([a, rate])
+        g = rate * (h + offset)
+        np.testing.assert_allclose(law.growth_rate(h, theta, 1e-9), np.maximum(g, 1e-9),
+                                   rtol=1e-12)
+        np.testing.assert_allclose(law.regressor(h) @ theta, g, rtol=1e-12)
+        np.testing.assert_allclose(law.coefficients(theta), [rate * offset, rate])
+    first = law.first_trial(0.004)
+    assert first[0] == 0.0 and first[1] * (0.5 + offset) == pytest.approx(0.004)
+    cfg = _config(rate_basis="exponential", growth_offset=offset, initial_theta=(0.0, rate),
+                  rls_forgetting=0.99)
+    assert cfg.law == law
+    cov, s2 = law.prior(cfg)
+    np.testing.assert_allclose(cov, np.diag([1.0, (CONSTANTS.rate_prior_spread * rate) ** 2]))
+    assert s2 == 1.0
+    theta0, cov0 = law.first_measurement(np.array(cfg.theta0), cov, 0.2, 0.01)
+    assert theta0[0] == pytest.approx(math.log(abs(0.2 + offset))) and theta0[1] == rate
+    assert cov0[0, 0] == pytest.approx((0.01 / abs(0.2 + offset)) ** 2)
+    assert cov0[1, 1] == cov[1, 1] and cov0[0, 1] == 0.0
+    ident = MeasurementModel.identity(0.02)
+    state = ParticleFilterPrognoser.initial_state(cfg, ident, 0)
+    state = replace(state, theta=theta0, cov=cov0, last_estimate=0.2, flight_index=4)
+    step = law.rls_measurement(state, 0.25, 0.26, 2.0, ident, cfg)
+    sigma_y = 0.02 / abs(0.25 + offset)
+    y = math.log(abs(0.25 + offset)) + 0.01 / (0.25 + offset)
+    assert step.y == pytest.approx(y / sigma_y) and step.forgetting == pytest.approx(0.99**2)
+    np.testing.assert_allclose(step.phi, [1.0 / sigma_y, 0.0])
+    np.testing.assert_allclose(step.theta, [theta0[0] + 2.0 * rate, rate])
+
+
+def test_law_registry_round_trips_through_the_rate_basis_string() -> None:
+    """Every rate_basis a config accepts has one law class, found by its string; a config
+    carries the string (never the class) through its JSON document, and gets the same law
+    back."""
+    assert tuple(LAWS) == typing.get_args(RateBasis)
+    assert RATE_BASES == {name: law.n_params for name, law in LAWS.items()}
+    for name, law_class in LAWS.items():
+        assert law_for(name) is law_class and law_class.rate_basis == name
+        n = law_class.n_params
+        cfg = _config(rate_basis=name, initial_theta=(0.002,) * n, growth_offset=0.3)
+        doc = json.loads(cfg.to_json())
+        assert doc["rate_basis"] == name
+        back = PrognoserConfig.from_dict(doc)
+        assert back == cfg and type(back.law) is law_class and back.law == cfg.law
+        assert back.n_params == n and len(back.theta0) == n
+    with pytest.raises(ValueError, match="rate_basis must be one of"):
+        law_for("cubic")
+    with pytest.raises(ValueError, match="rate_basis must be one of"):
+        _config(rate_basis="cubic")
+
+
+#: prognoser configs as the trained chain wrote them into a model document before the law
+#: classes existed (quick design campaign, seed 1: TTS on the log-level law, REWEAR affine),
+#: with the digest the original code gave each with its measurement model
+_TRAINED_DOCS = [
+    ({"growth_offset": 0.0446683592150963, "histogram_bins": 30, "initial_rate": 0.004,
+      "initial_rate_std": 0.0047720082559336114, "initial_severity_max": 0.5,
+      "initial_theta": [0.0, 0.008427281127962228], "kind": "pf_prognoser_config",
+      "max_horizon_flights": 2000, "min_rate": 1e-05, "monotone_rate": True,
+      "n_particles": 200, "param_uncertainty_scale": 1.0, "pof_horizons_flights": [10, 25, 50],
+      "prediction_steps": 50, "process_noise_std": 0.01,
+      "quantile_levels": [0.05, 0.25, 0.5, 0.75, 0.95], "rate_basis": "exponential",
+      "rate_bounds": [0.0024685309962371184, 0.010001247892871136], "resample_threshold": 0.5,
+      "rls_forgetting": 0.995, "rls_initial_cov": 1.0, "rls_max_trace": 10.0, "version": 1},
+     {"coefficients": [-0.0003957715108091411, 0.04861892770474073, -0.0010315702147371834],
+      "kind": "polynomial_gaussian", "noise_slope": 0.0014383669371459311,
+      "noise_std": 0.0001911507090983998, "severity_range": [0.0, 1.5], "version": 2},
+     ExponentialLaw, "0ddecfbcd9bab79a"),
+    ({"growth_offset": 0.5, "histogram_bins": 30, "initial_rate": 0.004,
+      "initial_rate_std": None, "initial_severity_max": 0.5,
+      "initial_theta": [0.006133037658576505, -0.00490578850497065],
+      "kind": "pf_prognoser_config", "max_horizon_flights": 2000,
+      "min_rate": 0.0008234908780076694, "monotone_rate": False, "n_particles": 200,
+      "param_uncertainty_scale": 1.0, "pof_horizons_flights": [10, 25, 50],
+      "prediction_steps": 50, "process_noise_std": 0.01,
+      "quantile_levels": [0.05, 0.25, 0.5, 0.75, 0.95], "rate_basis": "affine",
+      "rate_bounds": [0.0017607996463761594, 0.00782480973511007], "resample_threshold": 0.5,
+      "rls_forgetting": 0.97, "rls_initial_cov": 0.01, "rls_max_trace": 10.0, "version": 1},
+     {"coefficients": [1.0205562884044828e-05, 0.00014363101074826802, -4.385715528880922e-05],
+      "kind": "polynomial_gaussian", "noise_slope": 1.5687965329507808e-05,
+      "noise_std": 1.1517599103408967e-05, "severity_range": [0.0, 1.5], "version": 2},
+     AffineLaw, "e619053f169a3d87"),
+]
+
+
+@pytest.mark.parametrize(("doc", "model", "law_class", "digest"), _TRAINED_DOCS)
+def test_trained_model_documents_load_and_keep_their_digest(doc, model, law_class,  # noqa: ANN001
+                                                            digest: str) -> None:
+    """A config from an existing model document loads to its law, serialises back to the
+    same text, and the filter's digest is unchanged (stored filter states still belong to
+    their model)."""
+    cfg = PrognoserConfig.from_dict(doc)
+    assert type(cfg.law) is law_class
+    assert cfg.to_json() == json.dumps(doc, sort_keys=True)
+    pf = ParticleFilterPrognoser(cfg, MeasurementModel.from_dict(model))
+    assert pf.digest == digest
+    state = pf.initial_state(cfg, pf.measurement_model, 1)
+    assert state.config_digest == digest
+
+
+def test_first_version_config_document_loads() -> None:
+    """A config document of the first version (no growth_offset, initial_rate_std or
+    rate_bounds yet) loads with the defaults for them, and keeps the process noise it carries
+    (every document carries one: a change of the default cannot reach it)."""
+    old = {"version": 1, "kind": "pf_prognoser_config", "n_particles": 200,
+           "process_noise_std": 0.004, "rate_basis": "affine", "initial_theta": None,
+           "initial_rate": 0.004, "rls_forgetting": 0.97, "rls_initial_cov": 1.0,
+           "rls_max_trace": 10.0, "min_rate": 1e-05, "resample_threshold": 0.5,
+           "initial_severity_max": 0.5, "max_horizon_flights": 2000, "prediction_steps": 50,
+           "param_uncertainty_scale": 1.0, "monotone_rate": True,
+           "quantile_levels": [0.05, 0.25, 0.5, 0.75, 0.95], "pof_horizons_flights": [10, 25, 50],
+           "histogram_bins": 30}
+    cfg = PrognoserConfig.from_dict(old)
+    assert type(cfg.law) is AffineLaw and cfg.theta0 == (0.004, 0.0)
+    assert cfg.process_noise_std == 0.004 != PrognoserConfig().process_noise_std
+    assert cfg.growth_offset == 0.5 and cfg.rate_bounds is None and cfg.initial_rate_std is None
+    assert cfg == GENERIC_CONFIG
+
+
+def test_config_defaults_are_the_chain_and_the_generic_interface_values() -> None:
+    """One owner per value: the config's default is the trained chain's process noise, the
+    generic interface keeps the one its synthetic series were measured with."""
+    assert PrognoserConfig().process_noise_std == 0.01
+    assert GENERIC_CONFIG.process_noise_std == 0.004
+    assert replace(GENERIC_CONFIG, process_noise_std=0.01) == PrognoserConfig()

@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 
 from server.phm.prognosis import MeasurementModel, ParticleFilterPrognoser, PrognoserConfig
-from server.phm.season import SeasonalClimate, StressClock, day_of_year, next_flights_per_day
+from server.phm.season import (
+    SEASON_DEFAULTS,
+    SeasonalClimate,
+    SeasonConfig,
+    StressClock,
+    day_of_year,
+    next_flights_per_day,
+)
 
 OMEGA = 2.0 * math.pi / 365.25
 
@@ -57,8 +64,19 @@ def test_stress_clock_runs_fast_in_summer_and_sums_consistently() -> None:
     assert flat.between(5, 25) == pytest.approx(20.0)
 
 
+def test_season_settings_are_the_config_defaults() -> None:
+    assert SEASON_DEFAULTS == SeasonConfig(min_flights_per_base=24, gap_points=16,
+                                           flying_rate_weight=0.1)
+    # a base with one flight fewer than the minimum gets no climate
+    days = np.linspace(0, 360, SEASON_DEFAULTS.min_flights_per_base)
+    temps = 13.0 - 10.0 * np.cos(OMEGA * days)
+    assert SeasonalClimate.fit(["A"] * days.size, days, temps).knows("A")
+    assert not SeasonalClimate.fit(["A"] * (days.size - 1), days[1:], temps[1:]).knows("A")
+
+
 def test_flying_rate_is_an_exponentially_weighted_mean() -> None:
     assert next_flights_per_day(None, 20, timedelta(days=10)) == 2.0
+    assert next_flights_per_day(2.0, 10, timedelta(days=10)) == pytest.approx(1.9)
     assert next_flights_per_day(2.0, 10, timedelta(days=10), weight=0.5) == 1.5
     assert next_flights_per_day(2.0, 0, timedelta(days=1)) == 2.0
 

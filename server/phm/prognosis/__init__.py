@@ -7,6 +7,7 @@ See docs/PROGNOSIS.md for the model choices and sources.
 """
 
 from .config import RATE_BASES, PrognoserConfig, RateBasis
+from .constants import CONSTANTS, PrognosisConstants
 from .degradation import growth_rate, regressor, rls_update
 from .filter import (
     ParticleFilterPrognoser,
@@ -14,23 +15,46 @@ from .filter import (
     effective_sample_size,
     systematic_resample,
 )
-from .generic import estimate_noise_std, predict_rul, track_rul
+from .generic import GENERIC_CONFIG, estimate_noise_std, predict_rul, track_rul
+from .laws import (
+    LAWS,
+    AffineLaw,
+    ConstantLaw,
+    DegradationLaw,
+    ExponentialLaw,
+    PolynomialLaw,
+    QuadraticLaw,
+    RlsMeasurement,
+    law_for,
+)
 from .measurement import MeasurementModel
 from .onset import growth_onset
 from .predictor import RulDistribution, propagate_to_threshold, summarise_rul, weighted_quantiles
 
 __all__ = [
+    "CONSTANTS",
+    "GENERIC_CONFIG",
+    "LAWS",
     "RATE_BASES",
+    "AffineLaw",
+    "ConstantLaw",
+    "DegradationLaw",
+    "ExponentialLaw",
     "MeasurementModel",
     "ParticleFilterPrognoser",
+    "PolynomialLaw",
+    "PrognosisConstants",
     "PrognoserConfig",
     "PrognoserState",
+    "QuadraticLaw",
     "RateBasis",
+    "RlsMeasurement",
     "RulDistribution",
     "effective_sample_size",
     "estimate_noise_std",
     "growth_onset",
     "growth_rate",
+    "law_for",
     "predict_rul",
     "propagate_to_threshold",
     "regressor",

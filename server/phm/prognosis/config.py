@@ -17,13 +17,15 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any, Literal
 
+from .laws import LAWS, DegradationLaw, ExponentialLaw, law_for
+
 __all__ = ["RATE_BASES", "PrognoserConfig", "RateBasis"]
 
 RateBasis = Literal["constant", "affine", "quadratic", "exponential"]
 
-#: number of RLS parameters of each growth-rate basis: ``dh/dk = theta . phi(h)``, or for
-#: ``"exponential"`` theta = (a, r) of the log-level line ``ln(h + c) = a + r k``
-RATE_BASES: dict[str, int] = {"constant": 1, "affine": 2, "quadratic": 3, "exponential": 2}
+#: number of RLS parameters of each growth-rate basis (:data:`.laws.LAWS`): ``dh/dk = theta .
+#: phi(h)``, or for ``"exponential"`` theta = (a, r) of the log-level line ``ln(h + c) = a + r k``
+RATE_BASES: dict[str, int] = {name: law.n_params for name, law in LAWS.items()}
 
 _CONFIG_VERSION = 1
 
@@ -39,13 +41,16 @@ class PrognoserConfig:
     process_noise_std:
         Standard deviation of the severity random walk added at each flight [1/sqrt(flight)];
         explicit and strictly positive (a zero process noise collapses the particle cloud).
+        Default 0.01, the trained chain's: it lets the cloud follow a fault that grows faster
+        or slower than the design prior (docs/TUNING.md, Prognosis). The generic interface
+        keeps 0.004 (:data:`.generic.GENERIC_CONFIG`).
     rate_basis:
-        Growth-rate model ``dh/dk = theta . phi(h)`` [1/flight]: ``"constant"`` phi = [1]
-        (linear wear, Archard at constant load), ``"affine"`` phi = [1, h] (linear + exponential
-        growth), ``"quadratic"`` phi = [1, h, h^2] (accelerating); these are tuned by RLS on the
-        increments of the filtered severity. ``"exponential"``: dh/dk = r (h + c) with the shape
-        ``growth_offset`` c fixed, tuned by RLS on the severity *level*, ln(h + c) = a + r k
-        (see :mod:`.degradation`).
+        Growth-rate model ``dh/dk = theta . phi(h)`` [1/flight], one class of :mod:`.laws` each
+        (:attr:`law`): ``"constant"`` phi = [1] (linear wear, Archard at constant load),
+        ``"affine"`` phi = [1, h] (linear + exponential growth), ``"quadratic"`` phi =
+        [1, h, h^2] (accelerating); these are tuned by RLS on the increments of the filtered
+        severity. ``"exponential"``: dh/dk = r (h + c) with the shape ``growth_offset`` c fixed,
+        tuned by RLS on the severity *level*, ln(h + c) = a + r k (see :mod:`.degradation`).
     growth_offset:
         Shape c of the ``"exponential"`` law [-] (severity at which growth would stop, negated):
         large c is near-linear wear, small c near-pure exponential growth; c < -1 is growth
@@ -109,7 +114,7 @@ class PrognoserConfig:
     """
 
     n_particles: int = 200
-    process_noise_std: float = 0.004
+    process_noise_std: float = 0.01
     rate_basis: RateBasis = "affine"
     growth_offset: float = 0.5
     initial_rate_std: float | None = None
@@ -137,15 +142,12 @@ class PrognoserConfig:
         if self.n_particles < 2:
             raise ValueError(f"n_particles must be >= 2, got {self.n_particles}")
         _positive("process_noise_std", self.process_noise_std)
-        if self.rate_basis not in RATE_BASES:
-            raise ValueError(
-                f"rate_basis must be one of {sorted(RATE_BASES)}, got {self.rate_basis!r}"
-            )
+        n_params = law_for(self.rate_basis).n_params
         if self.initial_theta is not None:
             theta = tuple(float(v) for v in self.initial_theta)
-            if len(theta) != RATE_BASES[self.rate_basis]:
+            if len(theta) != n_params:
                 raise ValueError(
-                    f"initial_theta needs {RATE_BASES[self.rate_basis]} values for basis "
+                    f"initial_theta needs {n_params} values for basis "
                     f"{self.rate_basis!r}, got {len(theta)}"
                 )
             if not all(math.isfinite(v) for v in theta):
@@ -192,25 +194,26 @@ class PrognoserConfig:
             raise ValueError(f"unsupported config version {self._version}")
 
     @property
+    def law(self) -> DegradationLaw:
+        """The degradation law of ``rate_basis``, with this config's shape (:mod:`.laws`)."""
+        return law_for(self.rate_basis).from_config(self)
+
+    @property
     def n_params(self) -> int:
         """Number of RLS parameters of the growth-rate basis."""
-        return RATE_BASES[self.rate_basis]
+        return law_for(self.rate_basis).n_params
 
     @property
     def theta0(self) -> tuple[float, ...]:
         """First-trial RLS parameter vector."""
         if self.initial_theta is not None:
             return self.initial_theta
-        if self.rate_basis == "exponential":
-            return (0.0, self.initial_rate / (0.5 + self.growth_offset))
-        return (self.initial_rate,) + (0.0,) * (self.n_params - 1)
+        return self.law.first_trial(self.initial_rate)
 
     @property
     def rate_prior_std(self) -> float:
         """Prior standard deviation of r of the ``"exponential"`` law [1/flight]."""
-        if self.initial_rate_std is not None:
-            return self.initial_rate_std
-        return 0.35 * abs(self.theta0[1])
+        return ExponentialLaw.rate_prior_std(self)
 
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)

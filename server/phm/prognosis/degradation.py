@@ -29,7 +29,8 @@ the measurement inverted to severity, linearised about the filtered estimate h_f
 y = ln|h_f + c| + (h_obs - h_f) / (h_f + c), with standard deviation sigma_h / |h_f + c|; the
 RLS runs on y / sigma_y, so P is the parameter covariance itself and s2 the misfit factor.
 
-All functions are pure and work on small numpy arrays; nothing here is random.
+All functions are pure and work on small numpy arrays; nothing here is random. The law
+classes of :mod:`.laws` (one per ``rate_basis``) are built from them.
 """
 
 from __future__ import annotations
@@ -39,10 +40,15 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from .constants import CONSTANTS
+
 __all__ = [
+    "MID_LIFE",
     "MIN_LEVEL_GAP",
+    "bound_mid_rate",
     "exponential_law",
     "growth_rate",
+    "level_measurement",
     "level_rls_update",
     "log_level_observation",
     "regressor",
@@ -51,7 +57,9 @@ __all__ = [
 
 
 #: smallest |h + c| of the log-level observation of a saturating law [-]
-MIN_LEVEL_GAP = 0.02
+MIN_LEVEL_GAP = CONSTANTS.min_level_gap
+#: severity at which a law's rate is stated and bounded (``rate_bounds``, first trials) [-]
+MID_LIFE = 0.5
 
 
 def regressor(h: NDArray[np.float64] | float, n_params: int) -> NDArray[np.float64]:
@@ -133,6 +141,25 @@ def log_level_observation(h_obs: float, h_ref: float, sigma_h: float, offset: fl
     return math.log(abs(base)) + (h_obs - h_ref) / base, sigma_h / abs(base)
 
 
+def level_measurement(
+    theta: NDArray[np.float64],
+    cov: NDArray[np.float64],
+    dk: float,
+    y: float,
+    sigma_y: float,
+    forgetting: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float, float]:
+    """The RLS step of the log-level line after ``dk`` units of the clock, before it is taken:
+    (theta, P) moved to the latest flight (``a <- a + r dk``, ``P <- F P F'``), the whitened
+    regressor [1 / sigma_y, 0] and observation y / sigma_y, and the forgetting ``lambda ** dk``
+    (memory counted in the clock, whatever the spacing of the measurements)."""
+    shift = np.array([[1.0, dk], [0.0, 1.0]])
+    theta = shift @ theta
+    cov = shift @ cov @ shift.T
+    phi = np.array([1.0 / sigma_y, 0.0])
+    return theta, cov, phi, y / sigma_y, forgetting**dk
+
+
 def level_rls_update(
     theta: NDArray[np.float64],
     cov: NDArray[np.float64],
@@ -143,10 +170,33 @@ def level_rls_update(
     forgetting: float,
     max_trace: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """One RLS step of the log-level line after ``dk`` units of the clock; forgetting
-    ``lambda ** dk`` (memory counted in the clock, whatever the spacing of the measurements)."""
-    shift = np.array([[1.0, dk], [0.0, 1.0]])
-    theta = shift @ theta
-    cov = shift @ cov @ shift.T
-    phi = np.array([1.0 / sigma_y, 0.0])
-    return rls_update(theta, cov, resid_var, phi, y / sigma_y, forgetting**dk, max_trace)
+    """One RLS step of the log-level line after ``dk`` units of the clock
+    (:func:`level_measurement`, then :func:`rls_update`)."""
+    theta, cov, phi, y_w, lam = level_measurement(theta, cov, dk, y, sigma_y, forgetting)
+    return rls_update(theta, cov, resid_var, phi, y_w, lam, max_trace)
+
+
+def bound_mid_rate(
+    theta: NDArray[np.float64], bounds: tuple[float, float] | None
+) -> NDArray[np.float64]:
+    """Scale growth-rate coefficients (p,) or (N, p) so that the mid-life rate g(0.5) lies in
+    ``bounds`` (the shape of the law is kept); a vector whose mid-life rate is not positive
+    becomes the slowest plausible constant rate. ``None``: unchanged."""
+    if bounds is None:
+        return theta
+    lo, hi = bounds
+    mid = MID_LIFE ** np.arange(theta.shape[-1])
+    if theta.ndim == 1:  # the filter's own law, once per update: no array temporaries
+        rate = float(theta @ mid)
+        if lo <= rate <= hi:
+            return theta
+        if rate <= 0:  # not a growth law: the slowest plausible constant rate
+            out = np.zeros_like(theta)
+            out[0] = lo
+            return out
+        return theta * (min(max(rate, lo), hi) / rate)
+    rate = theta @ mid
+    safe = np.where(rate > 0, rate, lo)
+    out = theta * (np.clip(safe, lo, hi) / safe)[:, np.newaxis]
+    out[rate <= 0] = np.eye(1, theta.shape[-1])[0] * lo
+    return out

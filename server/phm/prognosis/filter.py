@@ -11,8 +11,9 @@ One update at flight k (dk = k - k_prev flights since the previous update)::
     2. weight      log w_i <- log w_i - (z - h(h_i))^2 / (2 sigma_v(h_i)^2) - log sigma_v(h_i),
                    max subtracted, normalised (sigma_v grows with severity: .measurement)
     3. resample    systematic, only when ESS = 1 / sum w_i^2 < resample_threshold * N
-    4. tune        RLS on y = (h_hat[k] - h_hat[k_prev]) / dk against phi(h_hat[k_prev]), or
-                   for the "exponential" law on the log-level ln(h + c) (see .degradation)
+    4. tune        one RLS step on the measurement the law poses (:mod:`.laws`): y =
+                   (h_hat[k] - h_hat[k_prev]) / dk against phi(h_hat[k_prev]), or for the
+                   "exponential" law the log-level ln(h + c) (see .degradation)
 
 The first measurement initialises the cloud around the inverted measurement,
 h_i = h^-1(z) + sigma_v / |h'| w_i, instead of weighting the prior.
@@ -39,14 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .config import PrognoserConfig
-from .degradation import (
-    exponential_law,
-    growth_rate,
-    level_rls_update,
-    log_level_observation,
-    regressor,
-    rls_update,
-)
+from .degradation import bound_mid_rate, growth_rate, rls_update
 from .measurement import MeasurementModel
 from .predictor import RulDistribution, propagate_to_threshold, summarise_rul
 
@@ -276,6 +270,7 @@ class ParticleFilterPrognoser:
             raise ValueError("measurement_model must be a MeasurementModel")
         self.config = config
         self.measurement_model = measurement_model
+        self.law = config.law
         self.digest = _digest(config, measurement_model)
 
     @classmethod
@@ -291,12 +286,7 @@ class ParticleFilterPrognoser:
         rng = np.random.Generator(np.random.PCG64(rng_seed))
         n = config.n_particles
         severity = rng.uniform(0.0, config.initial_severity_max, n)
-        if config.rate_basis == "exponential":  # the intercept's variance is set by the first z
-            cov = np.diag([1.0, config.rate_prior_std**2])
-            resid_var = 1.0  # the RLS runs on whitened observations
-        else:
-            cov = np.eye(config.n_params) * config.rls_initial_cov
-            resid_var = config.process_noise_std**2
+        cov, resid_var = config.law.prior(config)
         return PrognoserState(
             severity=severity,
             log_weights=np.full(n, -math.log(n)),
@@ -354,11 +344,7 @@ class ParticleFilterPrognoser:
             h = np.maximum(s0 + spread * rng.standard_normal(n), 0.0)
             log_w = np.full(n, -math.log(n))
             estimate = float(h.mean())
-            theta, cov = state.theta, state.cov
-            if cfg.rate_basis == "exponential":
-                y, sigma_y = log_level_observation(s0, s0, spread, cfg.growth_offset)
-                theta = np.array([y, state.theta[1]])
-                cov = np.diag([sigma_y**2, state.cov[1, 1]])
+            theta, cov = self.law.first_measurement(state.theta, state.cov, s0, spread)
             return replace(
                 state,
                 severity=h,
@@ -382,7 +368,7 @@ class ParticleFilterPrognoser:
             dk = float(stress)  # from here on, the law's clock
         # 1. propagate
         # the law is bounded where it is used (propagation, prediction), not inside the RLS:
-        # rescaling the RLS estimate itself fed back into the regression and let it drift
+        # a rescaled RLS estimate feeds back into the regression and drifts
         h = state.severity + dk * growth_rate(state.severity, self._law(state.theta),
                                               cfg.min_rate)
         h += (cfg.process_noise_std * math.sqrt(dk)) * rng.standard_normal(n)
@@ -402,20 +388,10 @@ class ParticleFilterPrognoser:
             idx = systematic_resample(w, rng)
             h = h[idx]
             log_w = np.full(n, -math.log(n))
-        # 4. tune the degradation model
-        if cfg.rate_basis == "exponential":
-            h_obs = mm.invert_one(z)
-            sigma_h = mm.severity_noise(estimate)
-            y, sigma_y = log_level_observation(h_obs, estimate, sigma_h, cfg.growth_offset)
-            theta, cov, resid_var = level_rls_update(
-                state.theta, state.cov, state.resid_var, dk, y, sigma_y, cfg.rls_forgetting,
-                cfg.rls_max_trace)
-        else:
-            phi = regressor(state.last_estimate, cfg.n_params)
-            y = (estimate - state.last_estimate) / dk
-            theta, cov, resid_var = rls_update(
-                state.theta, state.cov, state.resid_var, phi, y, cfg.rls_forgetting,
-                cfg.rls_max_trace)
+        # 4. tune the degradation model: one RLS step on the law's measurement
+        step = self.law.rls_measurement(state, estimate, z, dk, mm, cfg)
+        theta, cov, resid_var = rls_update(step.theta, step.cov, state.resid_var, step.phi,
+                                           step.y, step.forgetting, cfg.rls_max_trace)
         return PrognoserState(
             severity=h,
             log_weights=log_w,
@@ -437,68 +413,18 @@ class ParticleFilterPrognoser:
     def parameter_samples(
         self, state: PrognoserState, rng: np.random.Generator
     ) -> NDArray[np.float64]:
-        """One degradation-parameter vector per particle, theta_i ~ N(theta, c s2 P), (N, p).
-
-        With ``config.monotone_rate`` the severity-dependent terms are clipped at 0 and the
-        constant term compensates, so that the rate at the current severity is unchanged.
+        """One vector of growth-rate coefficients per particle, (N, p), drawn from the RLS
+        estimate and its covariance by the law (:meth:`.laws.DegradationLaw.parameter_samples`;
+        polynomial laws: theta_i ~ N(theta, c s2 P), with ``config.monotone_rate`` the
+        severity-dependent terms clipped at 0 and the constant term compensating, so that the
+        rate at the current severity is unchanged).
         """
-        cfg = self.config
-        n = cfg.n_particles
-        if cfg.rate_basis == "exponential":
-            # only r matters for the growth; its variance from the whitened RLS, inflated by
-            # the misfit factor s2 when the line fits worse than the measurement noise says
-            var = cfg.param_uncertainty_scale * max(state.resid_var, 1.0) * state.cov[1, 1]
-            rate = state.theta[1] + math.sqrt(max(var, 0.0)) * rng.standard_normal(n)
-            # r has the sign of c (h + c keeps its sign below the threshold): growth only
-            rate = np.maximum(rate, 0.0) if cfg.growth_offset > 0 else np.minimum(rate, 0.0)
-            theta = np.column_stack([np.zeros(n), rate])
-            return self._law(theta)
-        scale = cfg.param_uncertainty_scale * state.resid_var
-        if scale <= 0:
-            return np.broadcast_to(state.theta, (n, cfg.n_params))
-        cov = scale * state.cov
-        jitter = 1e-15 * max(float(np.trace(cov)), 1e-30)
-        chol = np.linalg.cholesky(cov + jitter * np.eye(cfg.n_params))
-        theta = state.theta + rng.standard_normal((n, cfg.n_params)) @ chol.T
-        if cfg.monotone_rate and cfg.n_params > 1:
-            # clip the slope terms at 0 and move the constant so that each particle keeps its
-            # rate at the current severity estimate (the rate there is what the data pin down)
-            h_ref = state.severity_mean
-            clipped = np.maximum(theta[:, 1:], 0.0)
-            powers = h_ref ** np.arange(1, cfg.n_params)
-            theta[:, 0] += (theta[:, 1:] - clipped) @ powers
-            theta[:, 1:] = clipped
-        return self._bounded(theta)
+        return self.law.parameter_samples(state, rng, self.config)
 
     def _law(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         """Growth-rate coefficients (of :func:`.growth_rate`) of RLS parameters (p,) or (N, p),
         kept within ``config.rate_bounds``."""
-        if self.config.rate_basis == "exponential":
-            theta = exponential_law(theta, self.config.growth_offset)
-        return self._bounded(theta)
-
-    def _bounded(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Scale parameter vectors (p,) or (N, p) so that the mid-life rate g(0.5) lies in
-        ``config.rate_bounds`` (the shape of the law is kept)."""
-        bounds = self.config.rate_bounds
-        if bounds is None:
-            return theta
-        lo, hi = bounds
-        mid = 0.5 ** np.arange(theta.shape[-1])
-        if theta.ndim == 1:  # the filter's own law, once per update: no array temporaries
-            rate = float(theta @ mid)
-            if lo <= rate <= hi:
-                return theta
-            if rate <= 0:  # not a growth law: the slowest plausible constant rate
-                out = np.zeros_like(theta)
-                out[0] = lo
-                return out
-            return theta * (min(max(rate, lo), hi) / rate)
-        rate = theta @ mid
-        safe = np.where(rate > 0, rate, lo)
-        out = theta * (np.clip(safe, lo, hi) / safe)[:, np.newaxis]
-        out[rate <= 0] = np.eye(1, theta.shape[-1])[0] * lo
-        return out
+        return bound_mid_rate(self.law.coefficients(theta), self.config.rate_bounds)
 
     def predict(self, state: PrognoserState, *, threshold: float = 1.0,
                 at_flight: int | None = None,

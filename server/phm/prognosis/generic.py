@@ -20,11 +20,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .config import PrognoserConfig
+from .constants import CONSTANTS
 from .filter import ParticleFilterPrognoser, PrognoserState
 from .measurement import MeasurementModel
 from .predictor import RulDistribution
 
-__all__ = ["estimate_noise_std", "predict_rul", "track_rul"]
+__all__ = ["GENERIC_CONFIG", "estimate_noise_std", "predict_rul", "track_rul"]
+
+#: the config of :func:`track_rul` / :func:`predict_rul` when none is given: the defaults with
+#: the process noise of a smooth synthetic health indicator, 0.004 / sqrt(flight) (the trained
+#: chain's 0.01 follows faster-than-prior faults and costs smooth series accuracy:
+#: docs/TUNING.md, Prognosis)
+GENERIC_CONFIG = PrognoserConfig(process_noise_std=0.004)
 
 
 def estimate_noise_std(series: ArrayLike) -> float:
@@ -84,12 +91,13 @@ def track_rul(
         raise ValueError("flight_hours must have one value per sample")
     severity = (x - baseline) / span
     if noise_std is None:
-        sigma = estimate_noise_std(severity) if x.size >= 4 else 0.05
+        sigma = (estimate_noise_std(severity) if x.size >= 4
+                 else CONSTANTS.short_series_noise)
     else:
         if not (math.isfinite(noise_std) and noise_std > 0):
             raise ValueError("noise_std must be finite and > 0")
         sigma = noise_std / abs(span)
-    cfg = config or PrognoserConfig()
+    cfg = config or GENERIC_CONFIG
     model = MeasurementModel.identity(sigma)
     pf = ParticleFilterPrognoser(cfg, model)
     state = pf.initial_state(cfg, model, _seed(rng))

@@ -5,11 +5,9 @@ Conventions
 - ``severity`` is normalised (0 healthy, 1.0 = failure threshold), dimensionless.
 - ``feature`` is in the unit of the health feature it models (e.g. ``F_MTWEAR`` in m); the noise
   standard deviation ``sigma(s) = noise_std + noise_slope * s`` is in the same unit.
-- The noise may grow with severity (``noise_slope`` >= 0): on the design campaigns the features'
-  scatter around h at failure is 1.4-10 times that at the onset (one cause that fits: a
-  unit's gain error scales with its fault; not traced per mode). A constant sigma then
-  overrates the first flights' noise, which carry the growth rate, and underrates the last
-  ones'.
+- The noise may grow with severity (``noise_slope`` >= 0): the features' scatter around h
+  grows from onset to failure (docs/TUNING.md, Prognosis). A constant sigma then overrates the
+  first flights' noise, which carry the growth rate, and underrates the last ones'.
 - ``h`` is a polynomial in severity (ascending coefficients ``c_0 + c_1 s + ...``) fitted by least
   squares on a design campaign's (severity, feature) pairs. It must be strictly monotone on its
   ``severity_range`` (otherwise severity is not identifiable from the feature); outside that range
@@ -29,11 +27,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize
 
+from .constants import CONSTANTS
+
 __all__ = ["MeasurementModel"]
 
 _VERSION = 2
 _READABLE_VERSIONS = (1, 2)
-_GRID = 513
 
 
 @dataclass(frozen=True)
@@ -72,7 +71,7 @@ class MeasurementModel:
         if not (math.isfinite(self.noise_slope) and self.noise_slope >= 0):
             raise ValueError(f"noise_slope must be finite and >= 0, got {self.noise_slope!r}")
         object.__setattr__(self, "noise_slope", float(self.noise_slope))
-        grid = np.linspace(lo, hi, _GRID)
+        grid = np.linspace(lo, hi, CONSTANTS.inversion_grid)
         slope = self._poly_derivative(grid)
         if not (np.all(slope > 0) or np.all(slope < 0)):
             raise ValueError("h(severity) is not strictly monotone on severity_range")

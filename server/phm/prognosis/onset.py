@@ -21,10 +21,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .constants import CONSTANTS
+
 __all__ = ["growth_onset"]
 
 #: the growing part needs at least this many measurements (a line through two is exact)
-MIN_GROWTH_POINTS = 3
+MIN_GROWTH_POINTS = CONSTANTS.min_growth_points
 
 
 def growth_onset(index: ArrayLike, severity: ArrayLike) -> int:

@@ -26,13 +26,11 @@ from numba import njit
 from numpy.typing import NDArray
 
 from .config import PrognoserConfig
+from .constants import CONSTANTS
 from .degradation import growth_rate
 
 __all__ = ["RulDistribution", "most_probable_rul", "propagate_to_threshold", "summarise_rul",
            "weighted_quantiles"]
-
-#: grid of the kernel density behind the most probable RUL [bins]
-_MODE_GRID = 256
 
 _VERSION = 1
 
@@ -177,9 +175,9 @@ def most_probable_rul(rul: NDArray[np.float64], weights: NDArray[np.float64]) ->
 
     Gaussian kernel density with Silverman's bandwidth, 0.9 min(sd, IQR / 1.34) n_eff^(-1/5)
     (n_eff = 1 / sum w^2, the weights normalised over the finite RULs), evaluated on a
-    ``_MODE_GRID``-bin histogram convolved with the kernel (binned KDE: one small convolution
-    instead of N x grid exponentials). The paper's point estimate; the median of a right-skewed
-    RUL distribution lies above its mode.
+    ``CONSTANTS.mode_grid``-bin histogram convolved with the kernel (binned KDE: one small
+    convolution instead of N x grid exponentials). The paper's point estimate; the median of a
+    right-skewed RUL distribution lies above its mode.
     """
     finite = np.isfinite(rul)
     mass = float(weights[finite].sum())
@@ -196,10 +194,11 @@ def most_probable_rul(rul: NDArray[np.float64], weights: NDArray[np.float64]) ->
     n_eff = 1.0 / float(np.dot(w, w))
     bandwidth = max(0.9 * spread * n_eff ** -0.2, 1e-9 * max(1.0, hi))
     # the grid reaches 3 bandwidths beyond the samples, so a peak at an end is not clipped
+    grid = CONSTANTS.mode_grid
     lo_g, hi_g = max(lo - 3.0 * bandwidth, 0.0), hi + 3.0 * bandwidth
-    width = (hi_g - lo_g) / _MODE_GRID
-    hist, _ = np.histogram(r, bins=_MODE_GRID, range=(lo_g, hi_g), weights=w)
-    half = min(int(math.ceil(4.0 * bandwidth / width)), (_MODE_GRID - 1) // 2)
+    width = (hi_g - lo_g) / grid
+    hist, _ = np.histogram(r, bins=grid, range=(lo_g, hi_g), weights=w)
+    half = min(int(math.ceil(4.0 * bandwidth / width)), (grid - 1) // 2)
     x = np.arange(-half, half + 1) * (width / bandwidth)
     density = np.convolve(hist, np.exp(-0.5 * x * x), mode="same")
     return lo_g + (int(np.argmax(density)) + 0.5) * width
@@ -216,7 +215,8 @@ def propagate_to_threshold(
 ) -> NDArray[np.float64]:
     """Time to threshold [flight] of every particle (shape (N,)), +inf beyond the horizon.
 
-    ``theta`` has shape (p,) or (N, p) (one parameter vector per particle). Euler steps of
+    ``theta`` has shape (p,) or (N, p) (one vector of growth-rate coefficients per particle:
+    every law is a polynomial in h here, :meth:`.laws.DegradationLaw.coefficients`). Euler steps of
     ``step`` flights with process noise ``q sqrt(step)``; crossing time interpolated linearly.
     Time is in the law's clock (flights, or stress units: :mod:`server.phm.season`);
     ``horizon`` defaults to ``config.max_horizon_flights``.
@@ -254,10 +254,11 @@ def propagate_to_threshold(
 @njit(cache=True)
 def _euler_block(h, coefs, min_rate, threshold, cap, step, horizon, noise, t, rul, n_done):
     """Up to ``noise.shape[0]`` Euler steps of ``step`` flights for every particle, in place
-    (``h``, ``rul``); returns (t, n_done). The growth rate is the basis polynomial in Horner
-    form floored at ``min_rate``; a particle that crosses the threshold gets its interpolated
-    crossing time and is parked at ``cap``. Compiled: the loop over steps is the prediction's
-    cost (about 100 steps of 200 particles), which numpy paid per call."""
+    (``h``, ``rul``); returns (t, n_done). The growth rate is the law's polynomial in Horner
+    form floored at ``min_rate`` (the same loop for every law: no law code); a particle that
+    crosses the threshold gets its interpolated crossing time and is parked at ``cap``.
+    Compiled: the loop over steps is the prediction's cost (about 100 steps of 200 particles),
+    which numpy paid per call."""
     n, p = coefs.shape
     for i in range(noise.shape[0]):
         if t >= horizon:
