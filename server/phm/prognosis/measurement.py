@@ -6,7 +6,7 @@ Conventions
 - ``feature`` is in the unit of the health feature it models (e.g. ``F_MTWEAR`` in m); the noise
   standard deviation ``sigma(s) = noise_std + noise_slope * s`` is in the same unit.
 - The noise may grow with severity (``noise_slope`` >= 0): the features' scatter around h
-  grows from onset to failure (docs/TUNING.md, Prognosis). A constant sigma then overrates the
+  grows from onset to failure (docs/TUNING.md, Training). A constant sigma then overrates the
   first flights' noise, which carry the growth rate, and underrates the last ones'.
 - ``h`` is a polynomial in severity (ascending coefficients ``c_0 + c_1 s + ...``) fitted by least
   squares on a design campaign's (severity, feature) pairs. It must be strictly monotone on its
