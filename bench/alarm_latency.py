@@ -34,11 +34,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from server.auth import create_key  # noqa: E402
+from server.campaigns import train_from_directory  # noqa: E402
 from server.config import Settings  # noqa: E402
 from server.db import make_engine, make_session_factory, session_scope  # noqa: E402
 from server.flightlog import write_parquet  # noqa: E402
 from server.migrate import upgrade  # noqa: E402
-from server.campaigns import train_from_directory  # noqa: E402
 from server.services import models as model_service  # noqa: E402
 from sim_worker import build_aircraft, healthy, new_fault, simulate_flight  # noqa: E402
 

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import asyncio
+
 from fastapi import FastAPI
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from server.api import (
     actuators,
     aircraft,
+    docs,
     flights,
     health,
     health_records,
@@ -16,10 +19,11 @@ from server.api import (
     models_api,
     test_station,
 )
+from server.api.openapi import document_errors
 from server.blobstore import BlobStore
 from server.config import Settings
 from server.db import make_engine, make_session_factory
-from server.errors import PayloadTooLarge, install_error_handlers
+from server.errors import BodyOverLimit, BodyTimeout, install_error_handlers
 from server.migrate import ensure_schema
 
 __all__ = ["create_app"]
@@ -61,15 +65,45 @@ class BodyLimitMiddleware:
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
                 if seen > self.max_bytes:
-                    raise PayloadTooLarge(f"The request body exceeds {self.max_bytes} bytes.",
-                                          details={"limit_bytes": self.max_bytes})
+                    raise BodyOverLimit(self.max_bytes)
             return message
 
         await self.app(scope, limited_receive, send)
 
 
+class BodyIdleTimeoutMiddleware:
+    """Cut a request whose body stalls for ``idle_s`` (408): uvicorn waits for a slow body
+    forever. Only while the body is incomplete: a finished request's ``receive`` (which waits
+    for the disconnect, e.g. under the event stream) is left alone."""
+
+    def __init__(self, app: ASGIApp, idle_s: float):
+        self.app = app
+        self.idle_s = idle_s
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        body_complete = False
+
+        async def paced_receive() -> Message:
+            nonlocal body_complete
+            if body_complete:
+                return await receive()
+            try:
+                message = await asyncio.wait_for(receive(), self.idle_s)
+            except TimeoutError:
+                raise BodyTimeout(self.idle_s) from None
+            if message["type"] != "http.request" or not message.get("more_body", False):
+                body_complete = True
+            return message
+
+        await self.app(scope, paced_receive, send)
+
+
 class SecurityHeadersMiddleware:
-    """Conservative headers on every response; the dashboard's CSP allows only our own origin."""
+    """Conservative headers on every response; the CSP allows only our own origin, on the
+    dashboard and the API documentation pages alike (their assets are served by us)."""
 
     HEADERS = [
         (b"x-content-type-options", b"nosniff"),
@@ -87,13 +121,11 @@ class SecurityHeadersMiddleware:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        path = scope.get("path", "")
 
         async def send_with_headers(message: Message) -> None:
             if message["type"] == "http.response.start":
                 present = {k.lower() for k, _ in message.get("headers", [])}
-                extra = [(k, v) for k, v in self.HEADERS if k not in present
-                         and not (k == b"content-security-policy" and path.startswith("/docs"))]
+                extra = [(k, v) for k, v in self.HEADERS if k not in present]
                 message["headers"] = list(message.get("headers", [])) + extra
             await send(message)
 
@@ -108,15 +140,19 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
                   auto_upgrade=settings.is_sqlite if auto_upgrade is None else auto_upgrade)
     blobs = BlobStore(settings.blob_dir, settings.tmp_dir)
     blobs.ensure_dirs()
+    blobs.sweep_tmp()  # uploads of a process that was killed mid-way
 
+    # /docs, /redoc and /openapi.json are server.api.docs's routes: local assets, a key needed
     app = FastAPI(title="EMA Health Management System (HMSM)", version="1",
                   description="Flight-log ingest, fault detection, classification and RUL "
-                  "prognosis for electromechanical flight-control actuators.")
+                  "prognosis for electromechanical flight-control actuators.",
+                  docs_url=None, redoc_url=None, openapi_url=None)
     app.state.settings = settings
     app.state.engine = engine
     app.state.session_factory = make_session_factory(engine)
     app.state.blobs = blobs
     install_error_handlers(app)
+    document_errors(app)
     for module in (health, aircraft, actuators, health_records, flights, jobs, models_api,
                    keys, test_station):
         app.include_router(module.router, prefix=API_PREFIX)
@@ -127,8 +163,12 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
 
     app.include_router(web_events.router, prefix=API_PREFIX)
     app.include_router(web_routes.router)  # dashboard pages; "/" redirects to /fleet
+    app.include_router(docs.router)
     app.mount("/static", StaticFiles(directory=web_routes.STATIC_DIR), name="static")
+    app.mount(docs.DOCS_ASSETS_URL, StaticFiles(directory=docs.DOCS_ASSETS_DIR),
+              name="docs-assets")
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
+    app.add_middleware(BodyIdleTimeoutMiddleware, idle_s=settings.body_idle_timeout_s)
     app.add_middleware(SecurityHeadersMiddleware)
 
     return app

@@ -1,12 +1,19 @@
-"""API keys: creation, hashing, authentication and the role rules.
+"""API keys: creation, hashing, authentication, the role rules and the session cookie's
+CSRF rule.
 
 Keys are 32 random bytes (``secrets.token_urlsafe``) shown once; only their SHA-256 is stored.
 A slow password hash is not needed for 256-bit random secrets: nobody can brute-force them.
+
+A write authenticated by the dashboard's session cookie (a form post, or the API called with
+the cookie instead of a Bearer key) must carry the session's CSRF token and, when the browser
+names an ``Origin``, come from our own (:func:`session_write_refusal`). Browsers send a
+``SameSite=Strict`` cookie to every port of the same host, so the cookie alone proves nothing.
 """
 
 from __future__ import annotations
 
 import hashlib
+import hmac
 import secrets
 
 from sqlalchemy import select
@@ -16,9 +23,14 @@ from server.errors import NotFound
 from server.models import ROLES, ApiKey, utcnow
 
 __all__ = ["KEY_PREFIX", "hash_key", "create_key", "authenticate", "revoke_key", "ALLOWED",
-           "may"]
+           "may", "SESSION_COOKIE", "CSRF_HEADER", "SAFE_METHODS", "csrf_token",
+           "session_write_refusal"]
 
 KEY_PREFIX = "hmsm_"
+SESSION_COOKIE = "hmsm_session"
+#: the header that carries the CSRF token on API writes authenticated by the session cookie
+CSRF_HEADER = "X-CSRF-Token"
+SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 
 # Which roles may do what. Reads: everyone with a key.
 ALLOWED: dict[str, frozenset[str]] = {
@@ -67,3 +79,22 @@ def revoke_key(*, session: Session, key_id: int) -> ApiKey:
     if row.revoked_at is None:
         row.revoked_at = utcnow()
     return row
+
+
+def csrf_token(session_cookie: str) -> str:
+    """HMAC-SHA256 of a fixed label keyed by the cookie value: stateless, bound to the session,
+    and not computable by a page that cannot read the HttpOnly cookie."""
+    return hmac.new(session_cookie.encode(), b"hmsm-dashboard-csrf", hashlib.sha256).hexdigest()
+
+
+def session_write_refusal(*, session_cookie: str, presented_token: str | None,
+                          origin: str | None, own_origin: str) -> str | None:
+    """Why a write authenticated by the session cookie is refused (``cross_origin``,
+    ``csrf_mismatch``), or None. ``Origin: null`` (sent on form posts under
+    ``Referrer-Policy: no-referrer``) proves nothing either way: the token decides."""
+    if origin is not None and origin != "null" and origin != own_origin:
+        return "cross_origin"
+    expected = csrf_token(session_cookie).encode()
+    if not presented_token or not hmac.compare_digest(presented_token.encode(), expected):
+        return "csrf_mismatch"
+    return None

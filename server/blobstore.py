@@ -2,7 +2,8 @@
 
 A blob is streamed to a temporary file in ``<data_dir>/tmp`` (same filesystem), fsynced, then
 renamed into place, so a reader never sees a half-written blob and a crash leaves only a
-temporary file. The path is derived from the SHA-256 alone: no client string reaches the path.
+temporary file, which :meth:`BlobStore.sweep_tmp` removes at the next start. The path is
+derived from the SHA-256 alone: no client string reaches the path.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import time
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +19,8 @@ from pathlib import Path
 __all__ = ["BlobStore", "SpooledUpload", "BlobTooLarge"]
 
 _HEX = set("0123456789abcdef")
+#: temporary files older than this at start-up belong to no live upload (one spools in seconds)
+TMP_MAX_AGE_S = 10 * 60
 
 
 class BlobTooLarge(Exception):
@@ -46,6 +50,20 @@ class BlobStore:
     def ensure_dirs(self) -> None:
         self.root.mkdir(parents=True, exist_ok=True)
         self.tmp_dir.mkdir(parents=True, exist_ok=True)
+
+    def sweep_tmp(self, *, max_age_s: float = TMP_MAX_AGE_S) -> int:
+        """Remove temporary files older than ``max_age_s`` (left by a killed process); return
+        how many. Younger ones may be another API process's uploads in flight: kept."""
+        cutoff = time.time() - max_age_s
+        removed = 0
+        for path in self.tmp_dir.glob("upload-*"):
+            try:
+                if path.is_file() and path.stat().st_mtime < cutoff:
+                    path.unlink()
+                    removed += 1
+            except FileNotFoundError:  # its upload finished or another sweep took it
+                continue
+        return removed
 
     def relative_path(self, sha256: str) -> str:
         if len(sha256) != 64 or not set(sha256) <= _HEX:
@@ -78,9 +96,10 @@ class BlobStore:
         """Move a spooled upload into place atomically; return its relative blob path."""
         rel = self.relative_path(upload.sha256)
         final = self.root / rel
-        if final.exists():
+        if final.exists() and _sha256_of(final) == upload.sha256:
             upload.discard()
             return rel
+        # new bytes, or a stored copy damaged on disk: the upload's own copy takes its place
         final.parent.mkdir(parents=True, exist_ok=True)
         with open(upload.path, "rb") as fh:
             os.fsync(fh.fileno())
@@ -97,3 +116,11 @@ class BlobStore:
         if self.root.resolve() not in path.parents:
             raise ValueError("blob path outside the store")
         return path.read_bytes()
+
+
+def _sha256_of(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while chunk := fh.read(1 << 20):
+            digest.update(chunk)
+    return digest.hexdigest()

@@ -70,7 +70,8 @@ def cmd_serve(args: argparse.Namespace, settings: Settings) -> int:
     app = create_app(settings)
     host = args.host or settings.host
     port = args.port if args.port is not None else settings.port
-    uvicorn.run(app, host=host, port=port, log_level=args.log_level)
+    uvicorn.run(app, host=host, port=port, log_level=args.log_level,
+                **settings.server_options())
     return 0
 
 

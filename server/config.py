@@ -6,12 +6,18 @@ and the app factory takes the settings object it is given.
 
 from __future__ import annotations
 
+from dataclasses import fields
 from pathlib import Path
+from typing import Any
 
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from server.flightlog import DecodeLimits
+
 __all__ = ["Settings", "load_settings"]
+
+_DECODE = DecodeLimits()
 
 
 class Settings(BaseSettings):
@@ -27,6 +33,35 @@ class Settings(BaseSettings):
     host: str = Field("127.0.0.1", description="Bind address of `hmsm serve`.")
     port: int = Field(8000, ge=0, le=65535, description="TCP port of `hmsm serve`.")
     signals_max_points: int = Field(5000, gt=10, description="Cap on points per plotted channel.")
+    # What a decoder may build from an upload (server.flightlog.DecodeLimits, which gives the
+    # defaults and why; docs/SECURITY.md, "Hostile uploads")
+    max_decompressed_bytes: int = Field(_DECODE.max_decompressed_bytes, gt=0, description=(
+        "Largest gzip CSV text after decompression [B]."))
+    max_samples_per_channel: int = Field(_DECODE.max_samples_per_channel, gt=0, description=(
+        "Most samples per channel of one flight log (default 12 h at 800 Hz)."))
+    max_decoded_bytes: int = Field(_DECODE.max_decoded_bytes, gt=0, description=(
+        "Largest size of a flight log's channels once decoded [B]."))
+    max_columns: int = Field(_DECODE.max_columns, gt=0, description=(
+        "Most columns (CSV, Parquet) or variables (MAT) of one flight log."))
+    max_line_chars: int = Field(_DECODE.max_line_chars, gt=0, description=(
+        "Longest CSV line, header or row [characters]."))
+    max_footer_bytes: int = Field(_DECODE.max_footer_bytes, gt=0, description=(
+        "Largest Parquet footer (schema, row groups, key-value metadata) [B]."))
+    max_metadata_chars: int = Field(_DECODE.max_metadata_chars, gt=0, description=(
+        "Longest flight metadata value (form field, Parquet or MAT metadata) [characters]."))
+    max_json_depth: int = Field(_DECODE.max_json_depth, gt=0, description=(
+        "Deepest JSON nesting of actuator_serials."))
+    max_reason_chars: int = Field(_DECODE.max_reason_chars, ge=256, description=(
+        "Largest rejection reason stored and echoed, as JSON [characters]."))
+    max_reasons: int = Field(_DECODE.max_reasons, ge=2, description=(
+        "Most rejection reasons stored and echoed per flight."))
+    keep_alive_s: int = Field(5, ge=1, le=300, description=(
+        "`hmsm serve` closes a keep-alive connection idle this long [s]."))
+    max_connections: int = Field(200, ge=8, description=(
+        "`hmsm serve` answers 503 beyond this many open connections or requests, which bounds "
+        "what slow clients can hold (uvicorn has no header timeout)."))
+    body_idle_timeout_s: float = Field(30.0, gt=0, le=3600, description=(
+        "A request body that sends nothing for this long is cut with 408 [s]."))
 
     @field_validator("data_dir")
     @classmethod
@@ -46,6 +81,17 @@ class Settings(BaseSettings):
     @property
     def is_sqlite(self) -> bool:
         return self.effective_database_url.startswith("sqlite")
+
+    @property
+    def decode_limits(self) -> DecodeLimits:
+        """The flight-log readers' limits from these settings."""
+        return DecodeLimits(**{f.name: getattr(self, f.name) for f in fields(DecodeLimits)})
+
+    def server_options(self) -> dict[str, Any]:
+        """uvicorn's limits for `hmsm serve` (and the demo)."""
+        return {"timeout_keep_alive": self.keep_alive_s,
+                "limit_concurrency": self.max_connections,
+                "h11_max_incomplete_event_size": 16 * 1024}  # request line + headers [B]
 
     @property
     def blob_dir(self) -> Path:

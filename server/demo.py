@@ -155,7 +155,8 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
 
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        uvicorn.run(app, host=host, port=port, log_level=log_level)
+        uvicorn.run(app, host=host, port=port, log_level=log_level,
+                    **settings.server_options())
     finally:
         stop_children()
         time.sleep(0.1)

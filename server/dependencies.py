@@ -1,5 +1,6 @@
 """Request dependencies shared by the API routers and the dashboard routes: the settings,
-the blob store and one database session per request (rolled back unless committed)."""
+the blob store, one database session per request (rolled back unless committed), and the
+request's own origin (what a browser's ``Origin`` header must equal)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from sqlalchemy.orm import Session
 from server.blobstore import BlobStore
 from server.config import Settings
 
-__all__ = ["SessionDep", "SettingsDep", "BlobsDep", "get_settings", "get_blobs", "get_session"]
+__all__ = ["SessionDep", "SettingsDep", "BlobsDep", "get_settings", "get_blobs", "get_session",
+           "own_origin"]
 
 
 def get_settings(request: Request) -> Settings:
@@ -30,6 +32,10 @@ def get_session(request: Request) -> Iterator[Session]:
     finally:
         session.rollback()
         session.close()
+
+
+def own_origin(request: Request) -> str:
+    return f"{request.url.scheme}://{request.url.netloc}"
 
 
 SettingsDep = Annotated[Settings, Depends(get_settings)]

@@ -25,6 +25,8 @@ __all__ = [
     "BadRequest",
     "ServiceUnavailable",
     "StorageUnavailable",
+    "BodyOverLimit",
+    "BodyTimeout",
     "error_body",
     "install_error_handlers",
 ]
@@ -85,13 +87,34 @@ class StorageUnavailable(DomainError):
     status_code, code = 507, "storage_unavailable"
 
 
+class BodyOverLimit(StarletteHTTPException):
+    """The request body went over the limit while it was being read. An HTTPException rather
+    than a :class:`DomainError` because FastAPI re-raises only those from its JSON body reader
+    (any other exception there becomes a 400)."""
+
+    def __init__(self, limit_bytes: int):
+        super().__init__(413, f"The request body exceeds {limit_bytes} bytes.",
+                         headers={"Connection": "close"})
+        self.details = {"limit_bytes": limit_bytes}
+
+
+class BodyTimeout(StarletteHTTPException):
+    """The client sent none of the rest of its request body for too long (a slow client)."""
+
+    def __init__(self, idle_s: float):
+        super().__init__(408, f"No request body data arrived for {idle_s:g} s.",
+                         headers={"Connection": "close"})
+        self.details = {"idle_timeout_s": idle_s}
+
+
 def error_body(code: str, message: str, details: dict[str, Any] | None = None) -> dict[str, Any]:
     return {"error": {"code": code, "message": message, "details": details or {}}}
 
 
 _HTTP_CODES = {400: "bad_request", 401: "unauthorized", 403: "forbidden", 404: "not_found",
-               405: "method_not_allowed", 409: "conflict", 413: "payload_too_large",
-               415: "unsupported_media_type", 422: "validation_error", 503: "service_unavailable"}
+               405: "method_not_allowed", 408: "request_timeout", 409: "conflict",
+               413: "payload_too_large", 415: "unsupported_media_type", 422: "validation_error",
+               503: "service_unavailable"}
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -103,8 +126,8 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
         code = _HTTP_CODES.get(exc.status_code, "http_error")
-        return JSONResponse(error_body(code, str(exc.detail)), status_code=exc.status_code,
-                            headers=getattr(exc, "headers", None))
+        return JSONResponse(error_body(code, str(exc.detail), getattr(exc, "details", None)),
+                            status_code=exc.status_code, headers=getattr(exc, "headers", None))
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
@@ -124,6 +147,14 @@ def install_error_handlers(app: FastAPI) -> None:
         # e.g. an id path/query parameter beyond 64 bits reaching the SQLite driver
         return JSONResponse(error_body("validation_error", "A number in the request is out of "
                                        "range.", {"error": str(exc)[:200]}), status_code=422)
+
+    @app.exception_handler(MemoryError)
+    async def _out_of_memory(request: Request, exc: MemoryError) -> JSONResponse:
+        # also pyarrow's ArrowMemoryError: the server's state, never a defect of the request
+        log.error("out of memory on %s %s", request.method, request.url.path)
+        return JSONResponse(error_body("insufficient_memory", "The server has not enough memory "
+                                       "for this request now; nothing was registered. Try again "
+                                       "later."), status_code=503, headers={"Retry-After": "30"})
 
     @app.exception_handler(DBAPIError)
     async def _db_error(_: Request, exc: DBAPIError) -> JSONResponse:

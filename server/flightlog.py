@@ -21,10 +21,15 @@ from __future__ import annotations
 
 import gzip
 import io
+import itertools
 import json
 import math
 import os
-from collections.abc import Mapping
+import re
+import struct
+import warnings
+import zlib
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any
@@ -40,8 +45,13 @@ __all__ = [
     "REQUIRED_CHANNELS",
     "OPTIONAL_CHANNELS",
     "METADATA_FIELDS",
+    "ID_PATTERN",
+    "MAX_ID_LEN",
+    "valid_id",
     "NOMINAL_SAMPLE_RATE_HZ",
     "PhysicalLimits",
+    "DecodeLimits",
+    "DEFAULT_DECODE_LIMITS",
     "Issue",
     "FlightLogError",
     "FlightMetadata",
@@ -49,11 +59,13 @@ __all__ = [
     "write_parquet",
     "read_parquet",
     "read_parquet_metadata",
+    "read_parquet_decimated",
     "read_csv",
     "read_mat",
     "read_flightlog",
     "parse_metadata",
     "check_coherence",
+    "bounded_reasons",
 ]
 
 FORMAT = "ema-flightlog/1"
@@ -77,7 +89,11 @@ _REQUIRED_METADATA = (
 _OPTIONAL_METADATA = ("source",)
 #: every metadata field of the format (Parquet key-value metadata, or upload form fields)
 METADATA_FIELDS: tuple[str, ...] = _REQUIRED_METADATA + _OPTIONAL_METADATA
-_MAX_ID_LEN = 64
+MAX_ID_LEN = 64
+#: tails, flight codes and serials: ASCII letters, digits, '.', '_', '-', not only dots ('..'
+#: would name a parent directory wherever an id becomes a path segment)
+ID_PATTERN = r"^[A-Za-z0-9._-]*[A-Za-z0-9_-][A-Za-z0-9._-]*$"
+_ID_RE = re.compile(ID_PATTERN)
 
 
 @dataclass(frozen=True)
@@ -110,6 +126,43 @@ class PhysicalLimits:
 
 DEFAULT_LIMITS = PhysicalLimits()
 
+_MIB = 1 << 20
+
+
+@dataclass(frozen=True)
+class DecodeLimits:
+    """What a reader may build from untrusted bytes (docs/SECURITY.md, "Hostile uploads").
+
+    Checked before decoding where the file states its size (Parquet footer, MAT variable
+    headers, the CSV header line) and while decoding where it does not (gzip text, CSV lines).
+    Past a limit a reader raises :class:`FlightLogError` with a ``too_large`` issue naming the
+    limit (metadata past its limits is ``bad_metadata``); it never allocates beyond them. The
+    service takes every value from its settings (``HMSM_<FIELD NAME>``).
+    """
+
+    # gzip CSV text; 4x the 64 MiB upload limit, above the ~2.5:1 gzip reaches on decimal text
+    max_decompressed_bytes: int = 256 * _MIB
+    # a 12 h recording at 800 Hz; with the defaults max_decoded_bytes binds first (~44 min)
+    max_samples_per_channel: int = 12 * 3600 * 800
+    # every channel decoded (t float64, signals float32); 4x the upload limit, above the
+    # 3.3:1 zstd reaches on the simulator's 800 Hz signals
+    max_decoded_bytes: int = 256 * _MIB
+    max_columns: int = 64  # format v1 has at most 31 channels
+    max_line_chars: int = 4096  # one CSV line: 64 fields of up to 64 characters
+    max_footer_bytes: int = 1 * _MIB  # Parquet footer: schema, row groups, key-value metadata
+    max_metadata_chars: int = 1024  # per metadata value; the longest valid one is ~230
+    max_json_depth: int = 4  # nesting of actuator_serials, a flat object (depth 1)
+    max_reason_chars: int = 2048  # one stored or echoed reason, as JSON
+    max_reasons: int = 20
+
+    def max_rows(self, row_bytes: int) -> int:
+        """Most samples per channel a file may hold whose one sample of every channel takes
+        ``row_bytes`` decoded."""
+        return min(self.max_samples_per_channel, self.max_decoded_bytes // max(1, row_bytes))
+
+
+DEFAULT_DECODE_LIMITS = DecodeLimits()
+
 
 @dataclass(frozen=True)
 class Issue:
@@ -129,6 +182,67 @@ class FlightLogError(ValueError):
     def __init__(self, issues: list[Issue]):
         self.issues = issues
         super().__init__("; ".join(i.message for i in issues))
+
+    @property
+    def too_large(self) -> bool:
+        """The file was refused for its size (a :class:`DecodeLimits` limit), not its content."""
+        return any(i.code == "too_large" for i in self.issues)
+
+
+def _too_large(limit: str, maximum: int, found: int | None, what: str) -> FlightLogError:
+    """``what`` went past ``limit`` (a :class:`DecodeLimits` field); ``found`` None: unknown
+    beyond the limit (the reader stopped there)."""
+    amount = f"more than {maximum}" if found is None else f"{found}, more than {maximum}"
+    return FlightLogError([Issue("too_large", f"{what}: {amount} (limit {limit}).",
+                                 {"limit": limit, "maximum": maximum, "found": found})])
+
+
+_FEW_ITEMS, _SHORT_TEXT = 8, 120
+
+
+def bounded_reasons(reasons: Iterable[Mapping[str, Any]],
+                    limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> list[dict[str, Any]]:
+    """Reasons as they are stored and echoed: at most ``max_reasons``, each at most
+    ``max_reason_chars`` as JSON (long messages cut, long details shortened), so that no file
+    makes its own rejection large."""
+    items = list(reasons)
+    if len(items) <= limits.max_reasons:
+        return [_bounded_reason(r, limits.max_reason_chars) for r in items]
+    kept = [_bounded_reason(r, limits.max_reason_chars) for r in items[:limits.max_reasons - 1]]
+    left = len(items) - len(kept)
+    return kept + [{"code": "more_reasons", "message": f"{left} more reasons not shown.",
+                    "details": {"count": left}}]
+
+
+def _bounded_reason(reason: Mapping[str, Any], max_chars: int) -> dict[str, Any]:
+    code = str(reason.get("code", ""))[:64]
+    message = str(reason.get("message", ""))
+    if len(message) > max_chars // 2:
+        message = message[:max_chars // 2 - 3] + "..."
+    details = reason.get("details") or {}
+    room = max_chars - len(code) - len(message) - 64  # JSON keys and quotes
+    if _json_len(details) > room:
+        details = {**_shortened(details), "truncated": True}
+        if _json_len(details) > room:
+            details = {"truncated": True}
+    return {"code": code, "message": message, "details": details}
+
+
+def _json_len(value: Any) -> int:
+    return len(json.dumps(value, default=str))
+
+
+def _shortened(value: Any, depth: int = 0) -> Any:
+    if isinstance(value, str):
+        return value[:_SHORT_TEXT]
+    if depth >= 3:
+        return "..."
+    if isinstance(value, Mapping):
+        return {str(k)[:_SHORT_TEXT]: _shortened(v, depth + 1)
+                for k, v in list(value.items())[:_FEW_ITEMS]}
+    if isinstance(value, list | tuple):
+        return [_shortened(v, depth + 1) for v in value[:_FEW_ITEMS]]
+    return value
 
 
 @dataclass(frozen=True)
@@ -181,16 +295,19 @@ class FlightLog:
 # --------------------------------------------------------------------------------------------
 
 
-def _valid_id(value: str) -> bool:
-    return 0 < len(value) <= _MAX_ID_LEN and all(c.isalnum() or c in "-_." for c in value)
+def valid_id(value: str) -> bool:
+    return len(value) <= MAX_ID_LEN and _ID_RE.fullmatch(value) is not None
 
 
-def parse_metadata(raw: Mapping[str, Any]) -> FlightMetadata:
+def parse_metadata(raw: Mapping[str, Any],
+                   limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightMetadata:
     """Validate raw string metadata into :class:`FlightMetadata`.
 
     Raises :class:`FlightLogError` with ``unknown_format``, ``missing_metadata`` or
-    ``bad_metadata`` issues.
+    ``bad_metadata`` issues. Values longer than ``limits.max_metadata_chars`` are refused before
+    any is parsed or quoted in a message.
     """
+    _check_metadata_lengths(raw, limits)
     issues: list[Issue] = []
     fmt = raw.get("format")
     if fmt is None:
@@ -209,8 +326,8 @@ def parse_metadata(raw: Mapping[str, Any]) -> FlightMetadata:
     bad: dict[str, str] = {}
     aircraft, flight = str(raw["aircraft"]), str(raw["flight"])
     for key, value in (("aircraft", aircraft), ("flight", flight)):
-        if not _valid_id(value):
-            bad[key] = "1-64 characters among letters, digits, '-', '_' and '.'"
+        if not valid_id(value):
+            bad[key] = "1-64 ASCII letters, digits, '-', '_' and '.', not only dots"
     started_at = None
     try:
         started_at = datetime.fromisoformat(str(raw["started_at"]).replace("Z", "+00:00"))
@@ -230,11 +347,11 @@ def parse_metadata(raw: Mapping[str, Any]) -> FlightMetadata:
     try:
         parsed = raw["actuator_serials"]
         if isinstance(parsed, str):
-            parsed = json.loads(parsed)
+            parsed = _shallow_json(parsed, limits.max_json_depth)
         if not isinstance(parsed, dict) or set(parsed) != set(POSITIONS):
             raise ValueError
         serials = {str(k): str(v) for k, v in parsed.items()}
-        if not all(_valid_id(v) for v in serials.values()):
+        if not all(valid_id(v) for v in serials.values()):
             raise ValueError
     except (TypeError, ValueError):
         bad["actuator_serials"] = 'a JSON object {"WL1": serial, "WL2": serial, "WT": serial}'
@@ -255,6 +372,53 @@ def parse_metadata(raw: Mapping[str, Any]) -> FlightMetadata:
         actuator_serials=serials,
         source=None if source is None else str(source),
     )
+
+
+def _check_metadata_lengths(raw: Mapping[str, Any], limits: DecodeLimits) -> None:
+    lengths = {k: len(str(raw[k])) for k in METADATA_FIELDS if raw.get(k) is not None}
+    long = {k: n for k, n in lengths.items() if n > limits.max_metadata_chars}
+    if long:
+        raise _long_metadata(long, limits)
+
+
+def _long_metadata(lengths: dict[str, int], limits: DecodeLimits) -> FlightLogError:
+    at_most = f"at most {limits.max_metadata_chars} characters"
+    return FlightLogError([Issue("bad_metadata", "Metadata values are too long: "
+                                 + ", ".join(f"{k} must be {at_most}" for k in lengths) + ".",
+                                 {"fields": {k: at_most for k in lengths}, "lengths": lengths,
+                                  "limit": "max_metadata_chars"})])
+
+
+def _shallow_json(text: str, max_depth: int) -> Any:
+    """``json.loads`` of a document nested at most ``max_depth`` deep; ValueError otherwise,
+    found by a scan before parsing (deep nesting would exhaust the parser's recursion)."""
+    if _json_depth(text) > max_depth:
+        raise ValueError("nested too deep")
+    try:
+        return json.loads(text)
+    except RecursionError:  # a bound above the interpreter's recursion limit
+        raise ValueError("nested too deep") from None
+
+
+def _json_depth(text: str) -> int:
+    depth = deepest = 0
+    in_string = escaped = False
+    for ch in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif ch == "\\":
+                escaped = True
+            elif ch == '"':
+                in_string = False
+        elif ch == '"':
+            in_string = True
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
 
 
 # --------------------------------------------------------------------------------------------
@@ -299,31 +463,145 @@ def _parquet_dtype_issues(schema: Any) -> list[Issue]:
                   "signals float32): " + ", ".join(sorted(wrong)[:6]) + ".", {"columns": wrong})]
 
 
-def read_parquet(data: bytes) -> FlightLog:
-    """Decode Parquet bytes; raise :class:`FlightLogError` on anything that is not format v1."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+def read_parquet(data: bytes, limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightLog:
+    """Decode Parquet bytes; raise :class:`FlightLogError` on anything that is not format v1.
 
-    try:
-        table = pq.read_table(io.BytesIO(data))
-    except (pa.ArrowException, OSError, ValueError) as exc:
-        raise FlightLogError([Issue("unreadable", "The file is not readable Parquet (truncated or "
-                                    "corrupt).", {"error": str(exc)[:300]})]) from None
-    raw_meta = {k.decode(errors="replace"): v.decode(errors="replace")
-                for k, v in (table.schema.metadata or {}).items()}
-    metadata = parse_metadata(raw_meta)
-    issues = _channel_set_issues(table.column_names) + _parquet_dtype_issues(table.schema)
+    Sizes, metadata and schema come from the footer and are checked before any column is read;
+    columns are then read one at a time. A memory failure is raised as MemoryError, never
+    reported as a defect of the file.
+    """
+    import pyarrow as pa
+
+    pf = _open_parquet(data, limits)
+    schema = pf.schema_arrow
+    metadata = parse_metadata(_footer_metadata(schema.metadata), limits)
+    issues = _channel_set_issues(schema.names) + _parquet_dtype_issues(schema)
     if issues:
         raise FlightLogError(issues)
     try:
-        channels = {name: table.column(name).to_numpy() for name in table.column_names}
-    except (pa.ArrowException, ValueError) as exc:  # e.g. nulls in a column
-        raise FlightLogError([Issue("non_finite", "A column holds missing (null) values.",
-                                    {"error": str(exc)[:300]})]) from None
+        channels = {name: pf.read(columns=[name]).column(0).to_numpy() for name in schema.names}
+    except MemoryError:
+        raise
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise FlightLogError([Issue("unreadable", "A column of the Parquet file cannot be decoded "
+                                    "(truncated or corrupt data).", {"error": str(exc)[:300]})
+                              ]) from None
     return FlightLog(metadata=metadata, channels=channels)
 
 
-def read_parquet_metadata(path: str | os.PathLike[str]) -> FlightMetadata | None:
+def read_parquet_decimated(data: bytes, channels: Sequence[str] | None, max_points: int,
+                           limits: DecodeLimits = DEFAULT_DECODE_LIMITS
+                           ) -> tuple[int, dict[str, np.ndarray]]:
+    """``(step, arrays)``: every ``step``-th sample of ``t`` and of ``channels`` (default: every
+    signal channel of the file) so that at most ``max_points`` remain. Read batch by batch, so
+    memory grows with a batch and the result, not with the flight. Channels the file does not
+    hold are an ``unknown_channel`` issue."""
+    import pyarrow as pa
+
+    pf = _open_parquet(data, limits)
+    present = pf.schema_arrow.names
+    names = list(channels) if channels else [c for c in _SIGNAL_ORDER if c in present]
+    unknown = [c for c in names if c not in present]
+    if unknown:
+        raise FlightLogError([Issue("unknown_channel", "Channel(s) not in this flight: "
+                                    + ", ".join(unknown[:6]) + ".", {"channels": unknown})])
+    step = max(1, math.ceil(_parquet_rows(pf.metadata) / max_points))
+    kept: dict[str, list[np.ndarray]] = {name: [] for name in ["t", *names]}
+    seen = 0
+    try:
+        # one thread: arrow's pool would decode (and hold) every column of a row group at once
+        for batch in pf.iter_batches(batch_size=_BATCH_ROWS, columns=list(kept),
+                                     use_threads=False):
+            first = -seen % step
+            for name, parts in kept.items():
+                values = batch.column(name).to_numpy(zero_copy_only=False)
+                parts.append(values[first::step].copy())  # a view would keep the batch alive
+            seen += batch.num_rows
+    except MemoryError:
+        raise
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise FlightLogError([Issue("unreadable", "A column of the Parquet file cannot be decoded "
+                                    "(truncated or corrupt data).", {"error": str(exc)[:300]})
+                              ]) from None
+    return step, {name: np.concatenate(parts) if parts else np.empty(0)
+                  for name, parts in kept.items()}
+
+
+_SIGNAL_ORDER = REQUIRED_CHANNELS[1:] + OPTIONAL_CHANNELS
+_BATCH_ROWS = 1 << 16
+_PARQUET_MAGIC = b"PAR1"
+
+
+def _open_parquet(data: bytes, limits: DecodeLimits) -> Any:
+    """A ``pyarrow.parquet.ParquetFile`` whose footer is within the limits: footer size, number
+    of columns, samples and decoded bytes (rows times the declared width of every column)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    footer = _parquet_footer_bytes(data)
+    if footer > limits.max_footer_bytes:
+        raise _too_large("max_footer_bytes", limits.max_footer_bytes, footer,
+                         "Bytes of the Parquet footer (schema and metadata)")
+    try:
+        pf = pq.ParquetFile(io.BytesIO(data))
+        schema = pf.schema_arrow
+    except MemoryError:
+        raise
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise _unreadable_parquet(str(exc)) from None
+    footer_meta = pf.metadata
+    if footer_meta.num_columns > limits.max_columns:
+        raise _too_large("max_columns", limits.max_columns, footer_meta.num_columns, "Columns")
+    _check_rows(_parquet_rows(footer_meta), sum(_bytes_per_value(f.type) for f in schema),
+                limits)
+    return pf
+
+
+def _parquet_rows(footer_meta: Any) -> int:
+    """Rows of the file: its own count and its row groups' are stated apart (a footer may lie
+    in one) and the reader goes by the groups, so the larger."""
+    groups = sum(footer_meta.row_group(i).num_rows for i in range(footer_meta.num_row_groups))
+    return max(footer_meta.num_rows, groups)
+
+
+def _parquet_footer_bytes(data: bytes) -> int:
+    """The footer length stated by the file's last 8 bytes (length, then the magic)."""
+    if len(data) < 12 or data[:4] != _PARQUET_MAGIC or data[-4:] != _PARQUET_MAGIC:
+        raise _unreadable_parquet("no Parquet magic bytes at both ends")
+    return int.from_bytes(data[-8:-4], "little")
+
+
+def _unreadable_parquet(error: str) -> FlightLogError:
+    return FlightLogError([Issue("unreadable", "The file is not readable Parquet (truncated or "
+                                 "corrupt).", {"error": error[:300]})])
+
+
+def _bytes_per_value(dtype: Any) -> int:
+    try:
+        return max(1, dtype.bit_width // 8)
+    except ValueError:  # variable width (strings, lists): costed as a float64
+        return 8
+
+
+def _check_rows(rows: int, row_bytes: int, limits: DecodeLimits) -> None:
+    """Refuse ``rows`` samples per channel of ``row_bytes`` decoded per sample of all channels."""
+    if rows > limits.max_samples_per_channel:
+        raise _too_large("max_samples_per_channel", limits.max_samples_per_channel, rows,
+                         "Samples per channel")
+    if rows * row_bytes > limits.max_decoded_bytes:
+        raise _too_large("max_decoded_bytes", limits.max_decoded_bytes, rows * row_bytes,
+                         "Bytes of the decoded channels")
+
+
+def _footer_metadata(raw: Mapping[bytes, bytes] | None) -> dict[str, str]:
+    """The format's fields of the key-value metadata (others, like the stored Arrow schema,
+    are not decoded)."""
+    wanted = {k.encode(): k for k in METADATA_FIELDS}
+    return {wanted[k]: v.decode(errors="replace") for k, v in (raw or {}).items() if k in wanted}
+
+
+def read_parquet_metadata(path: str | os.PathLike[str],
+                          limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightMetadata | None:
     """The metadata of a flight-log Parquet file, read from its footer only and validated as
     an upload's are (:func:`parse_metadata`); None for a file without metadata."""
     import pyarrow.parquet as pq
@@ -331,8 +609,7 @@ def read_parquet_metadata(path: str | os.PathLike[str]) -> FlightMetadata | None
     raw = pq.read_schema(path).metadata or {}
     if not raw:
         return None
-    return parse_metadata({k.decode(errors="replace"): v.decode(errors="replace")
-                           for k, v in raw.items()})
+    return parse_metadata(_footer_metadata(raw), limits)
 
 
 # --------------------------------------------------------------------------------------------
@@ -363,45 +640,149 @@ def _canonical(columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
             columns.items()}
 
 
-def read_csv(data: bytes, metadata: Mapping[str, Any]) -> FlightLog:
-    """Decode CSV (gzip detected by its magic bytes) with a header row of channel names."""
-    meta = parse_metadata(metadata)
+def read_csv(data: bytes, metadata: Mapping[str, Any],
+             limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightLog:
+    """Decode CSV (gzip detected by its magic bytes) with a header row of channel names.
+
+    The text is streamed, never held whole: one pass counts and measures its lines (refusing
+    past the decompressed-bytes, line-length or row limits before a number is parsed), a second
+    parses it block by block into arrays of the canonical types.
+    """
+    meta = parse_metadata(metadata, limits)
     try:
-        if data[:2] == b"\x1f\x8b":
-            data = gzip.decompress(data)
-        text = data.decode("utf-8")
-    except (OSError, EOFError, UnicodeDecodeError, gzip.BadGzipFile) as exc:
+        names = _csv_header(_csv_bytes(data), limits)
+        issues = _channel_set_issues(names)
+        if issues:
+            raise FlightLogError(issues)
+        lines, returns = _scan_csv(_csv_bytes(data), limits)
+        row_bytes = sum(8 if n == "t" else 4 for n in names)
+        _check_rows(max(lines, returns) - 1, row_bytes, limits)  # below the header
+        # universal newlines: a text never has more lines than LF + CR + 1
+        capacity = min(limits.max_rows(row_bytes), lines + returns)
+        columns = _parse_csv(_csv_bytes(data), names, capacity, limits)
+    except (OSError, EOFError, zlib.error, UnicodeDecodeError) as exc:
         raise FlightLogError([Issue("unreadable", "The CSV file is not readable text (bad gzip "
                                     "or encoding).", {"error": str(exc)[:300]})]) from None
-    header, _, body = text.partition("\n")
-    names = [h.strip() for h in header.strip().split(",")]
-    issues = _channel_set_issues(names)
-    if issues:
-        raise FlightLogError(issues)
-    try:
-        values = np.loadtxt(io.StringIO(body), delimiter=",", dtype=np.float64, ndmin=2)
-    except ValueError as exc:
-        raise FlightLogError([Issue("unreadable", "The CSV body has rows that are not numbers or "
-                                    "have the wrong number of fields.", {"error": str(exc)[:300]})
-                              ]) from None
-    if values.shape[0] == 0 or values.shape[1] != len(names):
+    return FlightLog(meta, columns)
+
+
+_GZIP_MAGIC = b"\x1f\x8b"
+_CHUNK_BYTES = 1 << 20
+_CSV_BLOCK_ROWS = 4096
+_LF, _CR = 0x0A, 0x0D
+
+
+def _csv_bytes(data: bytes) -> io.BufferedIOBase:
+    """The CSV text as a binary stream, decompressed on the fly when gzip."""
+    raw = io.BytesIO(data)
+    return gzip.GzipFile(fileobj=raw, mode="rb") if data[:2] == _GZIP_MAGIC else raw
+
+
+def _csv_header(stream: io.BufferedIOBase, limits: DecodeLimits) -> list[str]:
+    line = stream.readline(limits.max_line_chars + 1)
+    if len(line) > limits.max_line_chars:
+        raise _too_large("max_line_chars", limits.max_line_chars, None,
+                         "Characters of the CSV header line")
+    names = [h.strip() for h in line.decode("utf-8").strip().split(",")]
+    if len(names) > limits.max_columns:
+        raise _too_large("max_columns", limits.max_columns, len(names), "Columns")
+    return names
+
+
+def _scan_csv(stream: io.BufferedIOBase, limits: DecodeLimits) -> tuple[int, int]:
+    """``(lines, carriage returns)`` of the text (lines ended by a line feed or the end), read
+    one chunk at a time; every line checked against ``max_line_chars`` and the whole against
+    ``max_decompressed_bytes``."""
+    total = line_feeds = returns = run = 0
+    while chunk := stream.read(_CHUNK_BYTES):
+        total += len(chunk)
+        if total > limits.max_decompressed_bytes:
+            raise _too_large("max_decompressed_bytes", limits.max_decompressed_bytes, None,
+                             "Bytes of CSV text (decompressed)")
+        octets = np.frombuffer(chunk, dtype=np.uint8)
+        ends = np.flatnonzero(octets == _LF)
+        run = _line_run(ends, len(chunk), run, limits)
+        line_feeds += int(ends.size)
+        returns += int(np.count_nonzero(octets == _CR))
+    return line_feeds + (run > 0), returns
+
+
+def _line_run(ends: np.ndarray, size: int, run: int, limits: DecodeLimits) -> int:
+    """Length of the unfinished last line after a chunk of ``size`` bytes with line feeds at
+    ``ends``, the previous chunk having left one of ``run``; refuse any line too long."""
+    if ends.size:
+        longest = max(run + int(ends[0]), int(np.diff(ends).max(initial=1)) - 1)
+        run = size - int(ends[-1]) - 1
+    else:
+        longest = run = run + size
+    if max(longest, run) > limits.max_line_chars:
+        raise _too_large("max_line_chars", limits.max_line_chars, None,
+                         "Characters of a CSV line")
+    return run
+
+
+def _parse_csv(stream: io.BufferedIOBase, names: list[str], capacity: int,
+               limits: DecodeLimits) -> dict[str, np.ndarray]:
+    """The rows below the header parsed block by block into preallocated canonical arrays
+    (t float64, signals float32): peak memory is the result plus one block."""
+    text = io.TextIOWrapper(stream, encoding="utf-8")
+    text.readline()  # the header, checked before
+    columns = {n: np.empty(capacity, dtype=np.float64 if n == "t" else np.float32)
+               for n in names}
+    filled = 0
+    while block := list(itertools.islice(text, _CSV_BLOCK_ROWS)):
+        values = _csv_block(block, len(names))
+        if filled + len(values) > capacity:  # only past max_rows: see the capacity
+            _check_rows(filled + len(values), sum(c.itemsize for c in columns.values()),
+                        limits)
+            raise AssertionError("more CSV lines than line ends")
+        for i, column in enumerate(columns.values()):
+            column[filled:filled + len(values)] = values[:, i]
+        filled += len(values)
+    if filled == 0:
         raise FlightLogError([Issue("unreadable", "The CSV file has no data rows.", {})])
-    return FlightLog(meta, _canonical({n: values[:, i] for i, n in enumerate(names)}))
+    for column in columns.values():
+        column.resize(filled, refcheck=False)  # in place: no second copy of the flight
+    return columns
 
 
-def read_mat(data: bytes, metadata: Mapping[str, Any]) -> FlightLog:
+def _csv_block(lines: list[str], n_columns: int) -> np.ndarray:
+    bad_rows = Issue("unreadable", "The CSV body has rows that are not numbers or have the "
+                     "wrong number of fields.", {})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # a block of blank lines holds no data
+        try:
+            values = np.loadtxt(lines, delimiter=",", dtype=np.float64, ndmin=2)
+        except ValueError as exc:
+            raise FlightLogError([Issue(bad_rows.code, bad_rows.message,
+                                        {"error": str(exc)[:300]})]) from None
+    if values.shape[0] and values.shape[1] != n_columns:
+        raise FlightLogError([bad_rows])
+    return values.reshape(-1, n_columns) if values.shape[0] else np.empty((0, n_columns))
+
+
+#: bytes per element of the numeric MATLAB classes (``scipy.io.whosmat`` names)
+_MAT_NUMERIC = {"double": 8, "single": 4, "int8": 1, "uint8": 1, "int16": 2, "uint16": 2,
+                "int32": 4, "uint32": 4, "int64": 8, "uint64": 8}
+
+
+def read_mat(data: bytes, metadata: Mapping[str, Any],
+             limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightLog:
     """Decode a MATLAB v5 file holding one numeric vector per channel.
 
     MATLAB identifiers cannot hold '.', so ``WL1.ia`` may also be stored as ``WL1_ia``.
-    Character variables named like metadata keys fill metadata the form did not give.
+    Character variables named like metadata keys fill metadata the form did not give. Every
+    variable's class and shape are checked from its header before anything is loaded.
     """
     import scipy.io
 
+    _check_mat_variables(_mat_variables(data, limits), limits)
     try:
         contents = scipy.io.loadmat(io.BytesIO(data), squeeze_me=True, chars_as_strings=True)
+    except MemoryError:
+        raise
     except Exception as exc:  # scipy raises many types on corrupt input
-        raise FlightLogError([Issue("unreadable", "The file is not a readable MATLAB v5 .mat "
-                                    "file.", {"error": str(exc)[:300]})]) from None
+        raise _unreadable_mat(str(exc)) from None
     contents = {k: v for k, v in contents.items() if not k.startswith("__")}
     merged_meta = dict(metadata)
     columns: dict[str, np.ndarray] = {}
@@ -418,7 +799,7 @@ def read_mat(data: bytes, metadata: Mapping[str, Any]) -> FlightLog:
             raise FlightLogError([Issue("wrong_dtype", f"Variable '{key}' is not numeric.",
                                         {"variable": key, "found": str(arr.dtype)})])
         columns[name] = arr.ravel()
-    meta = parse_metadata(merged_meta)
+    meta = parse_metadata(merged_meta, limits)
     issues = _channel_set_issues(list(columns))
     lengths = {v.shape[0] for v in columns.values()}
     if not issues and len(lengths) != 1:
@@ -429,15 +810,134 @@ def read_mat(data: bytes, metadata: Mapping[str, Any]) -> FlightLog:
     return FlightLog(meta, _canonical(columns))
 
 
-def read_flightlog(data: bytes, *, kind: str, metadata: Mapping[str, Any] | None = None
-                   ) -> FlightLog:
-    """Decode ``data`` of ``kind`` ``parquet`` | ``csv`` | ``mat``."""
+MatVariable = tuple[str, tuple[int, ...], str]  # name, shape, class as scipy.io.whosmat names it
+
+
+def _mat_variables(data: bytes, limits: DecodeLimits) -> list[MatVariable]:
+    """``(name, shape, class)`` of every variable, from the variable headers only.
+
+    Version 5 files are walked here, inflating a few hundred bytes of each compressed variable
+    (``scipy.io.whosmat`` inflates 128 KiB of compressed input per variable, which a file of
+    zeros turns into up to 135 MB); version 4 files, never compressed, by whosmat.
+    """
+    import scipy.io
+
+    try:
+        if 0 not in data[:4]:  # scipy's test: a version 4 file starts with a zero byte
+            return _mat5_variables(data, limits)
+        return list(scipy.io.whosmat(io.BytesIO(data)))
+    except (MemoryError, FlightLogError):
+        raise
+    except Exception as exc:  # scipy raises many types on corrupt input
+        raise _unreadable_mat(str(exc)) from None
+
+
+_MAT_CLASSES = {1: "cell", 2: "struct", 3: "object", 4: "char", 5: "sparse", 6: "double",
+                7: "single", 8: "int8", 9: "uint8", 10: "int16", 11: "uint16", 12: "int32",
+                13: "uint32", 14: "int64", 15: "uint64", 16: "function", 17: "opaque"}
+_MI_MATRIX, _MI_COMPRESSED = 14, 15
+_MAT_HEAD_BYTES = 512  # of a variable: its tag, array flags, dimensions and name
+
+
+def _mat5_variables(data: bytes, limits: DecodeLimits) -> list[MatVariable]:
+    order = {b"IM": "<", b"MI": ">"}.get(data[126:128])
+    if len(data) < 128 or order is None:
+        raise _unreadable_mat("no MATLAB 5 header")
+    if struct.unpack_from(order + "H", data, 124)[0] != 0x0100:
+        raise _unreadable_mat("not a version 5 file (version 7.3 is HDF5, not supported)")
+    view, at, found = memoryview(data), 128, []
+    while at + 8 <= len(data):
+        kind, size, body, after = _mat_tag(view, at, order)
+        if body + size > len(data):
+            raise _unreadable_mat("truncated variable")
+        if kind == _MI_COMPRESSED:
+            head, after = _inflated_head(view[body:body + size]), body + size
+        elif kind == _MI_MATRIX:
+            head = bytes(view[at:at + _MAT_HEAD_BYTES])
+        else:
+            raise _unreadable_mat(f"unexpected data element type {kind}")
+        found.append(_mat_matrix_header(head, order))
+        if len(found) > limits.max_columns:
+            raise _too_large("max_columns", limits.max_columns, None, "Variables")
+        at = after
+    return found
+
+
+def _mat_tag(buf: Any, at: int, order: str) -> tuple[int, int, int, int]:
+    """``(type, size, start of data, start of the next element)`` of the element at ``at``."""
+    (first,) = struct.unpack_from(order + "I", buf, at)
+    if first >> 16:  # small element: type and size in one word, data in the next
+        return first & 0xFFFF, first >> 16, at + 4, at + 8
+    kind, size = struct.unpack_from(order + "II", buf, at)
+    return kind, size, at + 8, at + 8 + size + (-size % 8)
+
+
+def _inflated_head(compressed: memoryview) -> bytes:
+    """The first :data:`_MAT_HEAD_BYTES` of a compressed element, inflating no more."""
+    inflater, head, fed = zlib.decompressobj(), b"", 0
+    while len(head) < _MAT_HEAD_BYTES and fed < len(compressed) and not inflater.eof:
+        head += inflater.decompress(compressed[fed:fed + 4096], _MAT_HEAD_BYTES - len(head))
+        fed += 4096
+    return head
+
+
+def _mat_matrix_header(head: bytes, order: str) -> MatVariable:
+    try:
+        kind, size, at, _ = _mat_tag(head, 0, order)
+        if kind != _MI_MATRIX or size == 0:
+            raise _unreadable_mat("a variable is not a matrix")
+        _, _, flags_at, at = _mat_tag(head, at, order)
+        (flags,) = struct.unpack_from(order + "I", head, flags_at)
+        _, dims_size, dims_at, at = _mat_tag(head, at, order)
+        shape = struct.unpack_from(order + f"{dims_size // 4}i", head, dims_at)
+        _, name_size, name_at, _ = _mat_tag(head, at, order)
+        name = head[name_at:name_at + name_size].decode("latin1")
+    except struct.error:
+        raise _unreadable_mat("a variable header is cut short") from None
+    if flags >> 11 & 1:
+        return name, shape, "complex"
+    return name, shape, "logical" if flags >> 9 & 1 else _MAT_CLASSES.get(flags & 0xFF, "unknown")
+
+
+def _unreadable_mat(error: str) -> FlightLogError:
+    return FlightLogError([Issue("unreadable", "The file is not a readable MATLAB v5 .mat file.",
+                                 {"error": error[:300]})])
+
+
+def _check_mat_variables(variables: list[tuple[str, tuple[int, ...], str]],
+                         limits: DecodeLimits) -> None:
+    """Refuse, before loading, too many variables, one too long, too many bytes in all, and
+    classes that are neither numeric nor text (cells, structs, sparse, objects)."""
+    if len(variables) > limits.max_columns:
+        raise _too_large("max_columns", limits.max_columns, len(variables), "Variables")
+    decoded = 0
+    for name, shape, mclass in variables:
+        size = math.prod(shape)
+        if mclass == "char" and name in METADATA_FIELDS:
+            if size > limits.max_metadata_chars:
+                raise _long_metadata({name: size}, limits)
+            continue
+        if mclass not in _MAT_NUMERIC:
+            raise FlightLogError([Issue("wrong_dtype", f"Variable '{name}' is not numeric.",
+                                        {"variable": name, "found": mclass})])
+        if size > limits.max_samples_per_channel:
+            raise _too_large("max_samples_per_channel", limits.max_samples_per_channel, size,
+                             f"Samples of variable '{name}'")
+        decoded += size * _MAT_NUMERIC[mclass]
+    if decoded > limits.max_decoded_bytes:
+        raise _too_large("max_decoded_bytes", limits.max_decoded_bytes, decoded,
+                         "Bytes of the decoded variables")
+
+
+def read_flightlog(data: bytes, *, kind: str, metadata: Mapping[str, Any] | None = None,
+                   limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightLog:
+    """Decode ``data`` of ``kind`` ``parquet`` | ``csv`` | ``mat`` within ``limits``."""
     if kind == "parquet":
-        return read_parquet(data)
+        return read_parquet(data, limits)
     if kind == "csv":
-        return read_csv(data, metadata or {})
+        return read_csv(data, metadata or {}, limits)
     if kind == "mat":
-        return read_mat(data, metadata or {})
+        return read_mat(data, metadata or {}, limits)
     raise ValueError(f"unknown kind {kind!r}")
 
 

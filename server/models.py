@@ -6,6 +6,8 @@ Times are timezone-aware UTC everywhere (SQLite keeps no zone, :class:`UTCDateTi
 
 from __future__ import annotations
 
+import hashlib
+import json
 from datetime import datetime, timezone
 from enum import StrEnum
 from typing import Any
@@ -41,6 +43,7 @@ __all__ = [
     "JOB_STATUSES",
     "ROLES",
     "utcnow",
+    "upload_key_of",
     "ModelVersion",
     "HealthRecord",
     "ActuatorState",
@@ -52,7 +55,7 @@ __all__ = [
     "FAULT_MODES",
 ]
 
-FLIGHT_STATUSES = ("received", "queued", "analyzing", "analyzed", "rejected")
+FLIGHT_STATUSES = ("received", "queued", "analyzing", "analyzed", "rejected", "failed")
 JOB_STATUSES = ("queued", "running", "done", "dead")
 ROLES = ("viewer", "uploader", "operator", "admin")
 
@@ -67,6 +70,22 @@ NAMING = {
 
 def utcnow() -> datetime:
     return datetime.now(timezone.utc)
+
+
+def upload_key_of(kind: str, sha256: str, outside_metadata: dict[str, str]) -> str:
+    """SHA-256 over a file's kind, its content hash and the metadata sent beside it (none for
+    Parquet, which carries its own): what makes two uploads the same one."""
+    text = json.dumps([kind, sha256, outside_metadata], sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _stored_upload_key(context: Any) -> str:
+    """A row written without its upload's key (seeds, tests) gets the one migration 0005 gives
+    existing rows: from what the row stores."""
+    row = context.get_current_parameters()
+    kind = row["content_kind"]
+    outside = {} if kind == "parquet" else dict(row.get("flight_metadata") or {})
+    return upload_key_of(kind, row["sha256"], outside)
 
 
 class UTCDateTime(TypeDecorator[datetime]):
@@ -140,7 +159,12 @@ class Actuator(Base):
 
 class Flight(Base):
     """One uploaded flight log. Rejected flights keep their bytes and reasons for forensics and
-    do not hold their (aircraft, flight) slot, so a corrected file can be sent again."""
+    hold neither their (aircraft, flight) slot nor their upload key, so the same or a corrected
+    file can be sent again and is evaluated afresh (a new row).
+
+    ``sha256`` is the content hash (blobs are content-addressed: several rows may share one);
+    ``upload_key`` is what makes two uploads the same one (``services.flights.upload_key``:
+    the bytes, their kind and, for CSV/MAT, the metadata sent beside them)."""
 
     __tablename__ = "flights"
     __table_args__ = (
@@ -148,6 +172,13 @@ class Flight(Base):
             "uq_flights_accepted_aircraft_flight",
             "aircraft_id",
             "flight_code",
+            unique=True,
+            sqlite_where=text("status <> 'rejected'"),
+            postgresql_where=text("status <> 'rejected'"),
+        ),
+        Index(
+            "uq_flights_accepted_upload_key",
+            "upload_key",
             unique=True,
             sqlite_where=text("status <> 'rejected'"),
             postgresql_where=text("status <> 'rejected'"),
@@ -161,7 +192,8 @@ class Flight(Base):
     flight_code: Mapped[str | None] = mapped_column(String(64))
     status: Mapped[str] = mapped_column(String(16), index=True)
     reasons: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list)
-    sha256: Mapped[str] = mapped_column(String(64), unique=True)
+    sha256: Mapped[str] = mapped_column(String(64), index=True)
+    upload_key: Mapped[str] = mapped_column(String(64), default=_stored_upload_key)
     size_bytes: Mapped[int] = mapped_column(BigInteger)
     blob_path: Mapped[str] = mapped_column(String(255))
     content_kind: Mapped[str] = mapped_column(String(16))

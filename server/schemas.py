@@ -1,4 +1,8 @@
-"""Request and response schemas of the REST API (pydantic); never the ORM rows themselves."""
+"""Request and response schemas of the REST API (pydantic); never the ORM rows themselves.
+
+Integers in request bodies are strict (``true`` is no count), floats finite (``Infinity`` has
+no JSON to read back as); ids follow the flight-log contract's rule (``ID_PATTERN``).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +11,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from server.flightlog import ID_PATTERN, MAX_ID_LEN
 from server.vocabulary import ABRUPT, FAULT_MODES, POSITIONS
 
 __all__ = [
@@ -25,11 +30,13 @@ __all__ = [
     "KeyRead",
     "KeyCreated",
     "Page",
+    "Identifier",
 ]
 
 Position = Literal[POSITIONS]  # type: ignore[valid-type]
 Role = Literal["viewer", "uploader", "operator", "admin"]
-_ID = r"^[A-Za-z0-9._-]{1,64}$"
+#: tails, flight codes, serials: ASCII letters, digits, '.', '_', '-', 1-64, not only dots
+Identifier = Annotated[str, Field(pattern=ID_PATTERN, max_length=MAX_ID_LEN)]
 
 T = TypeVar("T")
 
@@ -43,14 +50,14 @@ class Page(BaseModel, Generic[T]):
 
 class ActuatorSerials(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    WL1: str = Field(pattern=_ID)
-    WL2: str = Field(pattern=_ID)
-    WT: str = Field(pattern=_ID)
+    WL1: Identifier
+    WL2: Identifier
+    WT: Identifier
 
 
 class AircraftCreate(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    tail: str = Field(pattern=_ID, description="Tail id, unique in the fleet.")
+    tail: Identifier = Field(description="Tail id, unique in the fleet.")
     base: str = Field(min_length=1, max_length=64, description="Home base, e.g. Turin.")
     actuators: ActuatorSerials
 
@@ -82,7 +89,7 @@ class AircraftRead(BaseModel):
 
 class ActuatorReplace(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    new_serial: str = Field(pattern=_ID)
+    new_serial: Identifier
     note: str | None = Field(None, max_length=2000)
 
 
@@ -106,7 +113,10 @@ class FlightAccepted(BaseModel):
     id: int
     status: str
     status_url: str
-    duplicate: bool = Field(description="True when the same bytes had been uploaded before.")
+    duplicate: bool = Field(description=(
+        "True when this upload (the same bytes and, for CSV/MAT, the same metadata fields) "
+        "is an accepted flight already; nothing new was registered. A rejected flight's "
+        "upload is evaluated again."))
 
 
 class SignalsRead(BaseModel):
@@ -145,13 +155,13 @@ FaultMode = Annotated[str, Field(pattern="^(" + "|".join(FAULT_MODES) + ")$")]
 
 class InjectionCreate(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    aircraft: str = Field(pattern=r"^[A-Za-z0-9._-]{1,64}$")
+    aircraft: Identifier
     position: Position
     fault_mode: FaultMode
-    onset_flight: int = Field(0, ge=0, le=100_000,
+    onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
                               description="Aircraft flight number at which the fault appears; "
                               "0 = the next flight.")
-    time_to_failure_flights: int | None = Field(None, ge=10, le=5000, description=(
+    time_to_failure_flights: int | None = Field(None, ge=10, le=5000, strict=True, description=(
         "Progressive modes: flights from onset to failure (sets the progression rate); "
         "default: drawn by the simulator's law."))
     severity: float | None = Field(None, gt=0, le=1.0, description=(

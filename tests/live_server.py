@@ -21,6 +21,14 @@ def free_port() -> int:
 
 @contextmanager
 def running_server(env: dict[str, str], *args: str, timeout_s: float = 30.0) -> Iterator[str]:
+    with running_server_process(env, *args, timeout_s=timeout_s) as (url, _):
+        yield url
+
+
+@contextmanager
+def running_server_process(env: dict[str, str], *args: str, timeout_s: float = 30.0
+                           ) -> Iterator[tuple[str, subprocess.Popen[str]]]:
+    """``(url, process)`` of a started server, for tests that watch the process itself."""
     port = free_port()
     proc = subprocess.Popen(
         [sys.executable, "-m", "server.cli", "serve", "--port", str(port), "--log-level",
@@ -40,7 +48,7 @@ def running_server(env: dict[str, str], *args: str, timeout_s: float = 30.0) -> 
             if time.monotonic() > deadline:
                 raise RuntimeError("server did not start in time")
             time.sleep(0.1)
-        yield url
+        yield url, proc
     finally:
         proc.terminate()
         try:

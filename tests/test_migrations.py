@@ -83,3 +83,63 @@ def test_prognosis_rows_keep_their_rul_across_0004(settings: Settings) -> None:
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
+
+
+def _insert_flight(conn, id_: int, code: str, kind: str, sha: str, metadata: dict,  # type: ignore[no-untyped-def]
+                   status: str = "queued") -> None:
+    import json
+
+    import sqlalchemy as sa
+
+    conn.execute(sa.text(
+        "INSERT INTO flights (id, aircraft_id, flight_code, status, reasons, sha256, size_bytes, "
+        "blob_path, content_kind, flight_metadata, received_at, updated_at) VALUES (:id, 1, "
+        ":code, :status, '[]', :sha, 1, 'b', :kind, :meta, CURRENT_TIMESTAMP, "
+        "CURRENT_TIMESTAMP)"),
+        {"id": id_, "code": code, "status": status, "sha": sha, "kind": kind,
+         "meta": json.dumps(metadata)})
+
+
+def test_flights_keep_their_upload_identity_across_0005(settings: Settings) -> None:
+    """0005 gives existing rows the upload key a new upload of the same file computes (so a
+    retry stays idempotent), frees the content hash, and refuses to undo while it is shared."""
+    import pytest
+    import sqlalchemy as sa
+    from sqlalchemy.exc import IntegrityError
+
+    from server.services.flights import upload_key
+    from tests.flightlog_factory import make_log
+
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0004")
+    engine = create_engine(url)
+    csv_meta = make_log("I-MIG", "F2").metadata.to_strings()  # as stored after decoding
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
+        _insert_flight(conn, 1, "F1", "parquet", "a" * 64,
+                       make_log("I-MIG", "F1").metadata.to_strings())
+        _insert_flight(conn, 2, "F2", "csv", "b" * 64, csv_meta)
+    upgrade(url)
+    with engine.connect() as conn:
+        keys = dict(conn.execute(sa.text("SELECT id, upload_key FROM flights")).all())
+    assert keys[1] == upload_key(sha256="a" * 64, kind="parquet", form_metadata={"x": "y"})
+    assert keys[2] == upload_key(sha256="b" * 64, kind="csv", form_metadata=csv_meta)
+    with engine.begin() as conn:  # the same bytes again, rejected: allowed now
+        conn.execute(sa.text(
+            "INSERT INTO flights (id, aircraft_id, flight_code, status, reasons, sha256, "
+            "upload_key, size_bytes, blob_path, content_kind, flight_metadata, received_at, "
+            "updated_at) SELECT 3, aircraft_id, flight_code, 'rejected', reasons, sha256, "
+            "upload_key, size_bytes, blob_path, content_kind, flight_metadata, received_at, "
+            "updated_at FROM flights WHERE id = 1"))
+    with pytest.raises(RuntimeError, match="shared by several flights"):
+        downgrade(url, "0004")
+    with engine.begin() as conn:
+        conn.execute(sa.text("DELETE FROM flights WHERE id = 3"))
+    downgrade(url, "0004")
+    with pytest.raises(IntegrityError), engine.begin() as conn:  # unique content hash again
+        _insert_flight(conn, 4, "F4", "parquet", "a" * 64, {})
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

@@ -80,6 +80,7 @@ def downgrade() -> None:
         conn.execute(new.update().where(new.c.id == row.id)
                      .values(**_from_document(row.distribution or {})))
     with op.batch_alter_table('prognoses', schema=None) as batch_op:
-        for name, kind in zip(_OLD, (sa.Float(), sa.Float(), sa.JSON(), sa.JSON(), sa.JSON())):
+        for name, kind in zip(_OLD, (sa.Float(), sa.Float(), sa.JSON(), sa.JSON(), sa.JSON()),
+                              strict=True):
             batch_op.alter_column(name, existing_type=kind, nullable=False)
         batch_op.drop_column('distribution')

@@ -7,6 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from server.api.deps import Admin, Reader, SessionDep
+from server.api.openapi import errors
 from server.api.presenters import actuator_read
 from server.schemas import ActuatorRead, ActuatorReplace, Page, Position
 from server.services import fleet
@@ -32,6 +33,7 @@ def get(actuator_id: int, session: SessionDep, _: Reader) -> ActuatorRead:
 
 
 @router.post("/{actuator_id}/replace", status_code=201, response_model=ActuatorRead,
+             responses=errors(409),
              summary="Maintenance: replace an installed actuator (admin); history starts again")
 def replace(actuator_id: int, body: ActuatorReplace, session: SessionDep, _: Admin
             ) -> ActuatorRead:

@@ -7,6 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from server.api.deps import Admin, Reader, SessionDep
+from server.api.openapi import errors
 from server.api.presenters import aircraft_read
 from server.schemas import AircraftCreate, AircraftRead, Page
 from server.services import fleet
@@ -14,7 +15,7 @@ from server.services import fleet
 router = APIRouter(prefix="/aircraft", tags=["aircraft"])
 
 
-@router.post("", status_code=201, response_model=AircraftRead,
+@router.post("", status_code=201, response_model=AircraftRead, responses=errors(409),
              summary="Register an aircraft with its three actuators (admin)")
 def create(body: AircraftCreate, session: SessionDep, _: Admin) -> AircraftRead:
     row = fleet.create_aircraft(session=session, tail=body.tail, base=body.base,

@@ -1,5 +1,10 @@
 """Dependencies of the API routers: the caller's key and role (bearer key or the dashboard's
-session cookie), plus the shared settings, blob store and session (:mod:`server.dependencies`)."""
+session cookie), plus the shared settings, blob store and session (:mod:`server.dependencies`).
+
+A write authenticated by the session cookie needs the session's CSRF token in the
+``X-CSRF-Token`` header and no foreign ``Origin`` (``server.auth.session_write_refusal``, the
+rule of the dashboard's forms); Bearer-key requests are not touched by it, since no browser
+adds an ``Authorization`` header to a cross-site request by itself."""
 
 from __future__ import annotations
 
@@ -8,15 +13,31 @@ from typing import Annotated
 from fastapi import Depends, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
-from server.auth import ALLOWED, authenticate, may
-from server.dependencies import BlobsDep, SessionDep, SettingsDep
+from server.auth import (
+    ALLOWED,
+    CSRF_HEADER,
+    SAFE_METHODS,
+    SESSION_COOKIE,
+    authenticate,
+    may,
+    session_write_refusal,
+)
+from server.dependencies import BlobsDep, SessionDep, SettingsDep, own_origin
 from server.errors import Forbidden, Unauthorized
 from server.models import ApiKey
 
 __all__ = ["SessionDep", "SettingsDep", "BlobsDep", "Reader", "Uploader", "Operator", "Admin",
-           "CurrentKey"]
+           "CurrentKey", "presented_key"]
 
 _bearer = HTTPBearer(auto_error=False, description="API key: `Authorization: Bearer hmsm_...`")
+
+
+def presented_key(request: Request, credentials: HTTPAuthorizationCredentials | None
+                  ) -> tuple[str | None, bool]:
+    """The key the request presents and whether it came in the session cookie."""
+    if credentials:
+        return credentials.credentials, False
+    return request.cookies.get(SESSION_COOKIE), True
 
 
 def current_key(
@@ -24,7 +45,7 @@ def current_key(
     session: SessionDep,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
 ) -> ApiKey:
-    token = credentials.credentials if credentials else request.cookies.get("hmsm_session")
+    token, from_cookie = presented_key(request, credentials)
     if not token:
         raise Unauthorized("An API key is required (Authorization: Bearer ...).",
                            headers={"WWW-Authenticate": "Bearer"})
@@ -32,7 +53,21 @@ def current_key(
     if key is None:
         raise Unauthorized("The API key is unknown or revoked.",
                            headers={"WWW-Authenticate": "Bearer"})
+    if from_cookie and request.method not in SAFE_METHODS:
+        _refuse_forged_write(request, token)
     return key
+
+
+def _refuse_forged_write(request: Request, cookie: str) -> None:
+    refusal = session_write_refusal(session_cookie=cookie,
+                                    presented_token=request.headers.get(CSRF_HEADER),
+                                    origin=request.headers.get("origin"),
+                                    own_origin=own_origin(request))
+    if refusal == "cross_origin":
+        raise Forbidden("Cross-origin write with the session cookie refused.", code=refusal)
+    if refusal is not None:
+        raise Forbidden(f"A write with the session cookie needs the {CSRF_HEADER} header "
+                        "(the dashboard's token); API clients use a Bearer key.", code=refusal)
 
 
 CurrentKey = Annotated[ApiKey, Depends(current_key)]

@@ -17,7 +17,8 @@ from fastapi.responses import JSONResponse
 from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
-from server.api.deps import BlobsDep, Reader, SessionDep, SettingsDep, Uploader
+from server.api.deps import Admin, BlobsDep, Reader, SessionDep, SettingsDep, Uploader
+from server.api.openapi import errors
 from server.api.presenters import flight_read
 from server.blobstore import BlobTooLarge
 from server.errors import (
@@ -30,6 +31,7 @@ from server.errors import (
 from server.flightlog import METADATA_FIELDS
 from server.models import ApiKey
 from server.schemas import FlightAccepted, FlightRead, Page, SignalsRead
+from server.services import analysis as analysis_service
 from server.services import flights as service
 
 router = APIRouter(prefix="/flights", tags=["flights"])
@@ -48,12 +50,15 @@ _UPLOAD_DOC = {
         },
     },
     "responses": {
-        "200": {"description": "The same bytes were uploaded before (idempotent)."},
+        "200": {"description": "The same upload as an accepted flight (idempotent): the same "
+                "bytes and, for CSV/MAT, the same metadata fields."},
         "409": {"description": "Another file exists for this (aircraft, flight)."},
-        "413": {"description": "Body over the size limit."},
+        "413": {"description": "Body over the size limit, or the file past a decode limit "
+                "(`flight_too_large`, reasons name the limit); nothing was registered."},
         "415": {"description": "Unsupported content type or file kind."},
         "507": {"description": "The blob store cannot take the file; nothing was registered."},
-        "422": {"description": "Failed coherence checks; stored as rejected with reasons."},
+        "422": {"description": "Failed coherence checks; stored as rejected with reasons (the "
+                "same upload sent again is evaluated again)."},
     },
 }
 
@@ -113,7 +118,7 @@ async def upload(request: Request, session: SessionDep, blobs: BlobsDep, setting
 
     try:
         flight, duplicate = await run_in_threadpool(_ingest, session, blobs, spooled, kind,
-                                                    form_metadata, key)
+                                                    form_metadata, key, settings.decode_limits)
     except OSError as exc:
         # The blob store failed before the flight row was flushed: nothing was registered.
         raise _storage_unavailable(exc) from None
@@ -135,16 +140,16 @@ def _storage_unavailable(exc: OSError) -> StorageUnavailable:
                               details={"errno": exc.errno}, headers={"Retry-After": "60"})
 
 
-def _ingest(session, blobs, spooled, kind, form_metadata, key):  # type: ignore[no-untyped-def]
+def _ingest(session, blobs, spooled, kind, form_metadata, key, limits):  # type: ignore[no-untyped-def]
     try:
         flight, duplicate = service.ingest_flight(session=session, blobs=blobs, upload=spooled,
                                                   kind=kind, form_metadata=form_metadata,
-                                                  uploader=key)
+                                                  uploader=key, limits=limits)
         session.commit()
         return flight, duplicate
     except service.LostRace as race:
         session.rollback()
-        return service.after_lost_race(session=session, race=race, sha256=spooled.sha256), True
+        return service.after_lost_race(session=session, race=race), True
     finally:
         spooled.discard()
 
@@ -153,7 +158,7 @@ def _ingest(session, blobs, spooled, kind, form_metadata, key):  # type: ignore[
 def list_(session: SessionDep, _: Reader,
           aircraft: str | None = None,
           status: Annotated[str | None, Query(pattern="^(received|queued|analyzing|analyzed|"
-                                              "rejected)$")] = None,
+                                              "rejected|failed)$")] = None,
           limit: Annotated[int, Query(ge=1, le=500)] = 50,
           offset: Annotated[int, Query(ge=0)] = 0) -> Page[FlightRead]:
     rows, total = service.list_flights(session=session, tail=aircraft, status=status,
@@ -184,10 +189,20 @@ def signals(flight_id: int, session: SessionDep, blobs: BlobsDep, settings: Sett
                                                   "default all.", max_length=2000)] = None,
             max_points: Annotated[int | None, Query(ge=10)] = None) -> SignalsRead:
     row = service.get_flight(session=session, flight_id=flight_id)
-    log = service.decode_flight(blobs=blobs, flight=row)
     wanted = [c.strip() for c in channels.split(",") if c.strip()] if channels else None
     points = min(max_points or settings.signals_max_points, settings.signals_max_points)
-    step, data = service.decimated_signals(log, wanted, points)
+    step, data = service.flight_signals(blobs=blobs, flight=row, channels=wanted,
+                                        max_points=points, limits=settings.decode_limits)
     t = data.pop("t")
     return SignalsRead(flight_id=row.id, decimation=step, t=t.tolist(),
                        channels={k: v.astype(float).tolist() for k, v in data.items()})
+
+
+@router.post("/{flight_id}/retry", status_code=202, response_model=FlightRead,
+             responses=errors(409), summary="Analyse a failed flight again (admin)")
+def retry(flight_id: int, session: SessionDep, _: Admin) -> FlightRead:
+    """Queue the analysis of a flight whose analysis was given up (status ``failed``) again,
+    with a fresh count of attempts; 409 ``not_failed`` for a flight in any other state."""
+    row = analysis_service.retry_failed(session=session, flight_id=flight_id)
+    session.commit()
+    return flight_read(row, _uploaders(session, {row.uploader_key_id}).get(row.uploader_key_id))

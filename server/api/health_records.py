@@ -9,6 +9,7 @@ from fastapi import APIRouter, Query
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Admin, Reader, SessionDep
+from server.api.openapi import errors
 from server.schemas import Page
 from server.services import health as service
 
@@ -151,7 +152,7 @@ def _one(session: SessionDep, alarm_id: int) -> AlarmRead:
     return alarm_read(alarm, actuator, session.get(Aircraft, actuator.aircraft_id).tail)  # type: ignore[union-attr]
 
 
-@router.post("/alarms/{alarm_id}/acknowledge", response_model=AlarmRead,
+@router.post("/alarms/{alarm_id}/acknowledge", response_model=AlarmRead, responses=errors(409),
              summary="Acknowledge an open alarm with a note (admin)")
 def acknowledge(alarm_id: int, body: AlarmAction, session: SessionDep, key: Admin) -> AlarmRead:
     service.acknowledge_alarm(session=session, alarm_id=alarm_id, by=key.name, note=body.note)
@@ -159,7 +160,7 @@ def acknowledge(alarm_id: int, body: AlarmAction, session: SessionDep, key: Admi
     return _one(session, alarm_id)
 
 
-@router.post("/alarms/{alarm_id}/close", response_model=AlarmRead,
+@router.post("/alarms/{alarm_id}/close", response_model=AlarmRead, responses=errors(409),
              summary="Close an alarm with a note (admin)")
 def close(alarm_id: int, body: AlarmAction, session: SessionDep, key: Admin) -> AlarmRead:
     service.close_alarm(session=session, alarm_id=alarm_id, by=key.name, note=body.note)

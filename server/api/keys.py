@@ -6,6 +6,7 @@ from fastapi import APIRouter
 from sqlalchemy import select
 
 from server.api.deps import Admin, SessionDep
+from server.api.openapi import errors
 from server.api.presenters import key_read
 from server.auth import create_key, revoke_key
 from server.models import ApiKey
@@ -14,7 +15,8 @@ from server.schemas import KeyCreate, KeyCreated, KeyRead
 router = APIRouter(prefix="/keys", tags=["keys"])
 
 
-@router.get("", response_model=list[KeyRead], summary="List keys (admin)")
+@router.get("", response_model=list[KeyRead], responses=errors(403),
+            summary="List keys (admin)")
 def list_(session: SessionDep, _: Admin) -> list[KeyRead]:
     return [key_read(r) for r in session.scalars(select(ApiKey).order_by(ApiKey.id))]
 

@@ -9,12 +9,15 @@ from fastapi import APIRouter
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Admin, Reader, SessionDep, SettingsDep
+from server.api.openapi import errors
 from server.errors import NotFound, Unprocessable
 from server.services import models as service
 
 router = APIRouter(prefix="/models", tags=["models"])
 
 # No leading dot: "." and ".." would name the campaigns directory or the data directory.
+# ``{model_id:int}`` in the paths: otherwise ``GET /models/train`` would be read as a model id
+# (422) rather than answer 405.
 _NAME = r"^[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}$"
 
 
@@ -42,7 +45,7 @@ class ModelSummary(BaseModel):
 
 class GenerateSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    seed: int = Field(ge=0, le=2**31 - 1)
+    seed: int = Field(ge=0, le=2**31 - 1, strict=True)
     scale: str = Field("quick", pattern="^(quick|paper)$")
 
 
@@ -52,7 +55,8 @@ class TrainRequest(BaseModel):
         "Design campaign directory name under HMSM_DATA_DIR/campaigns."))
     generate: GenerateSpec | None = Field(None, description=(
         "Simulate the design campaign first if it does not exist yet."))
-    seed: int = Field(0, ge=0, le=2**31 - 1, description="Seed of the 70/30 split.")
+    seed: int = Field(0, ge=0, le=2**31 - 1, strict=True,
+                      description="Seed of the 70/30 split.")
     name: str | None = Field(None, pattern=_NAME)
     activate: bool = True
 
@@ -70,12 +74,12 @@ def list_(session: SessionDep, _: Reader) -> list[ModelSummary]:
             for m in service.list_versions(session=session)]
 
 
-@router.get("/{model_id}", response_model=ModelRead, summary="One model version")
+@router.get("/{model_id:int}", response_model=ModelRead, summary="One model version")
 def get(model_id: int, session: SessionDep, _: Reader) -> ModelRead:
     return ModelRead.model_validate(service.get_version(session=session, version_id=model_id))
 
 
-@router.get("/{model_id}/confusion-matrix", summary="Confusion matrix on the held-out 30 %")
+@router.get("/{model_id:int}/confusion-matrix", summary="Confusion matrix on the held-out 30 %")
 def confusion(model_id: int, session: SessionDep, _: Reader) -> dict[str, Any]:
     row = service.get_version(session=session, version_id=model_id)
     matrix = (row.metrics or {}).get("confusion")
@@ -85,7 +89,7 @@ def confusion(model_id: int, session: SessionDep, _: Reader) -> dict[str, Any]:
     return matrix
 
 
-@router.post("/{model_id}/activate", response_model=ModelRead,
+@router.post("/{model_id:int}/activate", response_model=ModelRead, responses=errors(409),
              summary="Make this version the one the workers use (admin)")
 def activate(model_id: int, session: SessionDep, _: Admin) -> ModelRead:
     row = service.activate(session=session, version_id=model_id)

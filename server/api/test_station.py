@@ -9,8 +9,9 @@ from fastapi import APIRouter, Query
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Operator, Reader, SessionDep
+from server.api.openapi import errors
 from server.models import GroundTruth, Injection
-from server.schemas import InjectionCreate, Page
+from server.schemas import Identifier, InjectionCreate, Page
 from server.services import test_station as service
 
 router = APIRouter(prefix="/test-station", tags=["test station"])
@@ -33,16 +34,16 @@ class InjectionRead(BaseModel):
 class InjectionStatus(BaseModel):
     model_config = ConfigDict(extra="forbid")
     status: Annotated[str, Field(pattern="^(active|failed)$")]
-    failure_flight: int | None = Field(None, ge=0)
+    failure_flight: int | None = Field(None, ge=0, strict=True)
 
 
 class GroundTruthIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    flight: str = Field(pattern=r"^[A-Za-z0-9._-]{1,64}$")
-    flight_number: int = Field(ge=0)
-    severity: float = Field(ge=0)
-    severity_norm: float = Field(ge=0)
-    true_rul_flights: int | None = Field(None, ge=0)
+    flight: Identifier
+    flight_number: int = Field(ge=0, strict=True)
+    severity: float = Field(ge=0, allow_inf_nan=False)
+    severity_norm: float = Field(ge=0, allow_inf_nan=False)
+    true_rul_flights: int | None = Field(None, ge=0, strict=True)
 
 
 class GroundTruthRead(GroundTruthIn):
@@ -72,6 +73,7 @@ def _tail(session: SessionDep, row: Injection) -> str:
 
 
 @router.post("/injections", status_code=201, response_model=InjectionRead,
+             responses=errors(404, 409),
              summary="Inject a fault (operator)")
 def create(body: InjectionCreate, session: SessionDep, key: Operator) -> InjectionRead:
     row = service.create_injection(session=session, tail=body.aircraft, position=body.position,
@@ -101,6 +103,7 @@ def get(injection_id: int, session: SessionDep, _: Reader) -> InjectionRead:
 
 
 @router.post("/injections/{injection_id}/cancel", response_model=InjectionRead,
+             responses=errors(409),
              summary="Cancel a pending or active injection (operator)")
 def cancel(injection_id: int, session: SessionDep, _: Operator) -> InjectionRead:
     row = service.cancel_injection(session=session, injection_id=injection_id)
@@ -109,6 +112,7 @@ def cancel(injection_id: int, session: SessionDep, _: Operator) -> InjectionRead
 
 
 @router.post("/injections/{injection_id}/status", response_model=InjectionRead,
+             responses=errors(409),
              summary="Sim worker: the fault started or reached failure (operator)")
 def set_status(injection_id: int, body: InjectionStatus, session: SessionDep, _: Operator
                ) -> InjectionRead:

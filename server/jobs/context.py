@@ -12,7 +12,7 @@ from server.blobstore import BlobStore
 from server.config import Settings
 from server.jobs.queue import ClaimedJob
 
-__all__ = ["JobContext", "Handler", "Deferred"]
+__all__ = ["JobContext", "Handler", "DeadLetter", "Deferred"]
 
 
 @dataclass
@@ -23,6 +23,9 @@ class JobContext:
 
 
 Handler = Callable[[JobContext, ClaimedJob], None]
+#: what to do when a job of a kind is given up (``dead``): given the session that records it,
+#: the job and its last error; it flushes, the worker commits both together
+DeadLetter = Callable[[Session, ClaimedJob, str], None]
 
 
 class Deferred(Exception):

@@ -1,15 +1,20 @@
-"""The handler of each job kind: the one registry the worker loop dispatches through."""
+"""The handler of each job kind, and what to do when one is given up: the registries the worker
+loop dispatches through."""
 
 from __future__ import annotations
 
-from server.jobs.context import Handler
-from server.jobs.pipeline import analyze_flight_job
+from server.jobs.context import DeadLetter, Handler
+from server.jobs.pipeline import analysis_given_up, analyze_flight_job
 from server.jobs.training_job import train_model_job
 from server.models import JobKind
 
-__all__ = ["HANDLERS"]
+__all__ = ["HANDLERS", "DEAD_LETTERS"]
 
 HANDLERS: dict[str, Handler] = {
     JobKind.ANALYZE_FLIGHT: analyze_flight_job,
     JobKind.TRAIN_MODEL: train_model_job,
+}
+
+DEAD_LETTERS: dict[str, DeadLetter] = {
+    JobKind.ANALYZE_FLIGHT: analysis_given_up,
 }

@@ -3,7 +3,8 @@ by :mod:`server.services.analysis`.
 
 Steps: verify the stored bytes against their SHA-256; decode; features of the whole aircraft;
 then, in one transaction, every installed actuator advanced by the chain from its stored state
-and the flight marked analysed.
+and the flight marked analysed. When the job is given up (:func:`analysis_given_up`) the flight
+is marked failed.
 """
 
 from __future__ import annotations
@@ -11,15 +12,16 @@ from __future__ import annotations
 import hashlib
 
 import numpy as np
+from sqlalchemy.orm import Session
 
-from server.flightlog import FlightLogError, read_flightlog
+from server.flightlog import FlightLogError, bounded_reasons, read_flightlog
 from server.jobs.context import Deferred, JobContext
 from server.jobs.queue import ClaimedJob
 from server.phm.features import flight_features
 from server.services import analysis
 from server.services import models as model_service
 
-__all__ = ["analyze_flight_job"]
+__all__ = ["analyze_flight_job", "analysis_given_up"]
 
 
 def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
@@ -46,10 +48,13 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
             "code": "blob_corrupt", "message": "The stored file no longer matches its SHA-256; "
             "it was corrupted on disk after upload.", "details": {"sha256": todo.sha256}}])
         return
+    limits = ctx.settings.decode_limits
     try:
-        log = read_flightlog(data, kind=todo.content_kind, metadata=todo.metadata)
+        log = read_flightlog(data, kind=todo.content_kind, metadata=todo.metadata, limits=limits)
     except FlightLogError as exc:
-        _reject(ctx, todo.flight_id, [i.as_dict() for i in exc.issues])
+        if exc.too_large:  # past this worker's limits, not a defect: fails, retryable
+            raise
+        _reject(ctx, todo.flight_id, bounded_reasons((i.as_dict() for i in exc.issues), limits))
         return
     features = flight_features({k: np.asarray(v, dtype=np.float64)
                                 for k, v in log.channels.items()})
@@ -63,3 +68,10 @@ def _reject(ctx: JobContext, flight_id: int, reasons: list[dict]) -> None:
     with ctx.factory() as session:
         analysis.reject(session=session, flight_id=flight_id, reasons=reasons)
         session.commit()
+
+
+def analysis_given_up(session: Session, job: ClaimedJob, error: str) -> None:
+    """The dead letter of ``analyze_flight``: the flight becomes ``failed`` with the error."""
+    if job.flight_id is not None:
+        analysis.mark_failed(session=session, flight_id=job.flight_id, error=error,
+                             attempts=job.attempts)

@@ -8,7 +8,8 @@ with an expired lease (its worker died), and no earlier job with the same ``lock
 queued or running: one aircraft's flights are analysed in order, one at a time.
 
 Failures are retried with exponential backoff; after ``max_attempts`` the job is ``dead`` and
-keeps its last error.
+keeps its last error. A job whose last attempt's worker vanished (killed, out of memory) is not
+claimed again once its lease runs out: :func:`bury_abandoned` makes it ``dead``.
 """
 
 from __future__ import annotations
@@ -23,7 +24,10 @@ from sqlalchemy.orm import Session, aliased, sessionmaker
 from server.models import Job, utcnow
 
 __all__ = ["RetryPolicy", "claim_next", "complete", "fail", "defer", "renew_lease",
-           "ClaimedJob"]
+           "bury_abandoned", "ABANDONED", "ClaimedJob"]
+
+ABANDONED = ("The worker running the last attempt stopped without finishing it (killed, out of "
+             "memory or lost); its lease ran out.")
 
 
 @dataclass(frozen=True)
@@ -53,7 +57,8 @@ def _eligible(now: datetime, postgres: bool):  # type: ignore[no-untyped-def]
     query = (
         select(cand.id)
         .where(or_(and_(cand.status == "queued", cand.run_after <= now),
-                   and_(cand.status == "running", cand.lease_until < now)))
+                   and_(cand.status == "running", cand.lease_until < now,
+                        cand.attempts < cand.max_attempts)))
         .where(~exists().where(earlier.lock_key == cand.lock_key, earlier.id < cand.id,
                                earlier.status.in_(("queued", "running"))))
         .order_by(cand.id)
@@ -118,7 +123,8 @@ def complete(session: Session, *, job_id: int, worker_id: str) -> bool:
 
 def fail(session: Session, *, job: ClaimedJob, worker_id: str, error: str,
          policy: RetryPolicy = RetryPolicy()) -> str:
-    """Record a failure: back to ``queued`` after a backoff, or ``dead`` after the last try."""
+    """Record a failure: back to ``queued`` after a backoff, or ``dead`` after the last try;
+    ``lost`` when another worker holds the job now (nothing recorded)."""
     now = utcnow()
     dead = job.attempts >= job.max_attempts
     values = {"last_error": error[-4000:], "updated_at": now, "lease_until": None,
@@ -127,9 +133,30 @@ def fail(session: Session, *, job: ClaimedJob, worker_id: str, error: str,
         values.update(status="dead", finished_at=now)
     else:
         values.update(status="queued", run_after=now + policy.delay(job.attempts))
-    session.execute(update(Job).where(Job.id == job.id, Job.locked_by == worker_id)
-                    .values(**values))
+    result = session.execute(update(Job).where(Job.id == job.id, Job.locked_by == worker_id)
+                             .values(**values))
+    if not result.rowcount:
+        return "lost"
     return "dead" if dead else "queued"
+
+
+def bury_abandoned(session: Session, *, limit: int = 20) -> list[ClaimedJob]:
+    """Jobs running their last attempt whose lease ran out (the worker vanished) made ``dead``
+    with :data:`ABANDONED` as their error, each returned to one caller only: the claim would
+    otherwise take them again without end."""
+    now = utcnow()
+    ids = list(session.scalars(select(Job.id).where(
+        Job.status == "running", Job.lease_until < now, Job.attempts >= Job.max_attempts)
+        .limit(limit)))
+    if not ids:
+        return []
+    rows = session.execute(
+        update(Job).where(Job.id.in_(ids), Job.status == "running", Job.lease_until < now)
+        .values(status="dead", finished_at=now, updated_at=now, lease_until=None,
+                locked_by=None, last_error=ABANDONED)
+        .returning(Job.id, Job.kind, Job.flight_id, Job.lock_key, Job.attempts,
+                   Job.max_attempts, Job.payload)).all()
+    return [ClaimedJob(*row) for row in rows]
 
 
 def defer(session: Session, *, job: ClaimedJob, worker_id: str, reason: str,

@@ -3,6 +3,8 @@
 ``hmsm worker --concurrency N`` starts N of these loops as separate processes (the analysis is
 CPU-bound numpy, so processes, not threads). A worker killed mid-job leaves its job ``running``
 with a lease that expires; the next claim picks it up again, and every handler is idempotent.
+A job given up (``dead``: out of attempts, or its last attempt's worker vanished) runs its
+kind's dead letter (``handlers.DEAD_LETTERS``) in the same transaction.
 """
 
 from __future__ import annotations
@@ -14,12 +16,14 @@ import threading
 import traceback
 import uuid
 
+from sqlalchemy.orm import Session
+
 from server.blobstore import BlobStore
 from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.jobs import queue
-from server.jobs.context import Deferred, Handler, JobContext
-from server.jobs.handlers import HANDLERS
+from server.jobs.context import DeadLetter, Deferred, Handler, JobContext
+from server.jobs.handlers import DEAD_LETTERS, HANDLERS
 from server.migrate import ensure_schema
 
 __all__ = ["Worker", "run_worker_process"]
@@ -29,7 +33,8 @@ log = logging.getLogger("hmsm.worker")
 
 class Worker:
     def __init__(self, settings: Settings, *, lease_s: float = 120.0, poll_s: float = 0.5,
-                 handlers: dict[str, Handler] | None = None, worker_id: str | None = None):
+                 handlers: dict[str, Handler] | None = None, worker_id: str | None = None,
+                 dead_letters: dict[str, DeadLetter] | None = None):
         self.settings = settings
         self.lease_s = lease_s
         self.poll_s = poll_s
@@ -41,6 +46,7 @@ class Worker:
         blobs.ensure_dirs()
         self.ctx = JobContext(settings, make_session_factory(engine), blobs)
         self.handlers = dict(HANDLERS) if handlers is None else handlers
+        self.dead_letters = dict(DEAD_LETTERS) if dead_letters is None else dead_letters
 
     def _heartbeat(self, job_id: int, done: threading.Event) -> None:
         while not done.wait(self.lease_s / 3):
@@ -50,8 +56,21 @@ class Worker:
                     return
                 session.commit()
 
+    def _given_up(self, session: Session, job: queue.ClaimedJob, error: str) -> None:
+        dead_letter = self.dead_letters.get(job.kind)
+        if dead_letter is not None:
+            dead_letter(session, job, error)
+
+    def _bury_abandoned(self) -> None:
+        with self.ctx.factory() as session:
+            for job in queue.bury_abandoned(session):
+                log.warning("job %s (%s) abandoned on its last attempt", job.id, job.kind)
+                self._given_up(session, job, queue.ABANDONED)
+            session.commit()
+
     def run_once(self) -> bool:
         """Process one job if there is one; return whether a job was claimed."""
+        self._bury_abandoned()
         job = queue.claim_next(self.ctx.factory, worker_id=self.worker_id, lease_s=self.lease_s)
         if job is None:
             return False
@@ -74,6 +93,8 @@ class Worker:
             log.warning("job %s (%s) failed on attempt %s", job.id, job.kind, job.attempts)
             with self.ctx.factory() as session:
                 outcome = queue.fail(session, job=job, worker_id=self.worker_id, error=error)
+                if outcome == "dead":
+                    self._given_up(session, job, error)
                 session.commit()
             log.info("job %s -> %s", job.id, outcome)
         else:

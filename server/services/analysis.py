@@ -17,6 +17,7 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from server.errors import Conflict, NotFound
 from server.models import (
     Actuator,
     ActuatorState,
@@ -24,6 +25,8 @@ from server.models import (
     Alarm,
     Flight,
     HealthRecord,
+    Job,
+    JobKind,
     Prognosis,
     utcnow,
 )
@@ -31,11 +34,12 @@ from server.phm.chain import ActuatorHealth, ActuatorOutcome, PhmModel, analyze_
 from server.phm.features import FlightFeatures
 from server.phm.prognosis import RulDistribution
 
-__all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "reject",
-           "store_analysis", "json_safe"]
+__all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "reject", "mark_failed",
+           "retry_failed", "failed_flights", "store_analysis", "json_safe"]
 
-#: flight states after which there is nothing left to analyse
-_FINISHED = ("analyzed", "rejected")
+#: flight states after which there is nothing left to analyse (``failed``: until a retry)
+_FINISHED = ("analyzed", "rejected", "failed")
+_ERROR_CHARS = 500
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,58 @@ def reject(*, session: Session, flight_id: int, reasons: list[dict[str, Any]]) -
     if flight is not None:
         flight.status, flight.reasons, flight.updated_at = "rejected", reasons, utcnow()
         session.flush()
+
+
+def mark_failed(*, session: Session, flight_id: int, error: str, attempts: int) -> None:
+    """The analysis was given up (its job is dead): the flight is ``failed`` with the last
+    error's final line, never ``analyzing`` for good, until an admin retries it."""
+    flight = session.get(Flight, flight_id)
+    if flight is None or flight.status in ("analyzed", "rejected"):
+        return
+    flight.status, flight.updated_at = "failed", utcnow()
+    flight.reasons = [{
+        "code": "analysis_failed",
+        "message": f"The analysis failed {attempts} time(s) and was given up; an admin can "
+                   f"retry it (POST /api/v1/flights/{flight_id}/retry).",
+        "details": {"attempts": attempts, "error": _last_line(error)}}]
+    session.flush()
+
+
+def _last_line(error: str) -> str:
+    """The exception line of a traceback (its last), cut to a bounded length."""
+    lines = error.strip().splitlines() or [""]
+    line = lines[-1]
+    return line if len(line) <= _ERROR_CHARS else line[:_ERROR_CHARS - 3] + "..."
+
+
+def retry_failed(*, session: Session, flight_id: int) -> Flight:
+    """Queue the analysis of a ``failed`` flight again, with a fresh count of attempts (its
+    job row is reused: one analysis job per flight). Conflict unless the flight is failed."""
+    flight = session.get(Flight, flight_id)
+    if flight is None:
+        raise NotFound(f"Flight {flight_id} does not exist.")
+    if flight.status != "failed":
+        raise Conflict(f"Flight {flight_id} is {flight.status}, not failed: there is nothing to "
+                       "retry.", code="not_failed", details={"status": flight.status})
+    job = session.scalar(select(Job).where(Job.kind == JobKind.ANALYZE_FLIGHT,
+                                           Job.flight_id == flight_id))
+    if job is None:
+        job = Job(kind=JobKind.ANALYZE_FLIGHT, flight_id=flight_id,
+                  lock_key=f"aircraft:{flight.aircraft_id}")
+        session.add(job)
+    now = utcnow()
+    job.status, job.attempts, job.run_after, job.updated_at = "queued", 0, now, now
+    job.last_error = job.lease_until = job.locked_by = job.started_at = job.finished_at = None
+    flight.status, flight.reasons, flight.updated_at = "queued", [], now
+    session.flush()
+    return flight
+
+
+def failed_flights(*, session: Session, limit: int) -> list[Flight]:
+    """The most recently failed flights first (one query; the dashboard lists them)."""
+    return list(session.scalars(select(Flight).where(Flight.status == "failed")
+                                .order_by(Flight.updated_at.desc(), Flight.id.desc())
+                                .limit(limit)))
 
 
 def store_analysis(*, session: Session, flight_id: int, features: FlightFeatures,

@@ -1,15 +1,20 @@
 """Flight-log ingest and read-back.
 
 Ingest order (docs/ARCHITECTURE.md, "From an upload to the RUL cone"): the body is already
-spooled to a temporary file with its SHA-256; a known digest answers with the existing flight
-(idempotent); the file is decoded and checked; the bytes are renamed into the
-content-addressed store; only then the flight row (and, for an accepted flight, its analysis
-job) is flushed. The caller commits.
+spooled to a temporary file with its SHA-256; an upload the same as an accepted (not rejected)
+flight answers with that flight (idempotent; :func:`upload_key` says what "the same" is); the
+file is decoded and checked; the bytes are renamed into the content-addressed store; only then
+the flight row (and, for an accepted flight, its analysis job) is flushed. The caller commits.
+
+A rejected flight neither holds its (aircraft, flight) slot nor makes its upload a duplicate:
+the same bytes sent again (say, once the aircraft is registered) are evaluated afresh and give
+a new row; the rejected row stays as it was, for forensics.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -18,21 +23,28 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from server.blobstore import BlobStore, SpooledUpload
-from server.errors import Conflict, NotFound, Unprocessable
+from server.errors import Conflict, NotFound, PayloadTooLarge, Unprocessable
 from server.flightlog import (
+    DEFAULT_DECODE_LIMITS,
     OPTIONAL_CHANNELS,
     REQUIRED_CHANNELS,
+    DecodeLimits,
     FlightLog,
     FlightLogError,
     Issue,
+    bounded_reasons,
     check_coherence,
+    parse_metadata,
     read_flightlog,
+    read_parquet_decimated,
+    valid_id,
 )
-from server.models import Aircraft, ApiKey, Flight, Job, JobKind
+from server.models import Aircraft, ApiKey, Flight, Job, JobKind, upload_key_of
 from server.services.fleet import installed_serials
 
-__all__ = ["ingest_flight", "LostRace", "after_lost_race", "get_flight", "flight_codes",
-           "list_flights", "decode_flight", "decimated_signals", "ANALYSIS_JOB"]
+__all__ = ["ingest_flight", "upload_key", "LostRace", "after_lost_race", "get_flight",
+           "flight_codes", "list_flights", "decode_flight", "decimated_signals",
+           "flight_signals", "ANALYSIS_JOB"]
 
 ANALYSIS_JOB = JobKind.ANALYZE_FLIGHT
 
@@ -41,17 +53,42 @@ def _clean_id(value: Any) -> str | None:
     if value is None:
         return None
     text = str(value)[:64]
-    return text if text and all(c.isalnum() or c in "-_." for c in text) else None
+    return text if valid_id(text) else None
+
+
+def upload_key(*, sha256: str, kind: str, form_metadata: Mapping[str, str]) -> str:
+    """What makes two uploads the same one: the bytes, their kind and, for CSV/MAT, the metadata
+    sent beside them (parsed and written back when it parses, so that ``1.5`` and ``1.50`` are
+    the same block hours). Parquet carries its metadata inside the bytes; form fields beside it
+    are not read. Migration 0005 keeps a frozen copy of this formula for existing rows."""
+    return upload_key_of(kind, sha256,
+                         {} if kind == "parquet" else _canonical_metadata(form_metadata))
+
+
+def _canonical_metadata(form_metadata: Mapping[str, str]) -> dict[str, str]:
+    try:
+        return parse_metadata(form_metadata).to_strings()
+    except FlightLogError:  # incomplete (a MAT file may carry the rest) or malformed: as sent
+        return {str(k): str(v) for k, v in form_metadata.items()}
+
+
+def _accepted_upload(session: Session, key: str) -> Flight | None:
+    return session.scalar(select(Flight).where(Flight.upload_key == key,
+                                               Flight.status != "rejected"))
 
 
 def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, kind: str,
-                  form_metadata: dict[str, str], uploader: ApiKey) -> tuple[Flight, bool]:
+                  form_metadata: dict[str, str], uploader: ApiKey,
+                  limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> tuple[Flight, bool]:
     """Register an uploaded flight; return ``(flight, duplicate)``.
 
-    Raises :class:`Conflict` when an accepted flight with the same (aircraft, flight) has other
-    bytes. A file that fails decoding or coherence is stored as ``rejected`` with its reasons.
+    Raises :class:`Conflict` when an accepted flight with the same (aircraft, flight) came from
+    another upload, :class:`PayloadTooLarge` (nothing registered) when the file is past one of
+    the decode ``limits``. A file that fails decoding or coherence is stored as ``rejected``
+    with its reasons (bounded in number and size).
     """
-    existing = session.scalar(select(Flight).where(Flight.sha256 == upload.sha256))
+    key = upload_key(sha256=upload.sha256, kind=kind, form_metadata=form_metadata)
+    existing = _accepted_upload(session, key)
     if existing is not None:
         upload.discard()
         return existing, True
@@ -59,8 +96,11 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
     log: FlightLog | None = None
     issues: list[Issue]
     try:
-        log = read_flightlog(upload.read_bytes(), kind=kind, metadata=form_metadata)
+        log = read_flightlog(upload.read_bytes(), kind=kind, metadata=form_metadata,
+                             limits=limits)
     except FlightLogError as exc:
+        if exc.too_large:
+            raise _too_large(exc, limits) from None
         issues = list(exc.issues)
     tail = log.metadata.aircraft if log else _clean_id(form_metadata.get("aircraft"))
     code = log.metadata.flight if log else _clean_id(form_metadata.get("flight"))
@@ -73,8 +113,8 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
             Flight.status != "rejected"))
         if clash is not None:
             upload.discard()
-            if clash.sha256 == upload.sha256:
-                # the same bytes, committed by a concurrent upload since the check above
+            if clash.upload_key == key:
+                # the same upload, committed by a concurrent one since the check above
                 return clash, True
             raise Conflict(f"Flight '{code}' of '{tail}' was already uploaded with other content.",
                            code="flight_exists", details={"flight_id": clash.id})
@@ -88,8 +128,9 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
         tail=tail,
         flight_code=code,
         status="rejected" if issues else "queued",
-        reasons=[i.as_dict() for i in issues],
+        reasons=bounded_reasons((i.as_dict() for i in issues), limits),
         sha256=upload.sha256,
+        upload_key=key,
         size_bytes=upload.size,
         blob_path=blob_path,
         content_kind=kind,
@@ -107,24 +148,33 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
                             lock_key=f"aircraft:{aircraft_id}"))
             session.flush()
     except IntegrityError:
-        # A concurrent upload won the race: same bytes (idempotent) or same flight id
+        # A concurrent upload won the race: the same upload (idempotent) or the same flight id
         # (conflict); the caller ends this unit of work and asks again (after_lost_race).
-        raise LostRace(tail, code) from None
+        raise LostRace(tail, code, key) from None
     return flight, False
 
 
-class LostRace(Conflict):
-    """A concurrent upload registered the same bytes or the same (aircraft, flight) first."""
+def _too_large(exc: FlightLogError, limits: DecodeLimits) -> PayloadTooLarge:
+    """A file past a decode limit is refused like an oversized body: not stored, not a row."""
+    return PayloadTooLarge("The flight log is larger than this service decodes; nothing was "
+                           "registered.", code="flight_too_large",
+                           details={"reasons": bounded_reasons(
+                               (i.as_dict() for i in exc.issues), limits)})
 
-    def __init__(self, tail: str | None, code: str | None):
+
+class LostRace(Conflict):
+    """A concurrent upload registered the same upload or the same (aircraft, flight) first."""
+
+    def __init__(self, tail: str | None, code: str | None, upload_key: str):
         super().__init__(f"Flight '{code}' of '{tail}' was uploaded concurrently with other "
                          "content.", code="flight_exists")
+        self.upload_key = upload_key
 
 
-def after_lost_race(*, session: Session, race: LostRace, sha256: str) -> Flight:
-    """In a new unit of work after :class:`LostRace`: the flight registered with the same
-    bytes (the upload was idempotent), or the race's conflict raised."""
-    same = session.scalar(select(Flight).where(Flight.sha256 == sha256))
+def after_lost_race(*, session: Session, race: LostRace) -> Flight:
+    """In a new unit of work after :class:`LostRace`: the accepted flight registered by the
+    same upload (this one was idempotent), or the race's conflict raised."""
+    same = _accepted_upload(session, race.upload_key)
     if same is None:
         raise race
     return same
@@ -157,14 +207,38 @@ def list_flights(*, session: Session, tail: str | None, status: str | None, limi
     return list(rows), total
 
 
-def decode_flight(*, blobs: BlobStore, flight: Flight) -> FlightLog:
+def decode_flight(*, blobs: BlobStore, flight: Flight,
+                  limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightLog:
     try:
         return read_flightlog(blobs.read(flight.blob_path), kind=flight.content_kind,
-                              metadata=flight.flight_metadata)
+                              metadata=flight.flight_metadata, limits=limits)
     except FlightLogError as exc:
-        raise Unprocessable("The stored file of this flight cannot be decoded.",
-                            code="undecodable", details={"reasons": [i.as_dict() for i in
-                                                                     exc.issues]}) from None
+        raise _undecodable(exc, limits) from None
+
+
+def _undecodable(exc: FlightLogError, limits: DecodeLimits) -> Unprocessable:
+    return Unprocessable("The stored file of this flight cannot be decoded.", code="undecodable",
+                         details={"reasons": bounded_reasons((i.as_dict() for i in exc.issues),
+                                                             limits)})
+
+
+def flight_signals(*, blobs: BlobStore, flight: Flight, channels: list[str] | None,
+                   max_points: int, limits: DecodeLimits = DEFAULT_DECODE_LIMITS
+                   ) -> tuple[int, dict[str, np.ndarray]]:
+    """``(step, arrays)`` of :func:`decimated_signals` for a stored flight. Parquet (the
+    canonical encoding) is decimated while it is read, so a request holds a batch and the
+    result, not the flight; CSV and MAT are decoded whole, within ``limits``."""
+    if flight.content_kind != "parquet":
+        log = decode_flight(blobs=blobs, flight=flight, limits=limits)
+        return decimated_signals(log, channels, max_points)
+    try:
+        return read_parquet_decimated(blobs.read(flight.blob_path), channels, max_points, limits)
+    except FlightLogError as exc:
+        unknown = [i for i in exc.issues if i.code == "unknown_channel"]
+        if unknown:
+            raise NotFound(unknown[0].message, code="unknown_channel",
+                           details=unknown[0].details) from None
+        raise _undecodable(exc, limits) from None
 
 
 def decimated_signals(log: FlightLog, channels: list[str] | None, max_points: int

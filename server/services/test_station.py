@@ -113,5 +113,6 @@ def report_ground_truth(*, session: Session, injection_id: int, flight_code: str
 
 
 def list_ground_truth(*, session: Session, injection_id: int) -> list[GroundTruth]:
+    get_injection(session=session, injection_id=injection_id)  # 404 for an unknown one
     return list(session.scalars(select(GroundTruth).where(
         GroundTruth.injection_id == injection_id).order_by(GroundTruth.flight_number)))

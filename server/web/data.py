@@ -2,7 +2,8 @@
 
 Nothing here renders HTML or touches the request; each function takes ``*, session`` and returns
 data the templates and :mod:`server.web.figures` consume. Query counts are fixed per page (the
-fleet page: the two queries of :func:`server.services.health.fleet_grid`).
+fleet page: the two queries of :func:`server.services.health.fleet_grid` and one for the
+flights whose analysis failed).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
+from server.services import analysis as analysis_service
 from server.services import fleet as fleet_service
 from server.services import flights as flight_service
 from server.services import health as health_service
@@ -21,7 +23,7 @@ from server.services import models as model_service
 from server.services import test_station as station_service
 from server.vocabulary import FAULT_MODES, PAPER_TABLE2, POSITIONS, PROGRESSIVE
 
-__all__ = ["STATUS_RANK", "fleet_view", "alarms_view", "actuator_view",
+__all__ = ["STATUS_RANK", "fleet_view", "failed_flights", "alarms_view", "actuator_view",
            "models_view", "station_view", "evaluation_view", "health_dict", "prognosis_dict"]
 
 STATUS_RANK = {"red": 0, "amber": 1, "green": 2}
@@ -55,7 +57,21 @@ def fleet_view(*, session: Session, sort: str = "rul", base: str | None = None,
                                  STATUS_RANK[r["worst"]], r["tail"]))
     return {"rows": rows, "positions": POSITIONS, "bases": bases, "counts": counts,
             "sort": "tail" if sort == "tail" else "rul", "base": base or "",
-            "status": status if status in STATUS_RANK else "", "n_actuators": len(cells)}
+            "status": status if status in STATUS_RANK else "", "n_actuators": len(cells),
+            "failed_flights": failed_flights(session=session)}
+
+
+def failed_flights(*, session: Session, limit: int = 20) -> list[dict[str, Any]]:
+    """Flights whose analysis was given up, newest first, with why (an admin retries them)."""
+    return [{"id": f.id, "tail": f.tail, "flight": f.flight_code, "updated_at": f.updated_at,
+             "reason": _failure_reason(f.reasons)}
+            for f in analysis_service.failed_flights(session=session, limit=limit)]
+
+
+def _failure_reason(reasons: list[dict[str, Any]]) -> str:
+    first = reasons[0] if reasons else {}
+    error = (first.get("details") or {}).get("error")
+    return str(error or first.get("message") or "unknown")
 
 
 def alarms_view(*, session: Session, status: str | None, limit: int = 200) -> dict[str, Any]:

@@ -17,7 +17,9 @@ Events (``event:`` name, JSON ``data``)::
     model          a model version changed           {"fingerprint": str}
 
 A comment line is sent every ``keepalive_s`` seconds; the stream ends after ``timeout`` seconds
-(the browser's EventSource reconnects by itself after ``retry`` ms).
+(the browser's EventSource reconnects by itself after ``retry`` ms). Each poll also checks, in
+the same short transaction (one indexed query), that the stream's key is still active: once it
+is revoked the stream sends ``revoked`` and ends, and the reconnect gets 401.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from fastapi.responses import StreamingResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session, sessionmaker
 
-from server.auth import authenticate
+from server.auth import SESSION_COOKIE, authenticate
 from server.errors import Unauthorized
 from server.services.events import snapshot
 
@@ -61,7 +63,7 @@ def _format(event: str, data: dict[str, Any]) -> str:
     return f"event: {event}\ndata: {json.dumps(data)}\n\n"
 
 
-def _authenticate(factory: sessionmaker[Session], token: str | None) -> None:
+def _authenticate(factory: sessionmaker[Session], token: str | None) -> str:
     if not token:
         raise Unauthorized("An API key is required (Authorization: Bearer ... or the "
                            "hmsm_session cookie).", headers={"WWW-Authenticate": "Bearer"})
@@ -69,24 +71,33 @@ def _authenticate(factory: sessionmaker[Session], token: str | None) -> None:
         if authenticate(session=session, plaintext=token) is None:
             raise Unauthorized("The API key is unknown or revoked.",
                                headers={"WWW-Authenticate": "Bearer"})
+    return token
 
 
-def _take(factory: sessionmaker[Session]) -> dict[str, Any]:
+def _take(factory: sessionmaker[Session], token: str) -> dict[str, Any] | None:
+    """The snapshot, or None once the stream's key is revoked."""
     with factory() as session:
+        if authenticate(session=session, plaintext=token) is None:
+            return None
         return snapshot(session)
 
 
-async def _stream(request: Request, factory: sessionmaker[Session], *, poll_s: float,
-                  timeout_s: float) -> AsyncIterator[str]:
+async def _stream(request: Request, factory: sessionmaker[Session], token: str, *,
+                  poll_s: float, timeout_s: float) -> AsyncIterator[str]:
     yield "retry: 2000\n\n"
-    state = await to_thread.run_sync(_take, factory)
+    state = await to_thread.run_sync(_take, factory, token)
+    if state is None:
+        return
     yield _format("hello", {"poll_s": poll_s})
     started = last_sent = time.monotonic()
     while time.monotonic() - started < timeout_s:
         await asyncio.sleep(poll_s)
         if await request.is_disconnected():
             return
-        new = await to_thread.run_sync(_take, factory)
+        new = await to_thread.run_sync(_take, factory, token)
+        if new is None:
+            yield _format("revoked", {})
+            return
         for name, data in diff_events(state, new):
             yield _format(name, data)
             last_sent = time.monotonic()
@@ -108,8 +119,8 @@ async def events(
 ) -> StreamingResponse:
     """Any valid key (viewer and up). The session is held only while polling, not in between."""
     factory: sessionmaker[Session] = request.app.state.session_factory
-    token = credentials.credentials if credentials else request.cookies.get("hmsm_session")
-    await to_thread.run_sync(_authenticate, factory, token)
-    return StreamingResponse(_stream(request, factory, poll_s=poll, timeout_s=timeout),
+    token = credentials.credentials if credentials else request.cookies.get(SESSION_COOKIE)
+    token = await to_thread.run_sync(_authenticate, factory, token)
+    return StreamingResponse(_stream(request, factory, token, poll_s=poll, timeout_s=timeout),
                              media_type="text/event-stream",
                              headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"})

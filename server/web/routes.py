@@ -7,16 +7,14 @@ Security:
 
 * the session cookie holds the API key the user pasted: ``HttpOnly``, ``SameSite=Strict``,
   ``Secure`` on https, ``Path=/``;
-* every form post carries a CSRF token bound to the cookie (HMAC-SHA256 of a fixed label keyed
-  by the cookie value, so it needs no server-side state and cannot be computed by a page that
-  cannot read the cookie) and, when the browser sends an ``Origin``, it must be our own;
+* every form post carries a CSRF token bound to the cookie and, when the browser sends an
+  ``Origin``, it must be our own (the rule and the token: ``server.auth.session_write_refusal``,
+  the same one the API applies to cookie-authenticated writes);
 * roles are enforced here as in the API (``server.auth.may``); the templates only hide controls.
 """
 
 from __future__ import annotations
 
-import hashlib
-import hmac
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -29,8 +27,8 @@ from fastapi.templating import Jinja2Templates
 from pydantic import ValidationError
 
 import web
-from server.auth import authenticate, may
-from server.dependencies import SessionDep, SettingsDep
+from server.auth import SESSION_COOKIE, authenticate, csrf_token, may, session_write_refusal
+from server.dependencies import SessionDep, SettingsDep, own_origin
 from server.errors import DomainError
 from server.models import ApiKey
 from server.phm.prognosis.document import rul_quantile
@@ -43,7 +41,7 @@ from server.web import data, figures
 
 __all__ = ["router", "COOKIE", "STATIC_DIR", "TEMPLATE_DIR", "csrf_token"]
 
-COOKIE = "hmsm_session"
+COOKIE = SESSION_COOKIE
 WEB_DIR = Path(web.__file__).resolve().parent
 TEMPLATE_DIR = WEB_DIR / "templates"
 STATIC_DIR = WEB_DIR / "static"
@@ -60,10 +58,6 @@ def templates() -> Jinja2Templates:
     t.env.globals["figure_json"] = figures.figure_json
     t.env.globals["rul_quantile"] = rul_quantile
     return t
-
-
-def csrf_token(session_cookie: str) -> str:
-    return hmac.new(session_cookie.encode(), b"hmsm-dashboard-csrf", hashlib.sha256).hexdigest()
 
 
 def _key(request: Request, session: SessionDep) -> ApiKey | None:
@@ -107,13 +101,12 @@ def _check_post(request: Request, session: SessionDep, csrf: str, action: str
     key = _key(request, session)
     if key is None:
         return _signin_redirect(request)
-    origin = request.headers.get("origin")
-    if origin is not None and origin != "null":
-        own = f"{request.url.scheme}://{request.url.netloc}"
-        if origin != own:
-            return _problem(request, key, 403, "Cross-origin form post refused.")
-    expected = csrf_token(request.cookies.get(COOKIE, ""))
-    if not csrf or not hmac.compare_digest(csrf, expected):
+    refusal = session_write_refusal(session_cookie=request.cookies.get(COOKIE, ""),
+                                    presented_token=csrf, origin=request.headers.get("origin"),
+                                    own_origin=own_origin(request))
+    if refusal == "cross_origin":
+        return _problem(request, key, 403, "Cross-origin form post refused.")
+    if refusal is not None:
         return _problem(request, key, 403, "The form is stale or was not sent by this "
                         "dashboard (CSRF token mismatch); reload the page and try again.")
     if not may(key.role, action):
@@ -302,11 +295,13 @@ def inject(request: Request, session: SessionDep, csrf: str = Form(""),
         return key
     form = {"aircraft": aircraft, "position": position, "fault_mode": fault_mode,
             "onset_flight": onset_flight, "time_to_failure_flights": time_to_failure_flights}
+    raw = {"aircraft": aircraft, "position": position, "fault_mode": fault_mode,
+           "onset_flight": onset_flight or "0"}
+    if time_to_failure_flights:
+        raw["time_to_failure_flights"] = time_to_failure_flights
     try:
-        body = InjectionCreate.model_validate({
-            "aircraft": aircraft, "position": position, "fault_mode": fault_mode,
-            "onset_flight": onset_flight or 0,
-            "time_to_failure_flights": time_to_failure_flights or None})
+        # form fields are strings: parsed as such, while JSON bodies keep strict integers
+        body = InjectionCreate.model_validate_strings(raw)
         station_service.create_injection(
             session=session, tail=body.aircraft, position=body.position,
             fault_mode=body.fault_mode, onset_flight=body.onset_flight,

@@ -100,9 +100,10 @@ def test_key_administration(client: TestClient, keys: dict[str, str]) -> None:
     assert bad.status_code == 422
 
 
-def test_health(client: TestClient) -> None:
+def test_health(client: TestClient, keys: dict[str, str]) -> None:
     assert client.get("/api/v1/health/live").json() == {"status": "ok"}
     ready = client.get("/api/v1/health/ready")
     assert ready.status_code == 200 and ready.json()["database"] == "ok"
-    assert client.get("/openapi.json").json()["info"]["title"].startswith("EMA")
-    assert client.get("/docs").status_code == 200
+    spec = client.get("/openapi.json", headers=auth(keys["viewer"])).json()
+    assert spec["info"]["title"].startswith("EMA")
+    assert client.get("/docs", headers=auth(keys["viewer"])).status_code == 200

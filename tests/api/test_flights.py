@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 
 from server.flightlog import FlightLog
 from tests.api.conftest import auth
-from tests.flightlog_factory import make_log, make_parquet
+from tests.flightlog_factory import make_log, make_parquet, serials_for
 
 PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
 
@@ -190,8 +190,113 @@ def test_rejected_bytes_are_kept(client: TestClient, keys: dict[str, str], aircr
     stored = client.get(f"/api/v1/flights/{r.json()['error']['details']['id']}",
                         headers=auth(keys["viewer"])).json()
     assert app.state.blobs.path_of(stored["sha256"]).read_bytes() == data
-    again = post_parquet(client, keys["uploader"], data)
-    assert again.status_code == 422 and again.json()["error"]["details"]["duplicate"] is True
+    again = post_parquet(client, keys["uploader"], data)  # evaluated again: a new rejected row
+    details = again.json()["error"]["details"]
+    assert again.status_code == 422 and details["duplicate"] is False
+    assert details["id"] != stored["id"]
+    first = client.get(f"/api/v1/flights/{stored['id']}", headers=auth(keys["viewer"])).json()
+    assert first["status"] == "rejected" and first["reasons"] == stored["reasons"]
+
+
+def test_rejected_flight_is_ingested_once_its_aircraft_is_registered(
+        client: TestClient, keys: dict[str, str], app) -> None:  # type: ignore[no-untyped-def]
+    data = make_parquet("LATE1", "F0001")
+    rejected = post_parquet(client, keys["uploader"], data)
+    assert rejected.status_code == 422
+    assert [x["code"] for x in rejected.json()["error"]["details"]["reasons"]] == [
+        "unknown_aircraft"]
+    r = client.post("/api/v1/aircraft", headers=auth(keys["admin"]), json={
+        "tail": "LATE1", "base": "Turin", "actuators": serials_for("LATE1")})
+    assert r.status_code == 201
+    accepted = post_parquet(client, keys["uploader"], data)
+    assert accepted.status_code == 202, accepted.text
+    assert accepted.json()["status"] == "queued" and accepted.json()["duplicate"] is False
+    again = post_parquet(client, keys["uploader"], data)  # now idempotent
+    assert again.status_code == 200 and again.json()["duplicate"] is True
+    assert again.json()["id"] == accepted.json()["id"]
+    rows = client.get("/api/v1/flights?aircraft=LATE1", headers=auth(keys["viewer"])).json()
+    assert sorted(f["status"] for f in rows["items"]) == ["queued", "rejected"]
+    assert len({f["sha256"] for f in rows["items"]}) == 1  # one blob, content-addressed
+    jobs = client.get("/api/v1/jobs", headers=auth(keys["viewer"])).json()
+    assert [j["flight_id"] for j in jobs["items"]] == [accepted.json()["id"]]
+
+
+def test_a_damaged_stored_copy_is_replaced_by_the_bytes_sent_again(
+        client: TestClient, keys: dict[str, str], app) -> None:  # type: ignore[no-untyped-def]
+    data = make_parquet("LATE2", "F0001")
+    rejected = post_parquet(client, keys["uploader"], data)
+    assert rejected.status_code == 422
+    sha = client.get(rejected.json()["error"]["details"]["status_url"],
+                     headers=auth(keys["viewer"])).json()["sha256"]
+    app.state.blobs.path_of(sha).write_bytes(b"rotten")
+    client.post("/api/v1/aircraft", headers=auth(keys["admin"]), json={
+        "tail": "LATE2", "base": "Turin", "actuators": serials_for("LATE2")})
+    assert post_parquet(client, keys["uploader"], data).status_code == 202
+    assert app.state.blobs.path_of(sha).read_bytes() == data
+
+
+def csv_bytes(log: FlightLog) -> bytes:
+    names = list(log.channels)
+    text = io.StringIO()
+    np.savetxt(text, np.column_stack([log.channels[n] for n in names]), delimiter=",",
+               header=",".join(names), comments="", fmt="%.9g")
+    return text.getvalue().encode()
+
+
+def post_csv(client: TestClient, key: str, data: bytes, form: dict[str, str]):  # type: ignore[no-untyped-def]
+    return client.post("/api/v1/flights", headers=auth(key),
+                       files={"file": ("flight.csv", data)}, data=form)
+
+
+def test_csv_form_metadata_is_part_of_what_makes_an_upload_the_same(
+        client: TestClient, keys: dict[str, str], aircraft: str) -> None:
+    log = make_log(aircraft, "C1")
+    data, form = csv_bytes(log), log.metadata.to_strings()
+    first = post_csv(client, keys["uploader"], data, form)
+    assert first.status_code == 202, first.text
+    other_flight = post_csv(client, keys["uploader"], data, {**form, "flight": "C2"})
+    assert other_flight.status_code == 202 and other_flight.json()["duplicate"] is False
+    assert other_flight.json()["id"] != first.json()["id"]
+    stored = client.get(other_flight.json()["status_url"], headers=auth(keys["viewer"])).json()
+    assert stored["flight"] == "C2"
+    # the same fields written another way are the same upload
+    same = post_csv(client, keys["uploader"], data, {**form, "block_hours": "1.70"})
+    assert same.status_code == 200 and same.json()["id"] == first.json()["id"]
+    changed = post_csv(client, keys["uploader"], data, {**form, "block_hours": "2.5"})
+    assert changed.status_code == 409 and changed.json()["error"]["code"] == "flight_exists"
+
+
+def test_csv_rejected_for_a_form_field_is_accepted_with_the_field_corrected(
+        client: TestClient, keys: dict[str, str], aircraft: str) -> None:
+    log = make_log(aircraft, "C3")
+    data, form = csv_bytes(log), log.metadata.to_strings()
+    wrong = {**form, "actuator_serials": json.dumps({**serials_for(aircraft), "WT": "SN-X"})}
+    rejected = post_csv(client, keys["uploader"], data, wrong)
+    assert rejected.status_code == 422
+    assert "serial_mismatch" in [x["code"] for x in rejected.json()["error"]["details"]["reasons"]]
+    fixed = post_csv(client, keys["uploader"], data, form)
+    assert fixed.status_code == 202 and fixed.json()["duplicate"] is False
+
+
+def test_a_lost_race_answers_with_the_accepted_flight_of_the_same_upload(
+        client: TestClient, keys: dict[str, str], aircraft: str, app) -> None:  # type: ignore[no-untyped-def]
+    from server.services import flights as service
+
+    data = make_parquet(aircraft, "F0009")
+    accepted = post_parquet(client, keys["uploader"], data).json()
+    rejected = post_parquet(client, keys["uploader"], make_parquet("GHOST", "F0009")).json()
+    sha = client.get(accepted["status_url"], headers=auth(keys["viewer"])).json()["sha256"]
+    ghost_sha = client.get(rejected["error"]["details"]["status_url"],
+                           headers=auth(keys["viewer"])).json()["sha256"]
+    with app.state.session_factory() as session:
+        key = service.upload_key(sha256=sha, kind="parquet", form_metadata={})
+        won = service.after_lost_race(session=session,
+                                      race=service.LostRace(aircraft, "F0009", key))
+        assert won.id == accepted["id"]
+        ghost = service.upload_key(sha256=ghost_sha, kind="parquet", form_metadata={})
+        with pytest.raises(service.LostRace):  # a rejected row is no earlier upload
+            service.after_lost_race(session=session,
+                                    race=service.LostRace("GHOST", "F0009", ghost))
 
 
 def test_upload_errors_and_roles(client: TestClient, keys: dict[str, str], aircraft: str,
@@ -250,8 +355,8 @@ def test_size_limit_413_streamed_and_declared(small_limit_client, keys) -> None:
     assert client.get("/api/v1/flights", headers=auth(key)).json()["total"] == 0
 
 
-def test_openapi_documents_upload(client: TestClient) -> None:
-    spec = client.get("/openapi.json").json()
+def test_openapi_documents_upload(client: TestClient, keys: dict[str, str]) -> None:
+    spec = client.get("/openapi.json", headers=auth(keys["viewer"])).json()
     content = spec["paths"]["/api/v1/flights"]["post"]["requestBody"]["content"]
     assert {"application/vnd.apache.parquet", "multipart/form-data"} <= set(content)
     assert json.dumps(spec)  # serialisable

@@ -72,6 +72,28 @@ def test_retries_with_backoff_then_dead_letter(factory) -> None:  # type: ignore
     assert nxt.id == after
 
 
+def test_job_abandoned_on_its_last_attempt_is_buried_not_claimed_again(factory) -> None:  # type: ignore[no-untyped-def]
+    abandoned, after = add_jobs(factory, ["A", "A"], max_attempts=1)
+    job = queue.claim_next(factory, worker_id="killed-worker", lease_s=60)
+    with factory() as s:
+        assert queue.bury_abandoned(s) == []  # its lease still runs
+        s.execute(update(Job).where(Job.id == abandoned)
+                  .values(lease_until=utcnow() - timedelta(seconds=1)))
+        s.commit()
+    nxt = queue.claim_next(factory, worker_id="w2", lease_s=60)  # never a second first try
+    assert nxt is None
+    with factory() as s:
+        assert [b.id for b in queue.bury_abandoned(s)] == [job.id]
+        assert queue.bury_abandoned(s) == []  # given to one caller only
+        s.commit()
+        row = s.get(Job, abandoned)
+        assert row.status == "dead" and row.last_error == queue.ABANDONED and row.finished_at
+        assert not queue.complete(s, job_id=abandoned, worker_id="killed-worker")
+        assert queue.fail(s, job=job, worker_id="killed-worker", error="late") == "lost"
+    nxt = queue.claim_next(factory, worker_id="w2", lease_s=60)  # a dead job does not block
+    assert nxt.id == after
+
+
 def test_backoff_policy_grows_and_caps() -> None:
     policy = queue.RetryPolicy(base_s=2, max_s=10)
     assert [policy.delay(a).total_seconds() for a in (1, 2, 3, 4, 5)] == [2, 4, 8, 10, 10]

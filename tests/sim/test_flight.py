@@ -93,6 +93,7 @@ def test_campaign_plan_covers_every_mode():
     assert sum(s.mode == "TTS" for s in ver) == 25
 
 
+@pytest.mark.slow
 def test_tiny_campaign_manifest(tmp_path, monkeypatch):
     import json
 

@@ -12,6 +12,7 @@ from sim_worker.flight import estimate_summary
 from sim_worker.load_share import life_integral, load_share, table
 
 
+@pytest.mark.slow
 def test_stored_table_agrees_with_the_kernel():
     """Three fresh paired flights per point against the stored twelve: a kernel or scenario
     change that moves the load share shows here (then re-run ``sim-worker load-share``)."""

@@ -1,0 +1,300 @@
+"""Requests a browser or a careless client can send (issue 26): writes through the session
+cookie (CSRF), the API documentation and its key rule, the error responses the schema lists,
+body limits, strict integers, finite floats, ASCII ids, the event stream of a revoked key and
+the temporary files a killed process leaves."""
+
+from __future__ import annotations
+
+import os
+import re
+import threading
+import time
+from collections.abc import Iterator
+
+import pytest
+from fastapi.testclient import TestClient
+
+from server.app import create_app
+from server.auth import csrf_token
+from server.config import Settings
+from tests.api.conftest import auth
+from tests.flightlog_factory import make_parquet, serials_for
+
+PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
+OWN_ORIGIN = "http://testserver"
+
+
+def sign_in(client: TestClient, key: str) -> None:
+    r = client.post("/signin", data={"key": key, "next": "/fleet"}, follow_redirects=False)
+    assert r.status_code == 303, r.text
+
+
+def _new_key(client: TestClient, admin: str, role: str = "viewer") -> dict:  # type: ignore[type-arg]
+    r = client.post("/api/v1/keys", json={"name": f"temp-{role}", "role": role},
+                    headers=auth(admin))
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+def _revoked(client: TestClient, admin: str, key_id: int) -> bool:
+    keys = client.get("/api/v1/keys", headers=auth(admin)).json()
+    return next(k for k in keys if k["id"] == key_id)["revoked_at"] is not None
+
+
+# ------------------------------------------------------------------------------------------
+# CSRF: writes authenticated by the session cookie
+# ------------------------------------------------------------------------------------------
+
+
+def test_cookie_writes_need_the_session_csrf_token(client: TestClient, keys: dict[str, str],
+                                                   aircraft: str) -> None:
+    victim = _new_key(client, keys["admin"])
+    sign_in(client, keys["admin"])
+    url = f"/api/v1/keys/{victim['id']}/revoke"
+    for headers in ({}, {"X-CSRF-Token": "0" * 64}, {"X-CSRF-Token": "é".encode("latin-1")}):
+        r = client.post(url, headers=headers)
+        assert r.status_code == 403, (headers, r.text)
+        assert r.json()["error"]["code"] == "csrf_mismatch"
+    token = csrf_token(keys["admin"])
+    r = client.post(url, headers={"X-CSRF-Token": token, "Origin": "http://127.0.0.1:9999"})
+    assert r.status_code == 403 and r.json()["error"]["code"] == "cross_origin"
+    forged = client.post("/api/v1/flights", content=make_parquet(aircraft, "FORGED"),
+                         headers=PARQUET)
+    assert forged.status_code == 403
+    assert not _revoked(client, keys["admin"], victim["id"])
+    assert client.get("/api/v1/flights").json()["total"] == 0  # reads need no token
+
+    r = client.post(url, headers={"X-CSRF-Token": token, "Origin": OWN_ORIGIN})
+    assert r.status_code == 200 and _revoked(client, keys["admin"], victim["id"])
+    assert f'<meta name="hmsm-csrf" content="{token}">' in client.get("/fleet").text
+
+
+def test_bearer_writes_need_no_csrf_token_even_beside_a_cookie(
+        client: TestClient, keys: dict[str, str], aircraft: str) -> None:
+    sign_in(client, keys["viewer"])  # a cookie of another key is ignored under a Bearer key
+    r = client.post("/api/v1/flights", content=make_parquet(aircraft, "F0001"),
+                    headers={**PARQUET, **auth(keys["uploader"]),
+                             "Origin": "http://127.0.0.1:9999"})
+    assert r.status_code == 202, r.text
+
+
+# ------------------------------------------------------------------------------------------
+# API documentation
+# ------------------------------------------------------------------------------------------
+
+_ASSET = re.compile(r'(?:src|href)="([^"]+)"')
+
+
+def test_docs_need_a_key_and_load_only_local_assets(client: TestClient, keys: dict[str, str]
+                                                    ) -> None:
+    assert client.get("/openapi.json").status_code == 401
+    for page in ("/docs", "/redoc"):
+        r = client.get(page, follow_redirects=False)
+        assert r.status_code == 303 and r.headers["location"] == f"/signin?next=%2F{page[1:]}"
+    dashboard_csp = client.get("/signin").headers["content-security-policy"]
+    assert client.get("/openapi.json", headers=auth(keys["viewer"])).status_code == 200
+    sign_in(client, keys["viewer"])
+    for page in ("/docs", "/redoc"):
+        r = client.get(page)
+        assert r.status_code == 200, page
+        assert r.headers["content-security-policy"] == dashboard_csp
+        assert "<script>" not in r.text  # no inline script, as the CSP demands
+        assets = _ASSET.findall(r.text)
+        assert assets and all(a.startswith("/") and not a.startswith("//") for a in assets)
+        for asset in assets:
+            got = client.get(asset)
+            assert got.status_code == 200 and len(got.content) > 100, asset
+    assert client.get("/openapi.json").json()["info"]["title"].startswith("EMA")
+    assert 'name="hmsm-csrf" content="' + csrf_token(keys["viewer"]) in client.get("/docs").text
+
+
+# ------------------------------------------------------------------------------------------
+# the error responses of the OpenAPI schema against what the operations answer
+# ------------------------------------------------------------------------------------------
+
+LIMIT = 4096
+OVER_LIMIT = LIMIT + 64 * 1024 + 1  # the limit holds multipart framing beside the file
+
+
+@pytest.fixture
+def small_client(settings: Settings) -> Iterator[tuple[TestClient, dict[str, str]]]:
+    from server.auth import create_key
+    from server.db import session_scope
+
+    app = create_app(settings.model_copy(update={"max_upload_bytes": LIMIT}))
+    with session_scope(app.state.session_factory) as s:
+        keys = {r: create_key(session=s, name=r, role=r)[1] for r in ("viewer", "admin")}
+    with TestClient(app, raise_server_exceptions=False) as client:
+        yield client, keys
+    app.state.engine.dispose()
+
+
+def _probes(method: str, path: str, operation: dict, keys: dict[str, str]  # type: ignore[type-arg]
+            ) -> Iterator[tuple[str, dict]]:  # type: ignore[type-arg]
+    url = re.sub(r"\{[^}]+\}", "999999", path)
+    yield url, {}
+    yield url, {"headers": auth("hmsm_not-a-real-key")}
+    for role in ("viewer", "admin"):
+        yield url, {"headers": auth(keys[role])}
+        if "requestBody" in operation:
+            json_body = "application/json" in operation["requestBody"]["content"]
+            ctype = "application/json" if json_body else "application/vnd.apache.parquet"
+            yield url, {"headers": {**auth(keys[role]), "Content-Type": ctype},
+                        "content": b"\xff\xfe{"}
+            yield url, {"headers": {**auth(keys[role]), "Content-Type": ctype},
+                        "content": iter([b" " * OVER_LIMIT])}  # chunked, over the limit
+            yield url, {"headers": auth(keys[role]), "json": {}}
+
+
+def test_openapi_lists_every_error_an_operation_answers(small_client) -> None:  # type: ignore[no-untyped-def]
+    client, keys = small_client
+    spec = client.get("/openapi.json", headers=auth(keys["viewer"])).json()
+    missing = []
+    for path, item in spec["paths"].items():
+        for method, operation in item.items():
+            if path.startswith("/api/v1/health/"):
+                continue
+            documented = set(operation["responses"])
+            for url, kwargs in _probes(method, path, operation, keys):
+                if path == "/api/v1/events":
+                    url += "?timeout=1&poll=0.2"
+                status = client.request(method, url, **kwargs).status_code
+                if str(status) not in documented:
+                    missing.append(f"{method.upper()} {path}: {status}")
+    assert not missing, sorted(set(missing))
+    assert "Error" in spec["components"]["schemas"]
+    for path, item in spec["paths"].items():
+        for method, operation in item.items():
+            for status, response in operation["responses"].items():
+                if status[0] == "4":
+                    assert response["content"]["application/json"]["schema"] == {
+                        "$ref": "#/components/schemas/Error"}, (method, path, status)
+    conflicts = {("post", "/api/v1/aircraft"), ("post", "/api/v1/flights"),
+                 ("post", "/api/v1/models/{model_id}/activate"),
+                 ("post", "/api/v1/test-station/injections"),
+                 ("post", "/api/v1/alarms/{alarm_id}/close")}
+    for method, path in conflicts:
+        assert "409" in spec["paths"][path][method]["responses"], (method, path)
+
+
+def test_chunked_json_over_the_body_limit_answers_413(small_client) -> None:  # type: ignore[no-untyped-def]
+    client, keys = small_client
+    r = client.post("/api/v1/aircraft", content=iter([b" " * OVER_LIMIT, b"{}"]),
+                    headers={**auth(keys["admin"]), "Content-Type": "application/json"})
+    assert r.status_code == 413, r.text
+    assert r.json()["error"]["code"] == "payload_too_large"
+    assert r.json()["error"]["details"]["limit_bytes"] > LIMIT
+
+
+def test_get_of_the_training_endpoint_is_405(client: TestClient, keys: dict[str, str]) -> None:
+    r = client.get("/api/v1/models/train", headers=auth(keys["viewer"]))
+    assert r.status_code == 405 and r.json()["error"]["code"] == "method_not_allowed"
+    assert client.get("/api/v1/models/424242", headers=auth(keys["viewer"])).status_code == 404
+
+
+# ------------------------------------------------------------------------------------------
+# values: strict integers, finite floats, ASCII ids
+# ------------------------------------------------------------------------------------------
+
+
+def _injection(client: TestClient, keys: dict[str, str], aircraft: str) -> int:
+    r = client.post("/api/v1/test-station/injections", headers=auth(keys["operator"]), json={
+        "aircraft": aircraft, "position": "WT", "fault_mode": "MTWEAR", "onset_flight": 2})
+    assert r.status_code == 201, r.text
+    return int(r.json()["id"])
+
+
+def test_ground_truth_refuses_non_finite_numbers(client: TestClient, keys: dict[str, str],
+                                                 aircraft: str) -> None:
+    url = f"/api/v1/test-station/injections/{_injection(client, keys, aircraft)}/ground-truth"
+    headers = {**auth(keys["operator"]), "Content-Type": "application/json"}
+    for value in ("Infinity", "NaN", "-Infinity", "1e400"):
+        body = f'{{"flight": "F1", "flight_number": 1, "severity": {value}, "severity_norm": 0}}'
+        r = client.put(url, content=body, headers=headers)
+        assert r.status_code == 422, (value, r.text)
+    ok = client.put(url, headers=headers, json={"flight": "F1", "flight_number": 1,
+                                                "severity": 0.2, "severity_norm": 0.1})
+    assert ok.status_code == 200 and ok.json()["severity"] == 0.2
+    assert client.get(url, headers=auth(keys["viewer"])).json()[0]["severity"] == 0.2
+    assert client.get("/api/v1/test-station/injections/424242/ground-truth",
+                      headers=auth(keys["viewer"])).status_code == 404
+
+
+def test_booleans_are_not_integers(client: TestClient, keys: dict[str, str], aircraft: str
+                                   ) -> None:
+    r = client.post("/api/v1/test-station/injections", headers=auth(keys["operator"]), json={
+        "aircraft": aircraft, "position": "WT", "fault_mode": "MTWEAR", "onset_flight": False})
+    assert r.status_code == 422, r.text
+    r = client.post("/api/v1/models/train", headers=auth(keys["admin"]),
+                    json={"campaign": "c", "seed": True})
+    assert r.status_code == 422, r.text
+    url = f"/api/v1/test-station/injections/{_injection(client, keys, aircraft)}"
+    for body in ({"flight": "F1", "flight_number": True, "severity": 0.1, "severity_norm": 0.1},
+                 {"flight": "F1", "flight_number": 1, "severity": 0.1, "severity_norm": 0.1,
+                  "true_rul_flights": False}):
+        assert client.put(url + "/ground-truth", json=body,
+                          headers=auth(keys["operator"])).status_code == 422, body
+    r = client.post(url + "/status", json={"status": "active", "failure_flight": True},
+                    headers=auth(keys["operator"]))
+    assert r.status_code == 422
+
+
+@pytest.mark.parametrize("flight", ["..", ".", "\uff26\uff11", "F1\u00e9", "F1\n"])
+def test_flight_ids_are_ascii_and_not_only_dots(client: TestClient, keys: dict[str, str],
+                                                aircraft: str, flight: str) -> None:
+    r = client.post("/api/v1/flights", content=make_parquet(aircraft, flight),
+                    headers={**PARQUET, **auth(keys["uploader"])})
+    assert r.status_code == 422
+    assert [x["code"] for x in r.json()["error"]["details"]["reasons"]] == ["bad_metadata"]
+    url = f"/api/v1/test-station/injections/{_injection(client, keys, aircraft)}/ground-truth"
+    r = client.put(url, headers=auth(keys["operator"]), json={
+        "flight": flight, "flight_number": 1, "severity": 0.1, "severity_norm": 0.1})
+    assert r.status_code == 422
+    r = client.post("/api/v1/aircraft", headers=auth(keys["admin"]), json={
+        "tail": flight, "base": "Turin", "actuators": serials_for("X")})
+    assert r.status_code == 422
+
+
+def test_dotted_ids_that_are_not_only_dots_are_fine(client: TestClient, keys: dict[str, str],
+                                                    aircraft: str) -> None:
+    r = client.post("/api/v1/flights", content=make_parquet(aircraft, "F.1..2"),
+                    headers={**PARQUET, **auth(keys["uploader"])})
+    assert r.status_code == 202, r.text
+
+
+# ------------------------------------------------------------------------------------------
+# the event stream of a revoked key; temporary files of a killed process
+# ------------------------------------------------------------------------------------------
+
+
+def test_event_stream_ends_when_its_key_is_revoked(client: TestClient, keys: dict[str, str]
+                                                   ) -> None:
+    viewer = _new_key(client, keys["admin"])
+    revoke = threading.Timer(0.8, lambda: client.post(
+        f"/api/v1/keys/{viewer['id']}/revoke", headers=auth(keys["admin"])))
+    started = time.monotonic()
+    revoke.start()
+    with client.stream("GET", "/api/v1/events?timeout=20&poll=0.2",
+                       headers=auth(viewer["key"])) as r:
+        assert r.status_code == 200
+        body = "".join(r.iter_text())
+    revoke.join()
+    assert "event: hello" in body and body.endswith("event: revoked\ndata: {}\n\n")
+    assert time.monotonic() - started < 10
+    assert client.get("/api/v1/events?timeout=1", headers=auth(viewer["key"])).status_code == 401
+
+
+def test_stale_temporary_uploads_are_swept_at_start(settings: Settings) -> None:
+    tmp = settings.tmp_dir
+    tmp.mkdir(parents=True)
+    stale = [tmp / f"upload-killed{i}" for i in range(5)]
+    for path in stale:
+        path.write_bytes(b"\0" * 1024)
+        old = time.time() - 3600
+        os.utime(path, (old, old))
+    live = tmp / "upload-in-flight"
+    live.write_bytes(b"\0")
+    app = create_app(settings)
+    app.state.engine.dispose()
+    assert not any(p.exists() for p in stale)
+    assert live.exists()  # maybe another API process's upload
