@@ -26,7 +26,7 @@ from tests.flightlog_factory import serials_for
 from tests.live_server import running_server
 
 playwright_api = pytest.importorskip("playwright.sync_api", reason="playwright not installed")
-pytestmark = NEEDS_CHROMIUM
+pytestmark = [NEEDS_CHROMIUM, pytest.mark.slow]
 
 TAIL = "X001"
 REDOCLY_LOGO = "https://cdn.redoc.ly/redoc/logo-mini.svg"

@@ -36,7 +36,7 @@ NEEDS_CHROMIUM = pytest.mark.skipif(
     shutil.which(CHROMIUM) is None and not Path(CHROMIUM).exists(),
     reason=f"{CHROMIUM} is missing (apt-get install chromium); browser tests never download a "
     "browser")
-pytestmark = NEEDS_CHROMIUM
+pytestmark = [NEEDS_CHROMIUM, pytest.mark.slow]
 
 
 @dataclass

@@ -190,6 +190,7 @@ def test_deeply_nested_actuator_serials_are_bad_metadata(api: Api, carrier: str,
     assert len(json.dumps(reasons)) < 2048
 
 
+@pytest.mark.slow
 def test_signals_of_a_long_flight_are_decimated_while_read(api: Api, capsys) -> None:  # type: ignore[no-untyped-def]
     rows = 2_000_000  # 240 MB decoded: within the limits, so the flight is stored
     r = api.upload_parquet(parquet_bomb({**META, "flight": "LONG1"}, NAMES, rows))
