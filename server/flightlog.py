@@ -483,10 +483,13 @@ def read_parquet(data: bytes, limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> F
     except MemoryError:
         raise
     except (pa.ArrowException, OSError, ValueError) as exc:
-        raise FlightLogError([Issue("unreadable", "A column of the Parquet file cannot be decoded "
-                                    "(truncated or corrupt data).", {"error": str(exc)[:300]})
-                              ]) from None
+        raise _undecodable_column(exc) from None
     return FlightLog(metadata=metadata, channels=channels)
+
+
+def _undecodable_column(exc: Exception) -> FlightLogError:
+    return FlightLogError([Issue("unreadable", "A column of the Parquet file cannot be decoded "
+                                 "(truncated or corrupt data).", {"error": str(exc)[:300]})])
 
 
 def read_parquet_decimated(data: bytes, channels: Sequence[str] | None, max_points: int,
@@ -520,9 +523,7 @@ def read_parquet_decimated(data: bytes, channels: Sequence[str] | None, max_poin
     except MemoryError:
         raise
     except (pa.ArrowException, OSError, ValueError) as exc:
-        raise FlightLogError([Issue("unreadable", "A column of the Parquet file cannot be decoded "
-                                    "(truncated or corrupt data).", {"error": str(exc)[:300]})
-                              ]) from None
+        raise _undecodable_column(exc) from None
     return step, {name: np.concatenate(parts) if parts else np.empty(0)
                   for name, parts in kept.items()}
 
