@@ -1,12 +1,17 @@
-"""Campaign directories (contract ``ema-campaign/1``, written by ``sim-worker campaign``):
-read into :class:`server.phm.dataset.Campaign` with every flight's features.
+"""Campaign directories (contract ``ema-campaign/1``, written by ``sim-worker campaign`` or
+streamed by ``hmsm campaign``): read into :class:`server.phm.dataset.Campaign` with every
+flight's features.
 
 Layout: ``DIR/manifest.json`` (the campaign's aircraft, patterns and every flight's ground
-truth) and ``DIR/flights/<tail>/<flight>.parquet`` (flight logs, format ``ema-flightlog/1``).
-Every flight log is decoded and checked by :mod:`server.flightlog`, exactly as an upload is,
-then its features are computed by the service's own :func:`server.phm.features.flight_features`
-and cached beside the manifest in ``phm_features.json`` (keyed by file, valid for one feature
-version and configuration).
+truth), ``DIR/flights/<tail>/<flight>.parquet`` (flight logs, format ``ema-flightlog/1``) and
+``DIR/phm_features.json`` (every flight's features by flight id, valid for one feature version
+and configuration). Every flight log is decoded and checked by :mod:`server.flightlog`, exactly
+as an upload is, then its features are computed by the service's own
+:func:`server.phm.features.flight_features`.
+
+A streamed campaign (:class:`FeatureSink`) does that in the worker that simulated the flight,
+on the log's Parquet bytes in memory, and keeps the features instead of the file; only every
+``keep_raw_every``-th flight of a pattern is also written as a file, so ingest stays exercised.
 """
 
 from __future__ import annotations
@@ -16,13 +21,21 @@ import os
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from server.flightlog import FlightLogError, check_coherence, read_parquet, read_parquet_metadata
+from server.flightlog import (
+    FlightLog,
+    FlightLogError,
+    check_coherence,
+    read_parquet,
+    read_parquet_metadata,
+    write_parquet,
+)
 from server.phm.chain import PhmModel
 from server.phm.dataset import Campaign, FlightRecord, Pattern
 from server.phm.features import (
@@ -34,11 +47,12 @@ from server.phm.features import (
 )
 from server.phm.training import train_phm_model
 
-__all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "read_manifest",
+__all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "read_manifest",
            "read_flight_channels", "read_started_at", "load_campaign", "train_from_directory"]
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
 FEATURE_CACHE = "phm_features.json"
+_CACHE_FORMAT = "phm-features/2"  # keyed by flight id
 
 
 class CampaignError(ValueError):
@@ -59,14 +73,77 @@ def read_manifest(directory: str | os.PathLike[str]) -> dict[str, Any]:
 def read_flight_channels(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """All channels of a flight-log file as float64 arrays, after the same decoding and
     coherence checks as an upload (the file's own serials stand for the installed ones)."""
+    return decode_channels(Path(path).read_bytes(), str(path))
+
+
+def decode_channels(data: bytes, name: str) -> dict[str, np.ndarray]:
+    """All channels of a flight log's Parquet bytes, decoded and checked as an upload is."""
     try:
-        log = read_parquet(Path(path).read_bytes())
+        log = read_parquet(data)
         issues = check_coherence(log, fleet_serials=dict(log.metadata.actuator_serials))
     except FlightLogError as exc:
         issues = exc.issues
     if issues:
-        raise CampaignError(f"{path}: " + "; ".join(i.message for i in issues))
+        raise CampaignError(f"{name}: " + "; ".join(i.message for i in issues))
     return {n: np.asarray(v, dtype=np.float64) for n, v in log.channels.items()}
+
+
+def feature_config_key(cfg: FeatureConfig) -> str:
+    """What stored features are valid for: the feature code's version and its configuration."""
+    return f"{FEATURE_VERSION} {cfg!r}"
+
+
+def _write_cache(root: Path, key: str, flights: Mapping[str, Any]) -> None:
+    tmp = root / (FEATURE_CACHE + ".tmp")
+    tmp.write_text(json.dumps({"format": _CACHE_FORMAT, "config": key, "flights": flights}))
+    tmp.replace(root / FEATURE_CACHE)
+
+
+def _read_cache(root: Path, key: str) -> dict[str, Any]:
+    path = root / FEATURE_CACHE
+    if not path.exists():
+        return {}
+    doc = json.loads(path.read_text())
+    if doc.get("format") != _CACHE_FORMAT or doc.get("config") != key:
+        return {}
+    return dict(doc["flights"])
+
+
+@dataclass(frozen=True)
+class FeatureSink:
+    """Streams a campaign: each rendered flight, written to the flight-log contract in memory,
+    decoded and checked as an upload, its features computed by the service's own code; the
+    log is then dropped, except every ``keep_raw_every``-th flight of a pattern (index 0
+    included), written as its file. Features go to ``phm_features.json`` at the end."""
+
+    keep_raw_every: int = 200
+    config: FeatureConfig = field(default_factory=FeatureConfig)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.keep_raw_every, bool) or not isinstance(self.keep_raw_every, int) \
+                or self.keep_raw_every < 1:
+            raise ValueError("keep_raw_every must be a positive int")
+
+    def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
+                 ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]:
+        data = write_parquet(log)
+        features = flight_features(decode_channels(data, rel), config=self.config,
+                                   ground_temp_c=ground_temp_c).to_dict()
+        if index % self.keep_raw_every:
+            return None, features
+        path = out_dir / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_bytes(data)
+        tmp.replace(path)
+        return rel, features
+
+    def describe(self) -> dict[str, Any]:
+        return {"sink": "features", "keep_raw_every": self.keep_raw_every,
+                "features": feature_config_key(self.config)}
+
+    def finish(self, out_dir: Path, stored: dict[str, dict[str, Any]]) -> None:
+        _write_cache(out_dir, feature_config_key(self.config), stored)
 
 
 def read_started_at(path: str | os.PathLike[str]) -> datetime | None:
@@ -90,31 +167,37 @@ def _features_from_dict(d: Mapping[str, Any]) -> FlightFeatures:
 
 def _cached_features(root: Path, manifest: Mapping[str, Any], cfg: FeatureConfig, jobs: int,
                      cache: bool) -> dict[str, Any]:
-    """Features of every flight by file name: from the cache, the missing ones computed."""
-    cache_path = root / FEATURE_CACHE
-    cfg_key = f"{FEATURE_VERSION} {cfg!r}"
-    cached: dict[str, Any] = {}
-    if cache and cache_path.exists():
-        doc = json.loads(cache_path.read_text())
-        if doc.get("config") == cfg_key:
-            cached = doc["flights"]
-    todo = [(fl["file"], fl.get("ground_temp_c")) for pat in manifest["patterns"]
-            for fl in pat["flights"] if fl["file"] not in cached]
+    """Features of every flight by flight id: the stored ones, the missing ones computed from
+    their files (a flight streamed without its file must have stored features)."""
+    key = feature_config_key(cfg)
+    cached = _read_cache(root, key) if cache else {}
+    flights = [fl for pat in manifest["patterns"] for fl in pat["flights"]]
+    todo = [fl for fl in flights if fl["flight"] not in cached]
     if not todo:
         return cached
-    args = [(str(root / f), g, cfg) for f, g in todo]
+    lost = [fl["flight"] for fl in todo if not fl.get("file")]
+    if lost:
+        raise CampaignError(
+            f"{root}: {len(lost)} flights (first {lost[0]}) were streamed without their logs "
+            f"and have no features for this feature version and configuration ({key}); "
+            "generate the campaign again")
+    args = [(str(root / fl["file"]), fl.get("ground_temp_c"), cfg) for fl in todo]
     if jobs > 1:
         with ProcessPoolExecutor(max_workers=jobs) as ex:
             results = list(ex.map(_features_of, args, chunksize=4))
     else:
         results = [_features_of(a) for a in args]
-    for (f, _), r in zip(todo, results, strict=True):
-        cached[f] = r
+    for fl, r in zip(todo, results, strict=True):
+        cached[fl["flight"]] = r
     if cache:
-        tmp = cache_path.with_suffix(".tmp")
-        tmp.write_text(json.dumps({"config": cfg_key, "flights": cached}))
-        tmp.replace(cache_path)
+        _write_cache(root, key, cached)
     return cached
+
+
+def _started_at(root: Path, fl: Mapping[str, Any]) -> datetime | None:
+    if fl.get("started_at"):
+        return datetime.fromisoformat(str(fl["started_at"]))
+    return read_started_at(root / fl["file"])
 
 
 def _record(root: Path, fl: Mapping[str, Any], features: Mapping[str, Any]) -> FlightRecord:
@@ -123,7 +206,7 @@ def _record(root: Path, fl: Mapping[str, Any], features: Mapping[str, Any]) -> F
                         None if fl.get("true_rul_flights") is None
                         else float(fl["true_rul_flights"]),
                         fl.get("ground_temp_c"), _features_from_dict(features),
-                        read_started_at(root / fl["file"]))
+                        _started_at(root, fl))
 
 
 def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | None = None,
@@ -135,7 +218,7 @@ def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | 
     bases = {str(a.get("tail")): a.get("base") for a in manifest.get("aircraft", [])}
     patterns = []
     for pat in manifest["patterns"]:
-        recs = [_record(root, fl, cached[fl["file"]])
+        recs = [_record(root, fl, cached[fl["flight"]])
                 for fl in sorted(pat["flights"], key=lambda f: int(f["index"]))]
         patterns.append(Pattern(str(pat["id"]), str(pat["aircraft"]), str(pat["mode"]),
                                 pat.get("position"), pat.get("onset_flight"),

@@ -161,6 +161,21 @@ def cmd_train(args: argparse.Namespace, settings: Settings) -> int:
     return 0
 
 
+def cmd_campaign(args: argparse.Namespace, settings: Settings) -> int:
+    import time
+
+    from server.campaigns import FeatureSink
+    from sim_worker.cli import run_campaign_command
+
+    t0 = time.perf_counter()
+    manifest = run_campaign_command(args, sink=FeatureSink(keep_raw_every=args.keep_raw_every))
+    flights = [f for p in manifest["patterns"] for f in p["flights"]]
+    kept = sum(1 for f in flights if f["file"])
+    print(f"{args.kind} campaign: {len(manifest['patterns'])} patterns, {len(flights)} flights "
+          f"streamed ({kept} logs kept) to {args.out} in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="hmsm", description="EMA health management service.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -194,6 +209,16 @@ def build_parser() -> argparse.ArgumentParser:
                               "campaign (paper section 5): JSON + HTML report")
     add_evaluate_arguments(evaluate)
     evaluate.set_defaults(func=run_evaluate)
+
+    from sim_worker.cli import add_campaign_arguments
+
+    campaign = sub.add_parser("campaign", help="stream a simulated campaign: every flight "
+                              "simulated, its features kept, its log only for a sample")
+    add_campaign_arguments(campaign)
+    campaign.add_argument("--keep-raw-every", type=int, default=200, metavar="K",
+                          help="keep the flight log of every K-th flight of a pattern "
+                          "(default 200: about 1 GB for the protocol scale; 1 keeps every one)")
+    campaign.set_defaults(func=cmd_campaign)
 
     worker = sub.add_parser("worker", help="run analysis workers")
     worker.add_argument("--concurrency", type=int, default=1, help="worker processes")

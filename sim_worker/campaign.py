@@ -18,22 +18,25 @@ expected life does not depend on ``render_every``.
 from __future__ import annotations
 
 import json
+import math
 import os
+import shutil
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from server.flightlog import write_parquet
+from server.flightlog import FlightLog, write_parquet
 from server.vocabulary import POSITIONS, WINGLET_PAIR
 
 from .faults import (
     A_PRIORI,
     MODES,
     PROGRESSIVE,
+    SPAN_FLIGHTS,
     FaultState,
     advance_fault,
     healthy,
@@ -47,11 +50,16 @@ from .flight import (
     simulate_flight,
 )
 
-__all__ = ["ScaleConfig", "SCALES", "plan_campaign", "run_campaign", "FORMAT", "fleet_for"]
+__all__ = ["ScaleConfig", "SCALES", "plan_campaign", "run_campaign", "run_pattern", "FORMAT",
+           "SETTINGS_FILE", "FlightSink", "ParquetSink", "PatternTask", "fleet_for",
+           "write_file"]
 
 FORMAT = "ema-campaign/1"
+#: the settings a finished campaign was made with, beside its manifest
+SETTINGS_FILE = "campaign_settings.json"
 _KIND_CODE = {"design": 1, "verification": 2}
-_MAX_FLIGHTS = 2000
+_MAX_FLIGHTS = 2000  # a fault-to-failure run stops here at the latest
+_MAX_SPAN = 1500.0  # largest expected span a user may ask for [flights], under _MAX_FLIGHTS
 
 
 @dataclass(frozen=True)
@@ -66,6 +74,8 @@ class ScaleConfig:
     #: healthy flights (all rendered) before a progressive fault starts: the actuator's
     #: in-service history after installation, from which detection learns its own reference
     lead_flights: int = 8
+    #: range of the expected fault-to-failure span drawn per pattern [flights]
+    span_flights: tuple[float, float] = SPAN_FLIGHTS
 
 
 SCALES: dict[str, dict[str, ScaleConfig]] = {
@@ -86,6 +96,26 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
         "verification": ScaleConfig(duration_s=120.0, healthy_patterns=25, healthy_flights=4,
                                     patterns_per_mode=25, render_every=20, apriori_flights=8,
                                     apriori_onset=2),
+    },
+    # The paper's protocol (section 4.3): every flight of every pattern rendered, 25 patterns
+    # per mode on 10 unseen aircraft; meant to be streamed (features kept, raw logs sampled).
+    "protocol": {
+        "design": ScaleConfig(duration_s=120.0, healthy_patterns=10, healthy_flights=50,
+                              patterns_per_mode=10, render_every=1, apriori_flights=8,
+                              apriori_onset=2),
+        "verification": ScaleConfig(duration_s=120.0, healthy_patterns=25, healthy_flights=4,
+                                    patterns_per_mode=25, render_every=1, apriori_flights=8,
+                                    apriori_onset=2),
+    },
+    # The same protocol reduced for CI: every flight, a few patterns per mode, short
+    # recordings and fast faults (a regression test of the machinery, not a figure).
+    "ci": {
+        "design": ScaleConfig(duration_s=20.0, healthy_patterns=10, healthy_flights=8,
+                              patterns_per_mode=3, render_every=1, apriori_flights=5,
+                              apriori_onset=2, span_flights=(30.0, 60.0)),
+        "verification": ScaleConfig(duration_s=20.0, healthy_patterns=10, healthy_flights=8,
+                                    patterns_per_mode=2, render_every=1, apriori_flights=5,
+                                    apriori_onset=2, span_flights=(30.0, 60.0)),
     },
 }
 
@@ -173,72 +203,133 @@ def _flight_rng(spec: PatternSpec, index: int, stream: int) -> np.random.Generat
     return np.random.default_rng([spec.seed, index, stream])
 
 
+class FlightSink(Protocol):
+    """What becomes of a rendered flight: called in the worker that simulated it.
+
+    Returns the flight's file (relative to the campaign directory, or None if no file was
+    kept) and the data stored for it in place of the file (None: nothing). ``describe`` is
+    part of the campaign's settings (a resumed campaign must use the same sink); ``finish``
+    writes what the sink keeps beside the manifest, once every pattern is done.
+    """
+
+    def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
+                 ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]: ...
+
+    def describe(self) -> dict[str, Any]: ...
+
+    def finish(self, out_dir: Path, stored: dict[str, dict[str, Any]]) -> None: ...
+
+
+def write_file(path: Path, data: bytes) -> None:
+    """Write ``data`` atomically (a reader never sees half a file)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+@dataclass(frozen=True)
+class ParquetSink:
+    """Every rendered flight written as a flight-log file (``ema-flightlog/1`` Parquet)."""
+
+    def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
+                 ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]:
+        write_file(out_dir / rel, write_parquet(log))
+        return rel, None
+
+    def describe(self) -> dict[str, Any]:
+        return {"sink": "parquet"}
+
+    def finish(self, out_dir: Path, stored: dict[str, dict[str, Any]]) -> None:
+        return None
+
+
 def _render(out_dir: Path, aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index: int,
-            duration_s: float) -> tuple[str, str, Any]:
+            duration_s: float, sink: FlightSink
+            ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
     flight_id = f"{spec.id}-{index:04d}"
     start = flight_start(index, day_offset=spec.day_offset)
     log, summary = simulate_flight(aircraft, fault, index, _flight_rng(spec, index, 0),
                                    flight_id=flight_id, started_at=start, duration_s=duration_s)
-    rel = f"flights/{aircraft.tail}/{flight_id}.parquet"
-    path = out_dir / rel
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_bytes(write_parquet(log))
-    os.replace(tmp, path)
-    return flight_id, rel, summary
+    rel, stored = sink(out_dir, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
+                       _ground_temp(summary))
+    return flight_id, rel, summary, stored
 
 
-def _flight_entry(flight_id: str, rel: str, index: int, fault: FaultState, summary: Any,
-                  failure: int | None) -> dict[str, Any]:
+def _ground_temp(summary: Any) -> float:
+    return round(float(summary.ground_temp_c), 3)
+
+
+def _flight_entry(flight_id: str, rel: str | None, index: int, fault: FaultState, summary: Any,
+                  failure: int | None, started_at: str) -> dict[str, Any]:
     return {
         "flight": flight_id,
         "index": index,
         "file": rel,
+        "started_at": started_at,
         "severity": float(fault.severity) if fault.mode != "healthy" else 0.0,
         "severity_norm": float(fault.severity_norm),
         "true_rul_flights": None if failure is None else int(failure - index),
         "block_hours": float(summary.block_hours),
-        "ground_temp_c": round(float(summary.ground_temp_c), 3),
+        "ground_temp_c": _ground_temp(summary),
         "measured_summary": {p: {k: round(v, 6) for k, v in asdict(s).items()}
                              for p, s in summary.actuators.items()},
     }
 
 
-def run_pattern(args: tuple[str, str, int, ScaleConfig, PatternSpec, dict[str, Any]]
-                ) -> dict[str, Any]:
-    """Run one pattern (a task of the pool); returns its manifest entry."""
-    out_dir_s, kind, seed, cfg, spec, options = args
-    out_dir = Path(out_dir_s)
-    aircraft = fleet_for(kind, seed, **options)[spec.aircraft_index]
-    flights: list[dict[str, Any]] = []
+@dataclass(frozen=True)
+class PatternTask:
+    """Everything a worker needs to run one pattern (it rebuilds the aircraft itself)."""
+
+    out_dir: str
+    kind: str
+    seed: int
+    cfg: ScaleConfig
+    spec: PatternSpec
+    options: dict[str, Any]
+    sink: FlightSink
+
+
+def run_pattern(task: PatternTask) -> dict[str, Any]:
+    """Run one pattern (a task of the pool): its manifest entry, and under ``"stored"`` what
+    the sink kept for each rendered flight, by flight id."""
+    cfg, spec, sink = task.cfg, task.spec, task.sink
+    out_dir = Path(task.out_dir)
+    aircraft = fleet_for(task.kind, task.seed, **task.options)[spec.aircraft_index]
+    rendered: list[tuple[int, str, str | None, FaultState, Any]] = []
+    stored: dict[str, dict[str, Any]] = {}
     threshold: float | None = None
     failure: int | None = None
+
+    def render(fault: FaultState, index: int) -> Any:
+        fid, rel, summ, data = _render(out_dir, aircraft, spec, fault, index, cfg.duration_s,
+                                       sink)
+        rendered.append((index, fid, rel, fault, summ))
+        if data is not None:
+            stored[fid] = data
+        return summ
+
     if spec.mode == "healthy" or spec.mode in A_PRIORI:
-        fault = healthy()
+        fault_on = healthy()
         if spec.mode in A_PRIORI:
             assert spec.position is not None
             fault_on = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]))
             threshold = fault_on.threshold
         for index in range(spec.n_flights):
-            f = fault_on if spec.mode in A_PRIORI and index >= spec.onset else fault
-            fid, rel, summ = _render(out_dir, aircraft, spec, f, index, cfg.duration_s)
-            flights.append(_flight_entry(fid, rel, index, f, summ, None))
+            render(fault_on if index >= spec.onset else healthy(), index)
     else:
         assert spec.position is not None
         ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s,
                                 seed=spec.seed)
         fault = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]),
-                          reference=ref)
+                          reference=ref, span_range=cfg.span_flights)
         threshold = fault.threshold
-        rendered: list[tuple[int, str, str, FaultState, Any]] = []
         for index in range(spec.onset):
-            fid, rel, summ = _render(out_dir, aircraft, spec, healthy(), index, cfg.duration_s)
-            rendered.append((index, fid, rel, healthy(), summ))
+            render(healthy(), index)
         for index in range(spec.onset, spec.onset + _MAX_FLIGHTS):
             is_fail = fault.failed
             if is_fail or (index - spec.onset) % cfg.render_every == 0:
-                fid, rel, summ = _render(out_dir, aircraft, spec, fault, index, cfg.duration_s)
-                rendered.append((index, fid, rel, fault, summ))
+                summ = render(fault, index)
             else:
                 summ = estimate_summary(aircraft, index, _flight_rng(spec, index, 0),
                                         started_at=flight_start(index, day_offset=spec.day_offset),
@@ -247,45 +338,107 @@ def run_pattern(args: tuple[str, str, int, ScaleConfig, PatternSpec, dict[str, A
                 failure = index
                 break
             fault = advance_fault(fault, summ, _flight_rng(spec, index, 1))
-        for index, fid, rel, f, summ in rendered:
-            flights.append(_flight_entry(fid, rel, index, f, summ, failure))
+    flights = [_flight_entry(fid, rel, index, f, summ, failure,
+                             flight_start(index, day_offset=spec.day_offset).isoformat())
+               for index, fid, rel, f, summ in rendered]
     return {
-        "id": spec.id,
-        "aircraft": aircraft.tail,
-        "mode": spec.mode,
-        "position": spec.position,
-        "threshold": threshold,
-        "onset_flight": spec.onset,
-        "failure_flight": failure,
-        "flights": flights,
+        "entry": {
+            "id": spec.id,
+            "aircraft": aircraft.tail,
+            "mode": spec.mode,
+            "position": spec.position,
+            "threshold": threshold,
+            "onset_flight": spec.onset,
+            "failure_flight": failure,
+            "flights": flights,
+        },
+        "stored": stored,
     }
 
 
-def _map(tasks: list[Any], workers: int) -> Iterator[dict[str, Any]]:
-    if workers <= 1:
-        yield from map(run_pattern, tasks)
+def _completed(tasks: dict[int, PatternTask], workers: int, executor: Executor | None
+               ) -> Iterator[tuple[int, dict[str, Any]]]:
+    """(task number, result) as each pattern finishes, on ``executor`` if given, else on a
+    local process pool of ``workers`` (1: in this process)."""
+    if executor is None and workers <= 1:
+        for i, task in tasks.items():
+            yield i, run_pattern(task)
         return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        yield from pool.map(run_pattern, tasks, chunksize=1)
+    pool = executor if executor is not None else ProcessPoolExecutor(max_workers=workers)
+    try:
+        futures = {pool.submit(run_pattern, task): i for i, task in tasks.items()}
+        for fut in as_completed(futures):
+            yield futures[fut], fut.result()
+    finally:
+        if executor is None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[str, Any],
+              sink: FlightSink) -> dict[str, Any]:
+    """What determines the campaign's content: a resumed campaign must match it exactly."""
+    return {"format": FORMAT, "kind": kind, "seed": int(seed), "scale": scale,
+            "config": asdict(cfg), "bases": list(options["bases"]) if options["bases"] else None,
+            "noise_scale": options["noise_scale"], "sink": sink.describe()}
+
+
+class _Progress:
+    """Finished patterns of an interrupted run, one file each in ``DIR/progress/``; a finished
+    pattern is never simulated again. Removed once the manifest is written."""
+
+    def __init__(self, out: Path, settings: dict[str, Any]) -> None:
+        self.dir = out / "progress"
+        self.dir.mkdir(parents=True, exist_ok=True)
+        path = self.dir / "settings.json"
+        text = json.dumps(settings, sort_keys=True)
+        if path.exists() and path.read_text() != text:
+            raise ValueError(f"{out} holds an unfinished campaign with other settings "
+                             f"(see {path}); resume it with the same options or use another "
+                             "directory")
+        if not path.exists():
+            write_file(path, text.encode())
+
+    def _path(self, spec: PatternSpec) -> Path:
+        return self.dir / f"{spec.number:04d}.json"
+
+    def done(self, spec: PatternSpec) -> dict[str, Any] | None:
+        path = self._path(spec)
+        return json.loads(path.read_text()) if path.exists() else None
+
+    def save(self, spec: PatternSpec, result: dict[str, Any]) -> None:
+        write_file(self._path(spec), json.dumps(result).encode())
+
+    def remove(self) -> None:
+        shutil.rmtree(self.dir)
 
 
 def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "quick",
                  workers: int | None = None, progress: bool = True,
                  bases: tuple[str, ...] | None = None, noise_scale: float = 1.0,
-                 render_every: int | None = None) -> dict[str, Any]:
+                 render_every: int | None = None,
+                 span_flights: tuple[float, float] | None = None,
+                 sink: FlightSink | None = None,
+                 executor: Executor | None = None) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
 
-        {"format": "ema-campaign/1", "kind", "seed", "scale",
+        {"format": "ema-campaign/1", "kind", "seed", "scale", "duration_s", "render_every",
+         "lead_flights", "span_flights", "noise_scale", "bases", "sink",
          "aircraft": [{"tail", "base", "climate", "serials": {pos: serial}, "params": {...}}],
          "patterns": [{"id", "aircraft", "mode", "position", "threshold", "onset_flight",
-                       "failure_flight", "flights": [{"flight", "index", "file", "severity",
-                       "severity_norm", "true_rul_flights", "block_hours", "ground_temp_c",
-                       "measured_summary"}]}]}
+                       "failure_flight", "flights": [{"flight", "index", "file", "started_at",
+                       "severity", "severity_norm", "true_rul_flights", "block_hours",
+                       "ground_temp_c", "measured_summary"}]}]}
 
-    ``render_every`` overrides the scale's rendering step of fault-to-failure runs (1 renders
-    every flight, as a fleet in service downloads every one); the manifest records the step used.
+    A flight's ``file`` is None when the sink kept no log of it (a streamed campaign keeps
+    its features instead). ``render_every`` overrides the scale's rendering step of
+    fault-to-failure runs (1 renders every flight, as a fleet in service downloads every one);
+    ``span_flights`` the range of expected fault-to-failure spans. ``sink`` decides what is
+    kept of a rendered flight (default: its Parquet file). Patterns run on ``executor``
+    (any ``concurrent.futures.Executor``, e.g. a Dask client's) if given, else on a local
+    pool of ``workers`` processes; the output does not depend on either. An interrupted run
+    resumes where it stopped when called again with the same arguments.
     """
     if scale not in SCALES:
         raise ValueError(f"scale must be one of {sorted(SCALES)}")
@@ -293,32 +446,37 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
         raise ValueError(f"bases must be among {sorted(BASES)}")
     if not noise_scale > 0:
         raise ValueError("noise_scale must be positive")
-    cfg = SCALES[scale][kind]
-    if render_every is not None:
-        if isinstance(render_every, bool) or not isinstance(render_every, int) \
-                or render_every < 1:
-            raise ValueError("render_every must be a positive int")
-        cfg = replace(cfg, render_every=render_every)
+    cfg = _scale_config(scale, kind, render_every, span_flights)
+    sink = sink if sink is not None else ParquetSink()
     from tqdm import tqdm
 
     from .kernel import warm_up
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale)}
+    settings = _settings(kind, seed, scale, cfg, options, sink)
+    finished = _finished_manifest(out, settings)
+    if finished is not None:
+        return finished
     warm_up()  # compile (or load the cache) once before forking workers
     specs = plan_campaign(kind, seed, scale)
-    options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale)}
     fleet = fleet_for(kind, seed, **options)
-    tasks = [(str(out), kind, seed, cfg, s, options) for s in specs]
+    store = _Progress(out, settings)
+    results = {s.number: r for s in specs if (r := store.done(s)) is not None}
     # longest tasks first improves load balance; results are re-ordered by pattern number
-    order = sorted(range(len(tasks)), key=lambda i: (specs[i].mode not in PROGRESSIVE, i))
-    n_workers = workers or os.cpu_count() or 1
-    results: dict[int, dict[str, Any]] = {}
-    bar = tqdm(total=len(tasks), desc=f"{kind} campaign", unit="pattern", disable=not progress)
-    for i, res in zip(order, _map([tasks[i] for i in order], n_workers), strict=True):
-        results[i] = res
+    todo = {s.number: PatternTask(str(out), kind, seed, cfg, s, options, sink)
+            for s in sorted(specs, key=lambda s: (s.mode not in PROGRESSIVE, s.number))
+            if s.number not in results}
+    bar = tqdm(total=len(specs), initial=len(results), desc=f"{kind} campaign",
+               unit="pattern", disable=not progress)
+    for number, res in _completed(todo, workers or os.cpu_count() or 1, executor):
+        store.save(specs[number], res)
+        results[number] = res
         bar.update(1)
     bar.close()
+    ordered = [results[s.number] for s in specs]
+    sink.finish(out, {fid: data for r in ordered for fid, data in r["stored"].items()})
     manifest = {
         "format": FORMAT,
         "kind": kind,
@@ -327,12 +485,44 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
         "duration_s": cfg.duration_s,
         "render_every": cfg.render_every,
         "lead_flights": cfg.lead_flights,
+        "span_flights": list(cfg.span_flights),
         "noise_scale": float(noise_scale),
         "bases": list(bases) if bases else None,
+        "sink": sink.describe(),
         "aircraft": [{"tail": a.tail, "base": a.base, "climate": BASES[a.base],
                       "serials": dict(a.serials), "params": a.params_summary()} for a in fleet],
-        "patterns": [results[i] for i in range(len(tasks))],
+        "patterns": [r["entry"] for r in ordered],
     }
-    (out / "manifest.json").write_text(json.dumps(manifest, indent=1, sort_keys=False))
+    write_file(out / "manifest.json", json.dumps(manifest, indent=1).encode())
+    write_file(out / SETTINGS_FILE, json.dumps(settings, sort_keys=True).encode())
+    store.remove()
     return manifest
 
+
+def _scale_config(scale: str, kind: str, render_every: int | None,
+                  span_flights: tuple[float, float] | None) -> ScaleConfig:
+    cfg = SCALES[scale][kind]
+    if render_every is not None:
+        if isinstance(render_every, bool) or not isinstance(render_every, int) \
+                or render_every < 1:
+            raise ValueError("render_every must be a positive int")
+        cfg = replace(cfg, render_every=render_every)
+    if span_flights is not None:
+        lo, hi = (float(v) for v in span_flights)
+        if not (math.isfinite(lo) and math.isfinite(hi) and 1.0 <= lo <= hi <= _MAX_SPAN):
+            raise ValueError(f"span range must satisfy 1 <= low <= high <= {_MAX_SPAN:g} "
+                             f"flights, got {lo:g}..{hi:g}")
+        cfg = replace(cfg, span_flights=(lo, hi))
+    return cfg
+
+
+def _finished_manifest(out: Path, settings: dict[str, Any]) -> dict[str, Any] | None:
+    """The manifest of a campaign already finished in ``out`` with these settings; a finished
+    campaign with other settings is refused (it is never overwritten)."""
+    path = out / SETTINGS_FILE
+    if not path.exists():
+        return None  # nothing finished here, or a campaign of an older simulator: regenerate
+    if path.read_text() != json.dumps(settings, sort_keys=True):
+        raise ValueError(f"{out} already holds a campaign with other settings (see {path}); "
+                         "use another directory")
+    return json.loads((out / "manifest.json").read_text())

@@ -1,18 +1,23 @@
 """``sim-worker`` console script: subcommands of the simulated half-wing.
 
-``sim-worker campaign --kind design|verification --out DIR --seed N --scale quick|paper``
-writes a campaign of flight logs and its manifest (see :mod:`sim_worker.campaign`).
+``sim-worker campaign --kind design|verification --out DIR --seed N --scale SCALE``
+writes a campaign of flight logs and its manifest (see :mod:`sim_worker.campaign`);
+``hmsm campaign`` takes the same options and streams it (features kept, logs sampled).
 ``sim-worker load-share --out FILE`` measures a worn drive's load share (:mod:`.calibration`).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Executor
+from typing import Any
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "add_campaign_arguments", "campaign_executor",
+           "parse_span_range", "run_campaign_command"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -20,20 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      description="Simulated half-wing of the EMA HMSM.")
     sub = parser.add_subparsers(dest="command", required=True)
     camp = sub.add_parser("campaign", help="write a design or verification campaign")
-    camp.add_argument("--kind", choices=("design", "verification"), required=True)
-    camp.add_argument("--out", required=True, help="output directory")
-    camp.add_argument("--seed", type=int, default=0, help="campaign seed")
-    camp.add_argument("--scale", choices=("quick", "paper"), default="quick")
-    camp.add_argument("--workers", type=int, default=None,
-                      help="worker processes (default: all cores); results do not depend on it")
-    camp.add_argument("--render-every", type=int, default=None,
-                      help="render every k-th flight of a fault-to-failure run (default: the "
-                      "scale's; 1 renders every flight, as a fleet in service downloads them)")
-    camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    camp.add_argument("--bases", default=None, help="robustness: comma-separated bases to fly "
-                      "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
-    camp.add_argument("--noise-scale", type=float, default=1.0,
-                      help="robustness: multiply every sensor's noise by this factor")
+    add_campaign_arguments(camp)
     camp.set_defaults(func=_cmd_campaign)
 
     share = sub.add_parser("load-share", help="measure a worn drive's load share at 12 kHz "
@@ -86,14 +78,82 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_campaign(args: argparse.Namespace) -> int:
+def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """The options of a campaign run (``sim-worker campaign`` and ``hmsm campaign``)."""
+    from .campaign import SCALES
+
+    camp.add_argument("--kind", choices=("design", "verification"), required=True)
+    camp.add_argument("--out", required=True, help="output directory; run again with the same "
+                      "options to resume an interrupted campaign")
+    camp.add_argument("--seed", type=int, default=0, help="campaign seed")
+    camp.add_argument("--scale", choices=tuple(SCALES), default="quick",
+                      help="quick (CI figures), paper (sparse rendering, quick looks), "
+                      "protocol (the paper's: every flight of 25 patterns per mode), "
+                      "ci (the protocol reduced for the test suite)")
+    camp.add_argument("--workers", type=int, default=None,
+                      help="local worker processes (default: all cores); results do not "
+                      "depend on it")
+    camp.add_argument("--dask", default=None, metavar="ADDRESS",
+                      help="run the patterns on a Dask distributed scheduler "
+                      "(e.g. tcp://host:8786) instead of local processes; its workers need "
+                      "this package and write kept flight logs under --out")
+    camp.add_argument("--render-every", type=int, default=None,
+                      help="render every k-th flight of a fault-to-failure run (default: the "
+                      "scale's; 1 renders every flight, as a fleet in service downloads them)")
+    camp.add_argument("--span-range", default=None, metavar="LOW,HIGH",
+                      help="range of the expected fault-to-failure span drawn per pattern "
+                      "[flights] (default: the scale's, 170,360)")
+    camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    camp.add_argument("--bases", default=None, help="robustness: comma-separated bases to fly "
+                      "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
+    camp.add_argument("--noise-scale", type=float, default=1.0,
+                      help="robustness: multiply every sensor's noise by this factor")
+    return camp
+
+
+def parse_span_range(text: str | None) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        lo, hi = (float(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"--span-range takes LOW,HIGH in flights, got {text!r}") from None
+    return lo, hi
+
+
+@contextlib.contextmanager
+def campaign_executor(address: str | None) -> Iterator[Executor | None]:
+    """A Dask distributed client's executor for ``address``, or None (local processes)."""
+    if address is None:
+        yield None
+        return
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ValueError("--dask needs the 'distributed' package "
+                         "(pip install 'ema-hmsm[cluster]')") from None
+    with Client(address, timeout=30) as client:
+        yield client.get_executor()
+
+
+def run_campaign_command(args: argparse.Namespace, sink: object | None = None
+                         ) -> dict[str, Any]:
+    """Run the campaign an argument namespace of :func:`add_campaign_arguments` describes."""
     from .campaign import run_campaign
 
-    t0 = time.perf_counter()
     bases = tuple(b.strip() for b in args.bases.split(",")) if args.bases else None
-    manifest = run_campaign(args.kind, args.out, seed=args.seed, scale=args.scale,
+    with campaign_executor(args.dask) as executor:
+        return run_campaign(args.kind, args.out, seed=args.seed, scale=args.scale,
                             workers=args.workers, progress=not args.no_progress, bases=bases,
-                            noise_scale=args.noise_scale, render_every=args.render_every)
+                            noise_scale=args.noise_scale, render_every=args.render_every,
+                            span_flights=parse_span_range(args.span_range),
+                            sink=sink, executor=executor)  # type: ignore[arg-type]
+
+
+def _cmd_campaign(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    manifest = run_campaign_command(args)
     n = sum(len(p["flights"]) for p in manifest["patterns"])
     print(f"{args.kind} campaign: {len(manifest['patterns'])} patterns, {n} flights written to "
           f"{args.out} in {time.perf_counter() - t0:.1f} s")

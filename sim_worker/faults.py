@@ -46,6 +46,7 @@ __all__ = [
     "PROGRESSIVE",
     "A_PRIORI",
     "THRESHOLDS",
+    "SPAN_FLIGHTS",
     "ActuatorSummary",
     "FlightSummary",
     "FaultState",
@@ -62,7 +63,8 @@ THRESHOLDS: dict[str, float] = {"TTS": 0.10, "DMD": 0.20, "SE": 0.5, "BDO": 1.0,
                                 "MTWEAR": 0.3e-3, "REWEAR": 2.0e-3}
 _ONSET_NORM = 0.05  # onset severity / threshold of the progressive modes
 _GROWTH_C = {"TTS": 0.05, "DMD": 0.3, "MTEL": 0.1, "MTWEAR": 2.0, "REWEAR": 0.8}
-_SPAN_FLIGHTS = (170.0, 360.0)
+#: default range of expected fault-to-failure spans [flights] (accelerated ageing, as in the paper)
+SPAN_FLIGHTS = (170.0, 360.0)
 _PROCESS_SD = 0.3
 _BLOCK_HOURS_REF = 1.5
 _WORK_REF_N_M = 300.0  # N m, screw sliding work of a typical recorded flight
@@ -138,11 +140,13 @@ def driver(mode: str, s: ActuatorSummary, block_hours: float) -> float:
 
 def new_fault(mode: str, position: str, rng: np.random.Generator, *,
               reference: ActuatorSummary | None = None, span_flights: float | None = None,
+              span_range: tuple[float, float] = SPAN_FLIGHTS,
               severity_norm: float | None = None) -> FaultState:
     """A fault at onset. Progressive modes draw the rate so that, at the ``reference`` flight
-    (the base's average conditions, estimated), failure comes after U(170, 360) flights, or after
-    ``span_flights`` when a test-station operator sets it; wear modes integrate the worn drive's
-    falling load share (:mod:`.load_share`) over the life, so the span holds for them too.
+    (the base's average conditions, estimated), failure comes after ``U(*span_range)`` flights
+    (default U(170, 360)), or after ``span_flights`` when a test-station operator sets it;
+    wear modes integrate the worn drive's falling load share (:mod:`.load_share`) over the
+    life, so the span holds for them too.
     ``severity_norm`` imposes the severity of an a priori fault (SE) as a fraction of its
     threshold."""
     if mode not in MODES:
@@ -156,7 +160,7 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
         return FaultState(mode, position, 1.0, thr)
     if reference is None:
         raise ValueError("progressive modes need a reference flight summary to set the rate")
-    span = float(rng.uniform(*_SPAN_FLIGHTS)) if span_flights is None else float(span_flights)
+    span = float(rng.uniform(*span_range)) if span_flights is None else float(span_flights)
     d_ref = max(driver(mode, reference, _BLOCK_HOURS_REF), 1e-9)
     rate = life_integral(mode, position, _ONSET_NORM, _GROWTH_C[mode]) / (span * d_ref)
     return FaultState(mode, position, _ONSET_NORM * thr, thr, rate=rate)

@@ -1,0 +1,150 @@
+"""Streamed campaigns: features kept in place of the logs, identical to the logs' own features,
+for any number of workers and on a Dask cluster, resumable after an interruption."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from server.campaigns import (
+    FEATURE_CACHE,
+    CampaignError,
+    FeatureSink,
+    load_campaign,
+    read_flight_channels,
+)
+from server.phm.features import FeatureConfig, flight_features
+from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
+
+#: one pattern per mode, every flight, short recordings and fast faults: seconds per campaign
+TINY = ScaleConfig(duration_s=14.0, healthy_patterns=2, healthy_flights=3, patterns_per_mode=1,
+                   render_every=1, apriori_flights=3, apriori_onset=1, lead_flights=2,
+                   span_flights=(6.0, 10.0))
+
+
+@pytest.fixture(autouse=True)
+def _tiny_scale(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(SCALES, "tiny", {"design": TINY, "verification": TINY})
+
+
+def _stream(out: Path, **kw: object) -> dict:
+    kw.setdefault("sink", FeatureSink(keep_raw_every=4))
+    return run_campaign("verification", out, seed=3, scale="tiny", progress=False, **kw)
+
+
+def _files(out: Path) -> dict[str, bytes]:
+    return {p.relative_to(out).as_posix(): p.read_bytes()
+            for p in sorted(out.rglob("*")) if p.is_file()}
+
+
+def test_streamed_features_equal_the_features_of_the_written_log(tmp_path: Path) -> None:
+    manifest = _stream(tmp_path, workers=1)
+    stored = json.loads((tmp_path / FEATURE_CACHE).read_text())["flights"]
+    flights = [f for p in manifest["patterns"] for f in p["flights"]]
+    assert len(stored) == len(flights) > 30
+    kept = [f for f in flights if f["file"]]
+    # every 4th flight of a pattern keeps its log, the others only their features
+    assert {f["index"] % 4 for f in kept} == {0}
+    assert len(kept) == sum(1 for f in flights if f["index"] % 4 == 0)
+    assert not list(tmp_path.rglob("*.tmp")) and not (tmp_path / "progress").exists()
+    for f in kept:
+        from_file = flight_features(read_flight_channels(tmp_path / f["file"]),
+                                    config=FeatureConfig(), ground_temp_c=f["ground_temp_c"])
+        # compared as JSON text: a feature without valid samples is NaN, and NaN != NaN
+        assert json.dumps(from_file.to_dict()) == json.dumps(stored[f["flight"]])
+    # the campaign reads back from the stored features alone, files or not
+    campaign = load_campaign(tmp_path)
+    assert sum(len(p.flights) for p in campaign.patterns) == len(flights)
+    assert all(r.started_at is not None for p in campaign.patterns for r in p.flights)
+    fault_runs = [p for p in manifest["patterns"] if p["failure_flight"] is not None]
+    for p in fault_runs:  # every flight from onset to failure is rendered
+        assert [f["index"] for f in p["flights"]] == list(range(p["failure_flight"] + 1))
+
+
+def test_stale_features_without_logs_are_refused(tmp_path: Path) -> None:
+    _stream(tmp_path, workers=1)
+    with pytest.raises(CampaignError, match="streamed without their logs"):
+        load_campaign(tmp_path, config=FeatureConfig(min_events=4))
+
+
+@pytest.mark.slow
+def test_output_does_not_depend_on_the_number_of_workers(tmp_path: Path) -> None:
+    _stream(tmp_path / "one", workers=1)
+    _stream(tmp_path / "two", workers=2)
+    assert _files(tmp_path / "one") == _files(tmp_path / "two")
+
+
+@pytest.mark.slow
+def test_dask_cluster_gives_the_same_bytes(tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    _stream(tmp_path / "local", workers=1)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        _stream(tmp_path / "dask", executor=client.get_executor())
+    assert _files(tmp_path / "local") == _files(tmp_path / "dask")
+
+
+_SIMULATED: list[str] = []
+
+
+@dataclass(frozen=True)
+class _CountingSink(FeatureSink):
+    """Records every flight it is given; fails on the flights of one pattern."""
+
+    fail_on: str | None = None
+
+    def __call__(self, out_dir, rel, index, log, ground_temp_c):  # type: ignore[no-untyped-def]
+        _SIMULATED.append(log.metadata.flight)
+        if self.fail_on and log.metadata.flight.startswith(self.fail_on):
+            raise RuntimeError("interrupted")
+        return super().__call__(out_dir, rel, index, log, ground_temp_c)
+
+    def describe(self):  # type: ignore[no-untyped-def]
+        return FeatureSink.describe(self)  # the same campaign, whatever the test does
+
+
+@pytest.mark.slow
+def test_an_interrupted_campaign_resumes_without_simulating_finished_patterns(
+        tmp_path: Path) -> None:
+    _stream(tmp_path / "whole", workers=1)
+    _SIMULATED.clear()
+    # patterns run longest first (progressive ones), so DMD's finishes before SE's
+    with pytest.raises(RuntimeError, match="interrupted"):
+        _stream(tmp_path / "cut", workers=1, sink=_CountingSink(keep_raw_every=4,
+                                                                 fail_on="V-SE-"))
+    finished = {f.rsplit("-", 1)[0] for f in _SIMULATED if not f.startswith("V-SE-")}
+    assert "V-DMD-01" in finished and not (tmp_path / "cut" / "manifest.json").exists()
+    _SIMULATED.clear()
+    _stream(tmp_path / "cut", workers=1, sink=_CountingSink(keep_raw_every=4))
+    resumed = {f.rsplit("-", 1)[0] for f in _SIMULATED}
+    assert resumed and not resumed & finished
+    assert _files(tmp_path / "whole") == _files(tmp_path / "cut")
+    # a finished campaign is not simulated again, and other settings are refused
+    _SIMULATED.clear()
+    _stream(tmp_path / "cut", workers=1, sink=_CountingSink(keep_raw_every=4))
+    assert _SIMULATED == []
+    with pytest.raises(ValueError, match="other settings"):
+        _stream(tmp_path / "cut", workers=1, sink=FeatureSink(keep_raw_every=5))
+
+
+@pytest.mark.slow
+def test_span_range_sets_the_fault_to_failure_spans(tmp_path: Path) -> None:
+    fast = run_campaign("verification", tmp_path / "fast", seed=3, scale="tiny",
+                        progress=False, workers=1, sink=FeatureSink(keep_raw_every=1000))
+    slow = run_campaign("verification", tmp_path / "slow", seed=3, scale="tiny",
+                        progress=False, workers=1, span_flights=(14.0, 18.0),
+                        sink=FeatureSink(keep_raw_every=1000))
+    assert slow["span_flights"] == [14.0, 18.0]
+
+    def spans(m: dict) -> list[int]:
+        return [p["failure_flight"] - p["onset_flight"] for p in m["patterns"]
+                if p["failure_flight"] is not None]
+
+    assert max(spans(fast)) < min(spans(slow))
+    with pytest.raises(ValueError, match="span range"):
+        run_campaign("verification", tmp_path / "bad", seed=3, scale="tiny", progress=False,
+                     span_flights=(50.0, 20.0))
