@@ -35,18 +35,43 @@ For each feature the state keeps the self-referenced residuals of the last ``max
 flights with a valid value. For each window length ``w`` (default 1, 3 and 8 flights) the
 running mean of the last ``n = min(w, available)`` residuals, scaled to unit variance, is
 ``S_w = sqrt(n) mean(z)``; a window raises no alarm until it holds ``w`` residuals (its band
-is a full window's). On healthy flights ``|S_w|`` stays inside a band ``b_w`` learned on the
-healthy flights of the *design* campaign (the largest ``|S_w|`` seen there, never less than
-``band_floor``). Because ``S_w`` has unit standard error, the confidence that the running mean
-lies outside the healthy band is
+is a full window's). Because ``S_w`` has unit standard error, the confidence that the running
+mean lies outside a healthy band ``b_w`` is
 
-    c_w = Phi(|S_w| - b_w),      c = max over w of c_w  in [0, 1],
+    c_w = Phi(|S_w| - b_w),      c = max over w of c_w  in [0, 1].
+
+Bands for a stated false-alarm rate
+-----------------------------------
+The bands are set for ``false_alarm_rate`` (alarms per monitored unit and healthy flight).
+The rate is shared out among the unit's tests, every (feature, window) allowed to alarm
+(``min_windows``), by Sidak's rule: each test may exceed its threshold on a healthy flight
+with probability ``q = 1 - (1 - false_alarm_rate)^(1/m)``, ``m`` the unit's tests (a
+two-sided feature gives ``q / 2`` to each tail). The healthy statistic is modelled as
+``S_w ~ N(0, s_w^2)``, ``s_w`` near 1 if the offsets are right; ``s_w`` is measured on the
+healthy design flights by matching the upper ``scale_quantile`` (0.99) quantile of their
+judged ``S_w`` (the values :meth:`FaultDetector.update` would judge: full windows, held
+through flights without a value; every position together with ``pool_positions``),
+``s_w = Q_p(S_w) / z_p``. A tail quantile rather than an RMS or a MAD, because the healthy
+tails are heavier than normal (the quantile-matched scale of the one-flight ``F_SE`` is 1.7
+times its MAD-based one on the design campaign). A test alarms at ``s_w z_{1-q}``; with the
+confidence margin ``z_alarm = ndtri(alarm_confidence)`` the band is
+
+    b_w = max(s_w z_{1-q} - z_alarm, band_floor).
+
+``Q_p`` estimates a fixed quantile of the healthy population, so the band's expected value
+does not depend on how many healthy design flights there are (only its precision does),
+unlike the largest healthy ``|S_w|``, which grows with them. (A sample 0.99 quantile needs a
+few values beyond it: on a pool of fewer than a few hundred judged values it is low and noisy;
+those bands mostly rest on the floor.) Under the normal model the realised rate is at most
+the stated one: windows overlap and a unit's tests are correlated, and Sidak's share is the
+independent case's. A tail heavier than normal beyond ``Q_p`` raises it (the one-flight
+``F_SE`` on the simulated campaigns: docs/TUNING.md, Detection).
 
 Flights whose residual is beyond ``window_clip`` (6 flight-scatter units) enter the windows
 longer than one flight clipped to it: a single odd flight (heavy-tailed features, e.g. a
-flight with few cruise moves) then moves ``S_3`` by at most ``6 / sqrt(3)`` and no longer
-widens the long windows' bands, while a sustained drift is untouched. Windows of
-``median_from`` (8) flights or more use the running median instead of the mean,
+flight with few cruise moves) then moves ``S_3`` by at most ``6 / sqrt(3)``, while a
+sustained drift is untouched. Windows of ``median_from`` (8) flights or more use the running
+median instead of the mean,
 ``S_w = sqrt(n / (pi/2)) median`` (unit variance on healthy flights too): a minority of odd
 flights does not move it at all, at the cost of a less efficient estimate of a slow drift. The
 one-flight window keeps the raw value, for step faults.
@@ -59,7 +84,8 @@ until maintenance: replacing an actuator gives it a fresh state
 
 The test is one-sided along each fault's physical direction (``DEFAULT_DIRECTIONS``: every
 feature grows with its fault), ``|S_w|`` being replaced by ``direction * S_w``, and one
-band serves a generic feature on every position (the largest over the positions).
+band serves a generic feature on every position (``pool_positions``: its scale is measured on
+the healthy flights of every position together).
 
 The tuned values are the defaults of :class:`DetectionConfig` (how they were chosen:
 docs/TUNING.md, Detection). Everything persists as JSON (``to_dict`` / ``from_dict``), never
@@ -103,7 +129,9 @@ __all__ = [
     "offset_components",
 ]
 
-DETECTOR_FORMAT = "ema-detector/1"
+DETECTOR_FORMAT = "ema-detector/2"
+#: /1 bands were the largest healthy ``|S_w|``; its documents load with the bands they carry
+_DETECTOR_FORMATS = (DETECTOR_FORMAT, "ema-detector/1")
 STATE_FORMAT = "ema-detection-state/2"
 _STATE_FORMATS = (STATE_FORMAT, "ema-detection-state/1")  # /1 had no reference
 #: variance of a sample median over that of the mean (normal samples, large n)
@@ -127,9 +155,13 @@ class DetectionConfig:
     band_floor:
         Smallest band ``b_w`` [standard error]: a feature with few healthy flights still gets
         at least a 3-standard-error band (first-cut value).
-    band_margin:
-        Added to the largest healthy ``|S_w|`` [standard error]: 0, the band is the largest
-        healthy value itself (floored at ``band_floor``).
+    false_alarm_rate:
+        False alarms per monitored unit and healthy flight the bands are set for [1/flight],
+        shared out among the unit's (feature, window) tests (module docstring).
+    scale_quantile:
+        Upper quantile of the healthy judged ``S_w`` at which its normal scale ``s_w`` is
+        matched, ``s_w = Q_p / z_p`` [-]: far enough out to see heavier-than-normal tails,
+        near enough to be estimated from a few hundred healthy flights.
     directions:
         Generic feature -> +1 (the fault makes it grow), -1 (fall), 0 (either) [-]: every
         feature grows with its fault, so the test is one-sided.
@@ -159,7 +191,8 @@ class DetectionConfig:
     windows: tuple[int, ...] = (1, 3, 8)
     alarm_confidence: float = 0.98
     band_floor: float = 3.0
-    band_margin: float = 0.0
+    false_alarm_rate: float = 3e-5
+    scale_quantile: float = 0.99
     directions: Mapping[str, int] = field(
         default_factory=lambda: MappingProxyType(dict.fromkeys(GENERIC_FEATURES, 1)))
     pool_positions: bool = True
@@ -386,10 +419,13 @@ class FaultDetector:
     windows : running-window lengths in flights.
     alarm_confidence : confidence at which a unit alarms.
     band_floor : smallest allowed band ``b_w`` (in standard errors).
-    band_margin : extra margin added to the largest healthy ``|S_w|`` (standard errors).
+    false_alarm_rate : false alarms per monitored unit and healthy flight the bands are set
+        for, shared out among the unit's tests (module docstring).
+    scale_quantile : upper quantile of the healthy ``S_w`` that sets its scale ``s_w``.
     directions : generic feature -> +1 (the fault makes it grow), -1 (fall) or 0 (either);
         the statistic is ``direction * S_w`` (one-sided test), ``|S_w|`` for 0 / unknown.
-    pool_positions : one band per generic feature, the largest over the positions.
+    pool_positions : one band per generic feature, its scale measured on every position's
+        healthy flights together.
     min_windows : generic feature -> shortest window allowed to raise an alarm (flights of
         evidence; 1 when absent). F_MTWEAR has a value only on flights that pressed both
         screw flanks, so its 3 flights are the last 3 such flights.
@@ -406,7 +442,8 @@ class FaultDetector:
     def __init__(self, windows: Sequence[int] = DETECTION_DEFAULTS.windows, *,
                  alarm_confidence: float = DETECTION_DEFAULTS.alarm_confidence,
                  band_floor: float = DETECTION_DEFAULTS.band_floor,
-                 band_margin: float = DETECTION_DEFAULTS.band_margin,
+                 false_alarm_rate: float = DETECTION_DEFAULTS.false_alarm_rate,
+                 scale_quantile: float = DETECTION_DEFAULTS.scale_quantile,
                  directions: Mapping[str, int] | None = None,
                  pool_positions: bool = DETECTION_DEFAULTS.pool_positions,
                  min_windows: Mapping[str, int] | None = None,
@@ -421,7 +458,12 @@ class FaultDetector:
         self.windows = tuple(int(w) for w in windows)
         self.alarm_confidence = float(alarm_confidence)
         self.band_floor = float(band_floor)
-        self.band_margin = float(band_margin)
+        if false_alarm_rate is None or not 0.0 < false_alarm_rate < 1.0:
+            raise ValueError("false_alarm_rate must lie in (0, 1)")
+        self.false_alarm_rate: float | None = float(false_alarm_rate)
+        if not 0.5 < scale_quantile < 1.0:
+            raise ValueError("scale_quantile must lie in (0.5, 1)")
+        self.scale_quantile = float(scale_quantile)
         self.directions = dict(DETECTION_DEFAULTS.directions if directions is None
                                else directions)
         self.pool_positions = bool(pool_positions)
@@ -441,7 +483,8 @@ class FaultDetector:
     def from_config(cls, config: DetectionConfig) -> FaultDetector:
         """An unfitted detector with the hyper-parameters of ``config``."""
         return cls(config.windows, alarm_confidence=config.alarm_confidence,
-                   band_floor=config.band_floor, band_margin=config.band_margin,
+                   band_floor=config.band_floor, false_alarm_rate=config.false_alarm_rate,
+                   scale_quantile=config.scale_quantile,
                    directions=config.directions, pool_positions=config.pool_positions,
                    min_windows=config.min_windows, reference_flights=config.reference_flights,
                    window_clip=config.window_clip, median_from=config.median_from,
@@ -449,12 +492,18 @@ class FaultDetector:
 
     @property
     def config(self) -> DetectionConfig:
-        """This detector's hyper-parameters."""
-        return DetectionConfig(self.windows, self.alarm_confidence, self.band_floor,
-                               self.band_margin, MappingProxyType(dict(self.directions)),
-                               self.pool_positions, MappingProxyType(dict(self.min_windows)),
-                               self.reference_flights, self.window_clip, self.median_from,
-                               self.fleet_referenced)
+        """This detector's hyper-parameters (``false_alarm_rate`` is None for bands loaded
+        from an ``ema-detector/1`` document: those were the largest healthy ``|S_w|``)."""
+        return DetectionConfig(
+            windows=self.windows, alarm_confidence=self.alarm_confidence,
+            band_floor=self.band_floor,
+            false_alarm_rate=self.false_alarm_rate,  # type: ignore[arg-type]
+            scale_quantile=self.scale_quantile,
+            directions=MappingProxyType(dict(self.directions)),
+            pool_positions=self.pool_positions,
+            min_windows=MappingProxyType(dict(self.min_windows)),
+            reference_flights=self.reference_flights, window_clip=self.window_clip,
+            median_from=self.median_from, fleet_referenced=self.fleet_referenced)
 
     def _min_window(self, name: str) -> int:
         return int(self.min_windows.get(generic_feature(name), 1))
@@ -474,8 +523,9 @@ class FaultDetector:
 
         ``healthy_sequences``: one (n_flights_i, n_features) array of standardised residuals per
         monitored actuator history (flights in order), columns in ``feature_names`` order.
-        First the offset components (``sigma``, ``tau``) per generic feature, then the bands
-        on the self-referenced residuals of the same sequences.
+        First the offset components (``sigma``, ``tau``) per generic feature, then each
+        (feature, window)'s healthy scale ``s_w`` on the self-referenced residuals of the same
+        sequences, and its band for ``false_alarm_rate`` (module docstring).
         """
         names = list(feature_names)
         seqs = [np.asarray(q, dtype=np.float64).reshape(-1, len(names))
@@ -493,26 +543,85 @@ class FaultDetector:
             sigma[fleet] = np.sqrt(sigma[fleet] ** 2 + tau[fleet] ** 2)
             tau[fleet] = 0.0  # no offset to learn: the reference is the fleet's
         self.within_std_, self.between_std_ = sigma, tau
-        dirs = self._dir(names)
-        band = np.full((len(names), len(self.windows)), self.band_floor)
         seen = np.zeros(len(names), dtype=np.int64)
         for seq in seqs:
             seen += np.isfinite(seq).sum(axis=0)
-            seq = self.self_referenced(seq)
-            for k, w in enumerate(self.windows):
-                s = self._oriented(running_statistics(self._clipped(seq, w), w,
-                                                      median=self._median(w)),
-                                   dirs[np.newaxis, :])
-                with np.errstate(invalid="ignore"):
-                    m = np.nanmax(np.where(np.isfinite(s), s, -np.inf), axis=0)
-                band[:, k] = np.maximum(band[:, k], m + self.band_margin)
-        if self.pool_positions:
-            for idx in _generic_groups(names):
-                band[idx] = band[idx].max(axis=0)
+        stats = self.healthy_statistics(seqs, names)
+        groups = (_generic_groups(names) if self.pool_positions
+                  else [[i] for i in range(len(names))])
+        scale = np.full((len(names), len(self.windows)), np.nan)
+        for idx in groups:
+            two_sided = self.directions.get(generic_feature(names[idx[0]]), 0) == 0
+            for k in range(len(self.windows)):
+                scale[idx, k] = self._scale_of(np.concatenate([stats[k][i] for i in idx]),
+                                               two_sided)
         self.feature_names_ = names
-        self.band_ = band
+        self.healthy_scale_ = scale
+        self.band_ = self._bands_for(scale)
         self.n_healthy_flights_ = seen
         return self
+
+    def _scale_of(self, s: np.ndarray, two_sided: bool) -> float:
+        """Normal scale of healthy judged statistics: their ``scale_quantile`` quantile (Weibull
+        plotting position, ``p (N + 1)``) over the standard-normal one (of ``|S|`` for a
+        two-sided feature); NaN without any."""
+        if not s.size:
+            return math.nan
+        p = self.scale_quantile
+        z_p = float(ndtri(0.5 + p / 2) if two_sided else ndtri(p))
+        return float(np.quantile(s, p, method="weibull")) / z_p
+
+    def healthy_statistics(self, healthy_sequences: Sequence[np.ndarray],
+                           feature_names: Sequence[str]) -> list[list[np.ndarray]]:
+        """The judged statistics of healthy sequences, ``[window][feature]`` -> 1-D array of
+        every flight's oriented ``S_w`` (``|S_w|`` for a two-sided feature) once the window
+        is full, as :meth:`update` judges it (held through flights without a value).
+        Windows shorter than a feature's ``min_windows`` count from ``w`` flights on. Needs
+        the fitted offsets (``within_std_``, ``between_std_``); :meth:`fit` calls it."""
+        names = list(feature_names)
+        dirs = self._dir(names)[np.newaxis, :]
+        min_w = np.array([self._min_window(n) for n in names])
+        out: list[list[list[np.ndarray]]] = [[[] for _ in names] for _ in self.windows]
+        for q in healthy_sequences:
+            q = self.self_referenced(np.asarray(q, dtype=np.float64).reshape(-1, len(names)))
+            n_seen = np.cumsum(np.isfinite(q), axis=0)
+            for k, w in enumerate(self.windows):
+                s = self._oriented(running_statistics(self._clipped(q, w), w,
+                                                      median=self._median(w)), dirs)
+                need = np.where(w >= min_w, np.maximum(w, min_w), w)[np.newaxis, :]
+                judged = (n_seen >= need) & np.isfinite(s)
+                for j in range(len(names)):
+                    out[k][j].append(s[judged[:, j], j])
+        return [[np.concatenate(c) if c else np.empty(0) for c in per_w] for per_w in out]
+
+    def tests_per_unit(self, feature_names: Sequence[str] | None = None) -> dict[str, int]:
+        """Unit -> its tests, the (feature, window) pairs allowed to alarm."""
+        names = self.feature_names_ if feature_names is None else list(feature_names)
+        out: dict[str, int] = {}
+        for n in names:
+            unit = n.split(".", 1)[0]
+            out[unit] = out.get(unit, 0) + sum(w >= self._min_window(n) for w in self.windows)
+        return out
+
+    def test_quantiles(self, feature_names: Sequence[str] | None = None) -> np.ndarray:
+        """``z_{1-q}`` of every feature's tests (n_features,): the standard-normal quantile of
+        its share ``q`` of its unit's false-alarm rate (Sidak; ``q / 2`` per side for a
+        two-sided feature)."""
+        if self.false_alarm_rate is None:
+            raise RuntimeError("an ema-detector/1 document states no false-alarm rate")
+        names = self.feature_names_ if feature_names is None else list(feature_names)
+        m = self.tests_per_unit(names)
+        per_test = np.array([-math.expm1(math.log1p(-self.false_alarm_rate)
+                                         / max(m[n.split(".", 1)[0]], 1)) for n in names])
+        two_sided = self._dir(names) == 0
+        return -ndtri(np.where(two_sided, per_test / 2, per_test))
+
+    def _bands_for(self, scale: np.ndarray) -> np.ndarray:
+        """Bands (n_features, n_windows) of healthy scales ``s_w``: the alarm threshold
+        ``s_w z_{1-q}`` less the confidence margin, floored; no healthy value -> the floor."""
+        thr = scale * self.test_quantiles()[:, np.newaxis]
+        band = np.fmax(thr - self.z_alarm, self.band_floor)
+        return np.where(np.isfinite(band), band, self.band_floor)
 
     def _check(self) -> None:
         if not hasattr(self, "band_"):
@@ -624,7 +733,8 @@ class FaultDetector:
         self._check()
         return {"format": DETECTOR_FORMAT, "windows": list(self.windows),
                 "alarm_confidence": self.alarm_confidence, "band_floor": self.band_floor,
-                "band_margin": self.band_margin, "directions": dict(self.directions),
+                "false_alarm_rate": self.false_alarm_rate,
+                "scale_quantile": self.scale_quantile, "directions": dict(self.directions),
                 "pool_positions": self.pool_positions,
                 "min_windows": dict(self.min_windows),
                 "reference_flights": self.reference_flights,
@@ -635,14 +745,23 @@ class FaultDetector:
                 "between_std": self.between_std_.tolist(),
                 "feature_names": list(self.feature_names_),
                 "band": self.band_.tolist(),
+                "healthy_scale": [[v if math.isfinite(v) else None for v in row]
+                                  for row in self.healthy_scale_.tolist()],
                 "n_healthy_flights": self.n_healthy_flights_.tolist()}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> FaultDetector:
-        if d.get("format") != DETECTOR_FORMAT:
+        """A fitted detector from its document; an ``ema-detector/1`` one (bands the largest
+        healthy ``|S_w|``, no rate) keeps its bands, with ``false_alarm_rate`` None."""
+        if d.get("format") not in _DETECTOR_FORMATS:
             raise ValueError(f"not a {DETECTOR_FORMAT} document")
+        legacy = d["format"] != DETECTOR_FORMAT
         det = cls(d["windows"], alarm_confidence=float(d["alarm_confidence"]),
-                  band_floor=float(d["band_floor"]), band_margin=float(d["band_margin"]),
+                  band_floor=float(d["band_floor"]),
+                  false_alarm_rate=float(d.get("false_alarm_rate")
+                                         or DETECTION_DEFAULTS.false_alarm_rate),
+                  scale_quantile=float(d.get("scale_quantile")
+                                       or DETECTION_DEFAULTS.scale_quantile),
                   directions={k: int(v) for k, v in d.get("directions", {}).items()},
                   pool_positions=bool(d.get("pool_positions", False)),
                   min_windows={k: int(v) for k, v in d.get("min_windows", {}).items()},
@@ -657,6 +776,12 @@ class FaultDetector:
         det.between_std_ = np.asarray(d.get("between_std", np.zeros(n)), dtype=np.float64)
         det.band_ = np.asarray(d["band"], dtype=np.float64).reshape(len(det.feature_names_),
                                                                     len(det.windows))
+        scale = d.get("healthy_scale")
+        det.healthy_scale_ = (np.full(det.band_.shape, np.nan) if scale is None else np.array(
+            [[math.nan if v is None else float(v) for v in row] for row in scale],
+            dtype=np.float64).reshape(det.band_.shape))
+        if legacy:
+            det.false_alarm_rate = None
         det.n_healthy_flights_ = np.asarray(d["n_healthy_flights"], dtype=np.int64)
         return det
 

@@ -148,8 +148,9 @@ def test_self_reference_sees_a_shift_smaller_than_the_production_scatter() -> No
 def test_a_fleet_referenced_feature_learns_no_offset_from_a_bimodal_start() -> None:
     """F_REWEAR is tested against the fleet: a pair whose first flights all fell in the low
     mode of a bimodal healthy feature does not judge its ordinary high flights against that
-    unlucky reference (a self-referenced detector of the same data does, and gets closer to
-    an alarm), while a worn rod end still alarms."""
+    unlucky reference, while a worn rod end still alarms. A self-referenced detector of the
+    same data does judge them against it (twice the residual), and the unlucky starts among
+    its healthy design sequences widen its healthy scale, so its bands are the blunter."""
     rng = np.random.default_rng(21)
     names = ["WL.F_REWEAR"]
 
@@ -164,9 +165,12 @@ def test_a_fleet_referenced_feature_learns_no_offset_from_a_bimodal_start() -> N
     assert fleet.between_std_[0] == 0.0
     assert fleet.within_std_[0] == pytest.approx(np.hypot(sigma[0], tau[0]))
     unlucky = np.r_[np.full((6, 1), -0.6), np.tile([[0.9], [0.9], [-0.6]], (10, 1))]
-    c_fleet = fleet.confidence_sequence(unlucky, names).max()
-    c_own = own.confidence_sequence(unlucky, names).max()
-    assert c_fleet < c_own and c_fleet < 0.98, (c_fleet, c_own)
+    high = unlucky[:, 0] > 0
+    z_fleet = fleet.self_referenced(unlucky)[high, 0]
+    z_own = own.self_referenced(unlucky)[high, 0]
+    assert np.all(z_own > 1.5 * z_fleet) and np.all(z_fleet < 2.0), (z_fleet, z_own)
+    assert np.all(fleet.band_[0, 1:] < own.band_[0, 1:] - 1.0), (fleet.band_, own.band_)
+    assert fleet.confidence_sequence(unlucky, names).max() < 0.98
     worn = unlucky.copy()
     worn[12:] += 8.0  # a worn rod end moves the feature far beyond the healthy modes
     assert fleet.confidence_sequence(worn, names).max() >= 0.98
@@ -250,8 +254,9 @@ def test_fleet_baseline_and_model_round_trip() -> None:
 
 def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:
     """``FaultDetector()`` and ``FleetBaseline()`` are the configs' defaults, and a fitted
-    detector's document carries exactly the hyper-parameters (values and key order) it always
-    did, so trained model documents are unchanged."""
+    detector's document carries exactly these hyper-parameters (values and key order):
+    ``ema-detector/2`` sets its bands for a false-alarm rate (``ema-detector/1`` carried a
+    ``band_margin`` on the largest healthy value instead; test_detection_bands.py loads one)."""
     assert UNITS == ("WL1", "WL2", "WT", "WL")
     assert DETECTION_DEFAULTS == DetectionConfig() == FaultDetector().config
     assert FaultDetector.from_config(DetectionConfig(reference_flights=0)).reference_flights == 0
@@ -261,11 +266,13 @@ def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:
     grows = {"F_TTS": 1, "F_DMD": 1, "F_SE": 1, "F_BDO": 1, "F_MTEL": 1, "F_MTWEAR": 1,
              "F_REWEAR": 1}
     three = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3, "F_REWEAR": 3}
-    want = {"windows": [1, 3, 8], "alarm_confidence": 0.98, "band_floor": 3.0,
-            "band_margin": 0.0, "directions": grows, "pool_positions": True,
+    want = {"format": "ema-detector/2", "windows": [1, 3, 8], "alarm_confidence": 0.98,
+            "band_floor": 3.0, "false_alarm_rate": 3e-5, "scale_quantile": 0.99,
+            "directions": grows, "pool_positions": True,
             "min_windows": three, "reference_flights": 6, "window_clip": 6.0, "median_from": 8,
             "fleet_referenced": ["F_REWEAR"]}
     assert {k: doc[k] for k in want} == want
+    assert list(doc)[: len(want)] == list(want)
     assert list(doc["directions"]) == list(grows) and list(doc["min_windows"]) == list(three)
     assert BASELINE_DEFAULTS == BaselineConfig()
     fb = FleetBaseline()
