@@ -10,10 +10,13 @@ Model: ``--model-json`` (a ``ema-phm-model/5`` document, or a model-version expo
 campaign, seed ``--seed``), else the active model version of the database.
 
 Writes into ``--out`` (default ``<HMSM_DATA_DIR>/evaluation/<UTC timestamp>/``):
-``evaluation.json``, ``report.html`` (plotly.js embedded once), ``rul_<MODE>.html`` (one page
-per progressive mode, with a local ``plotly.min.js``), ``summary.md``; and copies the JSON to
-``<HMSM_DATA_DIR>/evaluation/latest.json`` (read by the dashboard's evaluation page:
-``prognosis.<MODE>.ph`` nondimensional horizon, ``prognosis.<MODE>.ra`` relative accuracy in %).
+``evaluation.json`` (everything, with the per-flight traces), ``summary.json`` (every figure
+and its bootstrap interval, no traces: shape in :mod:`server.evaluation.core`),
+``report.html`` (plotly.js embedded once), ``rul_<MODE>.html`` (one page per progressive mode,
+with a local ``plotly.min.js``), ``summary.md`` ("mean [lo, hi]" tables); and copies the JSON
+to ``<HMSM_DATA_DIR>/evaluation/latest.json`` (read by the dashboard's evaluation page:
+``prognosis.<MODE>.ph`` Saxena's nondimensional horizon, ``prognosis.<MODE>.ph_cone`` the
++-20 % cone's, ``prognosis.<MODE>.ra`` relative accuracy in %).
 
 Wiring into ``server/cli.py``::
 
@@ -121,18 +124,24 @@ def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, 
 
 
 def write_outputs(result: dict[str, Any], out_dir: Path, *, latest: Path | None) -> list[Path]:
-    """evaluation.json, report.html, rul_<MODE>.html, summary.md; latest.json if asked."""
+    """evaluation.json, summary.json, report.html, rul_<MODE>.html, summary.md; latest.json
+    if asked."""
+    from .core import summary_document
     from .report import markdown_tables, write_html_report, write_rul_pages
 
     out_dir.mkdir(parents=True, exist_ok=True)
     js = out_dir / "evaluation.json"
     js.write_text(json.dumps(result, indent=1, allow_nan=False), encoding="utf-8")
-    written = [js, write_html_report(result, out_dir / "report.html")]
+    summary = out_dir / "summary.json"
+    summary.write_text(json.dumps(_sanitise(summary_document(result)), indent=1,
+                                  allow_nan=False) + "\n", encoding="utf-8")
+    written = [js, summary, write_html_report(result, out_dir / "report.html")]
     written += write_rul_pages(result, out_dir)
     tables = markdown_tables(result)
     md = out_dir / "summary.md"
     md.write_text("\n\n".join(tables[k] for k in ("detection", "at_first_alarm",
-                                                   "at_last_flight", "prognosis", "timing"))
+                                                   "at_last_flight", "prognosis",
+                                                   "prognosis_most_probable", "timing"))
                   + "\n", encoding="utf-8")
     written.append(md)
     if latest is not None:
@@ -186,7 +195,7 @@ def run_evaluate(args: argparse.Namespace, settings: Settings) -> int:
     finally:
         if bar is not None:
             bar.close()
-    result["model"] = source
+    result["model"] = {**(result.get("model") or {}), **source}
     result["created_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
     result["wall_s"] = time.perf_counter() - t0
     result = _sanitise(result)
@@ -208,7 +217,11 @@ def _print_summary(result: dict[str, Any]) -> None:
     print()
     print(t["at_first_alarm"])
     print()
+    print(t["at_last_flight"])
+    print()
     print(t["prognosis"])
+    print()
+    print(t["prognosis_most_probable"])
     print()
     print(t["timing"])
 

@@ -17,17 +17,65 @@ Scored here:
 - prognosis of the progressive modes: 10 prediction instants equally spaced from detection to
   end of life (``t_d + i (t_eol - t_d) / 10``, i = 0..9; the instant at end of life itself has
   no relative accuracy), each mapped to the rendered flight nearest to it (duplicates merged),
-  the RUL median of the chain's distribution at that flight as point estimate; prognostic
-  horizon with the +-20 % cone ("falls and remains") normalised over the simulated life
-  (failure - onset); mean relative accuracy; alpha-lambda (alpha 0.2, lambda 0.5); CRA with
-  weights growing toward end of life; convergence of the relative error on the normalised
-  time axis.
+  the RUL median of the chain's distribution at that flight as point estimate (the most
+  probable RUL reported beside it); prognostic horizon ``ph`` after Saxena ("falls and
+  remains" within true RUL +- alpha x life) and ``ph_cone`` with the +-20 % relative cone,
+  both normalised over the simulated life (failure - onset); mean relative accuracy;
+  alpha-lambda (alpha 0.2, lambda 0.5); CRA with weights growing toward end of life;
+  convergence of the relative error on the normalised time axis; calibration of the RUL
+  distribution (share of the predictions whose central 50 % and 90 % intervals hold the
+  true RUL).
+
+Every mean comes with a 90 % percentile bootstrap interval over patterns (``<key>_ci``:
+[lo, hi]; 2000 resamples of the mode's patterns with replacement, seed 0; [x, x] with one
+pattern, None with none). The false-alarm rate per healthy flight is resampled over the
+patterns with healthy flights, each pattern's flights one cluster.
 
 Time unit: flights. No threshold is tuned here: the model comes trained from the design campaign.
+
+The summary document (``summary.json``, :func:`summary_document`): every figure and interval,
+no per-flight trace and no per-pattern prediction list; keys in this order::
+
+    {"format": "ema-evaluation-summary/1", "evaluation_format": "ema-evaluation/1",
+     "created_at": str | None,
+     "campaign": {"dir", "kind", "seed", "scale", "render_every", "duration_s", "patterns",
+                  "flights", "aircraft": [{"tail", "base", "climate"}]},
+     "model": {"format", "sha256", "source", "model_id"?, "training_s"?,
+               "classifier_accuracy"?},
+     "settings": {"alpha", "lambda", "n_predictions", "point_estimate", ...,
+                  "bootstrap": {"resamples", "level", "seed", "unit", "interval"}, "jobs"},
+     "detection": {
+       "false_alarms": {"healthy_patterns", "healthy_patterns_with_alarm", "healthy_flights",
+                        "false_alarm_events", "rate_per_flight", "rate_per_flight_ci",
+                        "clusters", "pre_onset_alarms_in_fault_patterns"},
+       "per_mode": {MODE: {"patterns", "detected", "rate", "rate_ci",
+                           "pct_life_mean", "pct_life_mean_ci", "pct_life_max",
+                           "flights_after_onset_mean", "flights_after_onset_mean_ci",
+                           "flights_after_onset_max", "other_unit_alarms",
+                           "missed": [pattern id]}}},
+     "classification": {"classes": [str],
+       "at_first_alarm" | "at_last_flight": {"rows", "columns", "matrix", "accuracy",
+           "accuracy_ci", "per_class": {MODE: {"n", "recall", "recall_ci", "precision"}}}},
+     "prognosis": {MODE: {"ph", "ph_ci", "ph_cone", "ph_cone_ci", "ph_from_detection",
+                          "ph_from_detection_ci", "ra", "ra_ci" (RA in %), "ra_fraction",
+                          "ra_fraction_ci", "ra_median_pattern", "alpha_lambda",
+                          "alpha_lambda_ci" (pass rate), "cra", "cra_ci", "convergence",
+                          "convergence_ci",
+                          "calibration": {"n_predictions", "central_50", "central_50_ci",
+                                          "central_90", "central_90_ci"},
+                          "most_probable": {"point_estimate": "mode", "ph", "ph_ci",
+                                            "ph_cone", "ph_cone_ci", "ra", "ra_ci"},
+                          "n_patterns", "n_with_predictions", "paper": {"ph", "ra"}}},
+     "timing": {...}, "wall_s": float | None}
+
+A mean without any value (e.g. RA of a mode none of whose patterns was detected) is None, and
+so is its interval. Per-class recall is the accuracy on that true mode.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import os
 import zlib
@@ -64,6 +112,8 @@ __all__ = [
     "confusion",
     "evaluate_patterns",
     "evaluate_campaign",
+    "model_identity",
+    "summary_document",
 ]
 
 ALPHA = 0.2
@@ -74,6 +124,11 @@ N_PREDICTIONS = 10
 POINT_ESTIMATE = "median"
 _POINT_ESTIMATES = ("median", "mode")
 UNDETECTED = "undetected"
+#: bootstrap of the figures over patterns: resamples, central level, seed (reproducible)
+N_BOOT = 2000
+CI_LEVEL = 0.9
+BOOTSTRAP_SEED = 0
+SUMMARY_FORMAT = "ema-evaluation-summary/1"
 
 Progress = Callable[[int, int], None]
 
@@ -194,56 +249,81 @@ def _argmax(probs: Mapping[str, float] | None) -> str:
 
 
 def summarise_detection(traces: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """False alarms on healthy cycles, detection rate and time per mode."""
+    """False alarms on healthy cycles, detection rate and time per mode, with bootstrap
+    intervals: the false-alarm rate per healthy flight resampled over the patterns that have
+    healthy flights (each pattern's flights a cluster), the per-mode figures over the mode's
+    patterns."""
     dets = [(t, detection_of(t)) for t in traces]
     healthy = [(t, d) for t, d in dets if t["mode"] == "healthy"]
     fa_events = sum(d["false_alarms"] for _, d in dets)
     h_flights = sum(d["healthy_flights"] for _, d in dets)
+    clusters = [d for _, d in dets if d["healthy_flights"] > 0]
+    rate_ci = _interval([d["false_alarms"] / d["healthy_flights"] for d in clusters],
+                        _indices(len(clusters)),
+                        weights=[d["healthy_flights"] for d in clusters])
     fa = {"healthy_patterns": len(healthy),
           "healthy_patterns_with_alarm": sum(1 for _, d in healthy if d["false_alarms"] > 0),
           "healthy_flights": h_flights, "false_alarm_events": fa_events,
           "rate_per_flight": fa_events / h_flights if h_flights else None,
+          "rate_per_flight_ci": rate_ci, "clusters": len(clusters),
           "pre_onset_alarms_in_fault_patterns": sum(d["false_alarms"] for t, d in dets
                                                    if t["mode"] != "healthy")}
     per_mode: dict[str, Any] = {}
     for mode in sorted({t["mode"] for t, _ in dets if t["mode"] != "healthy"}):
         rows = [(t, d) for t, d in dets if t["mode"] == mode]
-        found = [d for _, d in rows if d["detected_index"] is not None]
-        pct = np.array([d["pct_life"] for d in found if d["pct_life"] is not None])
-        aft = np.array([d["flights_after_onset"] for d in found], dtype=float)
-        per_mode[mode] = {
-            "patterns": len(rows), "detected": len(found),
-            "rate": len(found) / len(rows) if rows else None,
-            "pct_life_mean": float(pct.mean()) if pct.size else None,
-            "pct_life_max": float(pct.max()) if pct.size else None,
-            "flights_after_onset_mean": float(aft.mean()) if aft.size else None,
-            "flights_after_onset_max": float(aft.max()) if aft.size else None,
-            "other_unit_alarms": sum(d["other_unit_alarms"] for _, d in rows),
-            "missed": [t["id"] for t, d in rows if d["detected_index"] is None],
-        }
+        per_mode[mode] = _mode_detection(rows)
     return {"false_alarms": fa, "per_mode": per_mode}
+
+
+def _mode_detection(rows: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]]
+                    ) -> dict[str, Any]:
+    """Detection figures of one mode's patterns (undetected ones have no time)."""
+    idx = _indices(len(rows))
+    found = [d for _, d in rows if d["detected_index"] is not None]
+    hit = [float(d["detected_index"] is not None) for _, d in rows]
+    pct = [_nan(d["pct_life"]) for _, d in rows]
+    aft = [_nan(d["flights_after_onset"]) for _, d in rows]
+    out: dict[str, Any] = {"patterns": len(rows), "detected": len(found)}
+    out.update(_mean_ci("rate", hit, idx))
+    out.update(_mean_ci("pct_life_mean", pct, idx))
+    out["pct_life_max"] = _max(pct)
+    out.update(_mean_ci("flights_after_onset_mean", aft, idx))
+    out["flights_after_onset_max"] = _max(aft)
+    out["other_unit_alarms"] = sum(d["other_unit_alarms"] for _, d in rows)
+    out["missed"] = [t["id"] for t, d in rows if d["detected_index"] is None]
+    return out
 
 
 def confusion(true: Sequence[str], predicted: Sequence[str], classes: Sequence[str]
               ) -> dict[str, Any]:
-    """Confusion matrix (rows true, columns predicted + ``undetected``) and per-class rates."""
+    """Confusion matrix (rows true, columns predicted + ``undetected``) and per-class rates.
+
+    ``accuracy_ci`` and each class's ``recall_ci`` (the accuracy on that true mode) are
+    bootstrap intervals over the rows (patterns); precision has none.
+    """
     cols = [*classes, UNDETECTED]
     rows = [c for c in classes if c in set(true)] + sorted(set(true) - set(classes))
     m = np.zeros((len(rows), len(cols)), dtype=int)
     for t, p in zip(true, predicted, strict=True):
         m[rows.index(t), cols.index(p if p in cols else UNDETECTED)] += 1
+    correct = np.array([float(t in cols and p == t) for t, p in zip(true, predicted,
+                                                                     strict=True)])
+    labels = np.array(list(true), dtype=object)
     per_class = {}
     for i, c in enumerate(rows):
         n = int(m[i].sum())
         j = cols.index(c) if c in cols else None
         tp = int(m[i, j]) if j is not None else 0
         col_total = int(m[:, j].sum()) if j is not None else 0
+        mine = correct[labels == c]
         per_class[c] = {"n": n, "recall": tp / n if n else None,
+                        "recall_ci": _interval(mine, _indices(mine.size)),
                         "precision": tp / col_total if col_total else None}
     total = int(m.sum())
-    correct = sum(int(m[i, cols.index(c)]) for i, c in enumerate(rows) if c in cols)
     return {"rows": rows, "columns": cols, "matrix": m.tolist(),
-            "accuracy": correct / total if total else None, "per_class": per_class}
+            "accuracy": float(correct.sum()) / total if total else None,
+            "accuracy_ci": _interval(correct, _indices(correct.size)),
+            "per_class": per_class}
 
 
 def classification_summary(traces: Sequence[Mapping[str, Any]], classes: Sequence[str]
@@ -283,9 +363,11 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
     """Prognostic metrics of one progressive pattern from its trace.
 
     A selected flight without a RUL distribution (the actuator classified as a mode without
-    prognosis) counts as a prediction outside the cone and has no relative accuracy. A point
-    estimate beyond the prediction horizon counts as the horizon (``max_horizon_flights``).
-    ``point_estimate`` is the RUL scored: "median" or "mode" (the most probable RUL).
+    prognosis) counts as a prediction outside the bounds, has no relative accuracy and misses
+    both calibration intervals. A point estimate beyond the prediction horizon counts as the
+    horizon (``max_horizon_flights``). ``point_estimate`` is the RUL scored: "median" or "mode"
+    (the most probable RUL). ``ph`` is Saxena's horizon (every later estimate within true RUL
+    +- alpha x life), ``ph_cone`` the +-alpha relative cone's; both normalised over the life.
     """
     if point_estimate not in _POINT_ESTIMATES:
         raise ValueError(f"point_estimate must be one of {sorted(_POINT_ESTIMATES)}, "
@@ -296,10 +378,10 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
     det = detection_of(trace)["detected_index"]
     out: dict[str, Any] = {"id": trace["id"], "aircraft": trace["aircraft"],
                            "position": trace["position"], "t_eol": t_eol, "life": life,
-                           "detected_index": det, "predictions": [], "ph": 0.0,
-                           "ph_flights": 0.0, "ph_from_detection": 0.0, "ph_band": 0.0,
-                           "ra": None,
-                           "alpha_lambda": False, "cra": None, "convergence": None,
+                           "detected_index": det, "predictions": [],
+                           **_horizons(np.empty(0), np.empty(0), onset, t_eol, det, alpha),
+                           "ra": None, "alpha_lambda": False, "cra": None, "convergence": None,
+                           "calibration": {"n": 0, "in_50": 0, "in_90": 0},
                            "point_estimate": point_estimate}
     if det is None:
         return out
@@ -321,13 +403,8 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
     est = np.array([point(int(i)) for i in chosen], dtype=float)
     times = chosen.astype(float)
     true = t_eol - times
-    ph = metrics.prognostic_horizon(times, est, t_eol, alpha=alpha, bounds="relative", stay=True)
-    out["ph_flights"] = ph
-    out["ph"] = ph / life
-    # Saxena's constant-width bounds, +-alpha x life around the true RUL (time from onset)
-    out["ph_band"] = metrics.prognostic_horizon(times - onset, est, life, alpha=alpha,
-                                                bounds="eol", stay=True) / life
-    out["ph_from_detection"] = ph / (t_eol - det)
+    docs = [by_index[int(i)]["rul"] for i in chosen]
+    out.update(_horizons(times, est, onset, t_eol, det, alpha))
     out["alpha_lambda"] = metrics.alpha_lambda(times, est, t_eol, alpha=alpha, lam=lam,
                                                t_p=float(det))
     ok = np.isfinite(est)
@@ -339,53 +416,167 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
         err = np.abs(est[ok] - true[ok]) / true[ok]
         out["convergence"] = metrics.convergence((times[ok] - onset) / life, err,
                                                  t_p=(det - onset) / life)
+    in50, in90 = _central_hits(docs, true, 0.25), _central_hits(docs, true, 0.05)
+    out["calibration"] = {"n": int(true.size), "in_50": int(in50.sum()),
+                          "in_90": int(in90.sum())}
     out["predictions"] = [
         {"flight": int(i), "true_rul": float(t), "point": None if not math.isfinite(m) else m,
-         "q05": rul_quantile(by_index[int(i)]["rul"], 0.05),
-         "q95": rul_quantile(by_index[int(i)]["rul"], 0.95),
+         "q05": rul_quantile(doc, 0.05), "q25": rul_quantile(doc, 0.25),
+         "q75": rul_quantile(doc, 0.75), "q95": rul_quantile(doc, 0.95),
          "mode_used": by_index[int(i)]["fault_mode"],
          "in_cone": bool(metrics.alpha_bounds_hit(m, t, alpha=alpha)) if math.isfinite(m)
-         else False}
-        for i, t, m in zip(chosen, true, est, strict=True)]
+         else False, "in_50": bool(h50), "in_90": bool(h90)}
+        for i, t, m, doc, h50, h90 in zip(chosen, true, est, docs, in50, in90, strict=True)]
     out["instants"] = inst.tolist()
     return out
 
 
-def _mean(values: Sequence[float | None]) -> float | None:
-    v = [x for x in values if x is not None and math.isfinite(x)]
-    return float(np.mean(v)) if v else None
+def _horizons(times: np.ndarray, est: np.ndarray, onset: int, t_eol: float, det: int | None,
+              alpha: float) -> dict[str, float]:
+    """Saxena's horizon (``ph``: constant bounds +- alpha x life around the true RUL, on the
+    time axis from onset) and the relative cone's (``ph_cone``: +- alpha x true RUL), both
+    "falls and remains": in flights, over the life (failure - onset), over detection to
+    failure. No prediction: all 0."""
+    life = t_eol - onset
+    if times.size == 0 or det is None:
+        band = cone = 0.0
+    else:
+        band = metrics.prognostic_horizon(times - onset, est, life, alpha=alpha, bounds="eol",
+                                          stay=True)
+        cone = metrics.prognostic_horizon(times, est, t_eol, alpha=alpha, bounds="relative",
+                                          stay=True)
+    span = t_eol - det if det is not None and t_eol > det else math.nan
+    return {"ph": band / life, "ph_flights": band,
+            "ph_from_detection": band / span if math.isfinite(span) else 0.0,
+            "ph_cone": cone / life, "ph_cone_flights": cone,
+            "ph_cone_from_detection": cone / span if math.isfinite(span) else 0.0}
+
+
+def _quantile_bound(doc: Mapping[str, Any] | None, level: float) -> float:
+    """Quantile ``level`` of an RUL document as a bound: +inf beyond the prediction horizon,
+    nan without a distribution or without that level."""
+    if not doc:
+        return math.nan
+    levels = [float(q) for q, _ in doc.get("quantiles") or ()]
+    if not any(math.isclose(q, level) for q in levels):
+        return math.nan
+    v = rul_quantile(doc, level)
+    return math.inf if v is None else v
+
+
+def _central_hits(docs: Sequence[Mapping[str, Any] | None], true: np.ndarray, tail: float
+                  ) -> np.ndarray:
+    """Whether each true RUL lies in its document's central interval [q_tail, q_(1-tail)]."""
+    lo = [_quantile_bound(d, tail) for d in docs]
+    hi = [_quantile_bound(d, 1.0 - tail) for d in docs]
+    return metrics.interval_hits(true, lo, hi)
+
+
+#: headline figures also reported with the most probable RUL as point estimate
+_MOST_PROBABLE_KEYS = ("ph", "ph_cone", "ra")
 
 
 def summarise_prognosis(traces: Sequence[Mapping[str, Any]], *, alpha: float = ALPHA,
                         lam: float = LAMBDA, point_estimate: str = POINT_ESTIMATE
                         ) -> dict[str, Any]:
-    """Per progressive mode: per-pattern metrics and their averages (PH of an undetected
-    pattern counts as 0; RA is averaged over the patterns that have predictions)."""
+    """Per progressive mode: per-pattern metrics and their averages with bootstrap intervals
+    over the mode's patterns (PH of an undetected pattern counts as 0, alpha-lambda as a
+    fail; RA, CRA and convergence are averaged over the patterns that have predictions),
+    the calibration of the RUL distributions over all their selected predictions, and the
+    headline figures with the most probable RUL as point estimate (``most_probable``)."""
     out: dict[str, Any] = {}
     for mode in PROGRESSIVE:
-        pats = [pattern_prognosis(t, alpha=alpha, lam=lam, point_estimate=point_estimate)
-                for t in traces
-                if t["mode"] == mode and t["failure"] is not None]
-        if not pats:
+        rows = [t for t in traces if t["mode"] == mode and t["failure"] is not None]
+        if not rows:
             continue
-        ra = _mean([p["ra"] for p in pats])
-        out[mode] = {
-            "ph": _mean([p["ph"] for p in pats]),
-            "ra": None if ra is None else 100.0 * ra,
-            "ra_fraction": ra,
-            "ra_median_pattern": None if not [p for p in pats if p["ra"] is not None] else
-            100.0 * float(np.median([p["ra"] for p in pats if p["ra"] is not None])),
-            "ph_from_detection": _mean([p["ph_from_detection"] for p in pats]),
-            "ph_band": _mean([p["ph_band"] for p in pats]),
-            "alpha_lambda": _mean([float(p["alpha_lambda"]) for p in pats]),
-            "cra": _mean([p["cra"] for p in pats]),
-            "convergence": _mean([p["convergence"] for p in pats]),
-            "n_patterns": len(pats),
-            "n_with_predictions": sum(1 for p in pats if p["predictions"]),
-            "paper": {"ph": PAPER_TABLE2[mode][0], "ra": PAPER_TABLE2[mode][1]},
-            "patterns": pats,
-        }
+        pats = [pattern_prognosis(t, alpha=alpha, lam=lam, point_estimate=point_estimate)
+                for t in rows]
+        alts = [pattern_prognosis(t, alpha=alpha, lam=lam, point_estimate="mode")
+                for t in rows]
+        for p, a in zip(pats, alts, strict=True):
+            p["most_probable"] = {k: a[k] for k in _MOST_PROBABLE_KEYS}
+        out[mode] = _mode_prognosis(mode, pats, _indices(len(pats)))
     return out
+
+
+def _mode_prognosis(mode: str, pats: Sequence[dict[str, Any]], idx: np.ndarray
+                    ) -> dict[str, Any]:
+    """One mode's averages of its patterns' metrics, each with its bootstrap interval."""
+    ras = [p["ra"] for p in pats if p["ra"] is not None]
+    r: dict[str, Any] = {}
+    r.update(_mean_ci("ph", [p["ph"] for p in pats], idx))
+    r.update(_mean_ci("ph_cone", [p["ph_cone"] for p in pats], idx))
+    r.update(_mean_ci("ph_from_detection", [p["ph_from_detection"] for p in pats], idx))
+    r.update(_mean_ci("ra", [_nan(p["ra"]) for p in pats], idx, scale=100.0))
+    r.update(_mean_ci("ra_fraction", [_nan(p["ra"]) for p in pats], idx))
+    r["ra_median_pattern"] = 100.0 * float(np.median(ras)) if ras else None
+    r.update(_mean_ci("alpha_lambda", [float(p["alpha_lambda"]) for p in pats], idx))
+    r.update(_mean_ci("cra", [_nan(p["cra"]) for p in pats], idx))
+    r.update(_mean_ci("convergence", [_nan(p["convergence"]) for p in pats], idx))
+    r["calibration"] = _calibration([p["calibration"] for p in pats], idx)
+    mp: dict[str, Any] = {"point_estimate": "mode"}
+    for key in _MOST_PROBABLE_KEYS:
+        vals = [_nan(p["most_probable"][key]) for p in pats]
+        mp.update(_mean_ci(key, vals, idx, scale=100.0 if key == "ra" else 1.0))
+    r["most_probable"] = mp
+    r["n_patterns"] = len(pats)
+    r["n_with_predictions"] = sum(1 for p in pats if p["predictions"])
+    r["paper"] = {"ph": PAPER_TABLE2[mode][0], "ra": PAPER_TABLE2[mode][1]}
+    r["patterns"] = list(pats)
+    return r
+
+
+def _calibration(counts: Sequence[Mapping[str, int]], idx: np.ndarray) -> dict[str, Any]:
+    """Share of the predictions whose central 50 / 90 % RUL interval holds the true RUL,
+    pooled over the patterns' predictions and resampled by pattern."""
+    n = np.array([c["n"] for c in counts], dtype=float)
+    out: dict[str, Any] = {"n_predictions": int(n.sum())}
+    for key, hits in (("central_50", "in_50"), ("central_90", "in_90")):
+        h = np.array([c[hits] for c in counts], dtype=float)
+        rate = np.divide(h, n, out=np.full_like(h, np.nan), where=n > 0)
+        out.update(_mean_ci(key, rate, idx, weights=n))
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# bootstrap intervals (resampling patterns)
+
+
+def _indices(n: int) -> np.ndarray:
+    """The (N_BOOT, n) resampling matrix of ``n`` patterns (the same for every figure)."""
+    return metrics.bootstrap_indices(n, n_boot=N_BOOT, seed=BOOTSTRAP_SEED)
+
+
+def _nan(v: float | None) -> float:
+    return math.nan if v is None else float(v)
+
+
+def _max(values: Sequence[float]) -> float | None:
+    v = [x for x in values if math.isfinite(x)]
+    return float(max(v)) if v else None
+
+
+def _interval(values: Sequence[float] | np.ndarray, idx: np.ndarray, *,
+              weights: Sequence[float] | np.ndarray | None = None, scale: float = 1.0
+              ) -> list[float] | None:
+    """[lo, hi] of the bootstrap interval (times ``scale``), None without values."""
+    if len(values) == 0:
+        return None
+    ci = metrics.bootstrap_mean_interval(values, weights=weights, level=CI_LEVEL,
+                                         indices=idx)
+    return None if ci is None else [scale * ci[0], scale * ci[1]]
+
+
+def _mean_ci(key: str, values: Sequence[float] | np.ndarray, idx: np.ndarray, *,
+             weights: Sequence[float] | np.ndarray | None = None, scale: float = 1.0
+             ) -> dict[str, Any]:
+    """``{key: mean, key_ci: [lo, hi]}``: the (weighted) mean of the finite values (NaN:
+    missing), times ``scale``; None and None without any."""
+    v = np.asarray(values, dtype=float)
+    w = np.ones_like(v) if weights is None else np.asarray(weights, dtype=float)
+    ok = np.isfinite(v) & (w > 0)
+    mean = scale * float(np.dot(w[ok], v[ok]) / w[ok].sum()) if ok.any() else None
+    return {key: mean, f"{key}_ci": _interval(v, idx, weights=weights, scale=scale)}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -460,8 +651,6 @@ def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, 
     classes = ([str(c) for c in model.classifier.classes_.tolist()]
                if model.classifier is not None else [])
     feat = feature_timing(root, n_flights=timing_flights) if timing_flights > 0 else None
-    import json
-
     manifest = json.loads((root / "manifest.json").read_text())
     return {
         "format": "ema-evaluation/1",
@@ -472,17 +661,61 @@ def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, 
                      "flights": sum(len(p.flights) for p in camp.patterns),
                      "aircraft": [{"tail": a.get("tail"), "base": a.get("base"),
                                    "climate": a.get("climate")} for a in camp.aircraft]},
+        "model": model_identity(model),
         "settings": {"alpha": ALPHA, "lambda": LAMBDA, "n_predictions": N_PREDICTIONS,
                      "point_estimate": point_estimate, "ph_normalisation": "failure - onset",
+                     "ph": "Saxena: every later point estimate within true RUL +- alpha x life",
+                     "ph_cone": "every later point estimate within (1 +- alpha) x true RUL",
                      "prognosis_features": "noise-free h(true severity)" if noise_free
                      else "measured",
                      "cra_weights": "1..n (growing toward end of life)",
-                     "convergence_axis": "(t - onset) / life", "jobs": jobs},
+                     "convergence_axis": "(t - onset) / life",
+                     "calibration": "true RUL within q25..q75 (central_50) and q05..q95 "
+                                    "(central_90) of the RUL distribution at the selected "
+                                    "predictions; none counts as a miss",
+                     "bootstrap": {"resamples": N_BOOT, "level": CI_LEVEL,
+                                   "seed": BOOTSTRAP_SEED, "unit": "pattern",
+                                   "interval": "percentile"},
+                     "jobs": jobs},
         "detection": summarise_detection(traces),
         "classification": classification_summary(traces, classes),
         "prognosis": summarise_prognosis(traces, point_estimate=point_estimate),
         "timing": _timing_summary(chain_timing, feat, model),
         "patterns": traces,
+    }
+
+
+def model_identity(model: PhmModel) -> dict[str, Any]:
+    """Format and SHA-256 of the model's JSON document (keys sorted): which model was scored."""
+    doc = model.to_dict()
+    text = json.dumps(doc, sort_keys=True, default=lambda o: o.tolist()
+                      if hasattr(o, "tolist") else str(o))
+    return {"format": doc.get("format"),
+            "sha256": hashlib.sha256(text.encode()).hexdigest()}
+
+
+#: model fields copied into the summary (the rest, e.g. the training report, stays out)
+_SUMMARY_MODEL_KEYS = ("format", "sha256", "source", "model_id", "training_s",
+                       "classifier_accuracy")
+
+
+def summary_document(result: Mapping[str, Any]) -> dict[str, Any]:
+    """The evaluation's figures without per-flight traces or per-pattern prediction lists
+    (``summary.json``; shape in the module docstring). Key order is fixed by construction."""
+    model = result.get("model") or {}
+    return {
+        "format": SUMMARY_FORMAT,
+        "evaluation_format": result.get("format"),
+        "created_at": result.get("created_at"),
+        "campaign": result.get("campaign"),
+        "model": {k: model[k] for k in _SUMMARY_MODEL_KEYS if k in model},
+        "settings": result.get("settings"),
+        "detection": result["detection"],
+        "classification": result["classification"],
+        "prognosis": {m: {k: v for k, v in r.items() if k != "patterns"}
+                      for m, r in result["prognosis"].items()},
+        "timing": result.get("timing"),
+        "wall_s": result.get("wall_s"),
     }
 
 

@@ -161,21 +161,41 @@ def _f(v: Any, spec: str = ".2f") -> str:
     return format(v, spec)
 
 
+def _ci(v: Any, ci: Any, spec: str = ".2f", scale: float = 1.0) -> str:
+    """``mean [lo, hi]`` (times ``scale``), ``-`` without a mean, the mean alone without an
+    interval."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    text = _f(scale * v, spec)
+    if not ci or any(c is None for c in ci):
+        return text
+    return f"{text} [{_f(scale * ci[0], spec)}, {_f(scale * ci[1], spec)}]"
+
+
+def _get_ci(r: Mapping[str, Any], key: str, spec: str = ".2f", scale: float = 1.0) -> str:
+    return _ci(r.get(key), r.get(f"{key}_ci"), spec, scale)
+
+
 def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
-    """Markdown tables: detection, confusion (first alarm, last flight), prognosis, timing."""
+    """Markdown tables: detection, confusion (first alarm, last flight), prognosis (median
+    and most probable RUL), timing. Means as "mean [lo, hi]", the 90 % bootstrap interval
+    over patterns."""
     det = result["detection"]
     fa = det["false_alarms"]
+    rate = fa.get("rate_per_flight")
     lines = [f"False alarms: {fa['healthy_patterns_with_alarm']} of {fa['healthy_patterns']} "
              f"healthy cycles with an alarm; {fa['false_alarm_events']} alarm events on "
              f"{fa['healthy_flights']} healthy flights (incl. pre-onset flights of fault "
-             "patterns) (paper: 0 on 25 healthy cycles).", "",
-             "| mode | patterns | detected | detection time mean / max [% life] | "
-             "flights after onset mean / max | alarms on other actuators |",
-             "|---|---|---|---|---|---|"]
+             f"patterns), rate per healthy flight "
+             f"{_ci(rate, fa.get('rate_per_flight_ci'), '.4f')} "
+             "(paper: 0 on 25 healthy cycles).", "",
+             "| mode | patterns | detected | detection rate | detection time mean [% life] | "
+             "max [% life] | flights after onset mean | max | alarms on other actuators |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for m, r in det["per_mode"].items():
-        lines.append(f"| {m} | {r['patterns']} | {r['detected']} | {_f(r['pct_life_mean'], '.1f')}"
-                     f" / {_f(r['pct_life_max'], '.1f')} | "
-                     f"{_f(r['flights_after_onset_mean'], '.1f')} / "
+        lines.append(f"| {m} | {r['patterns']} | {r['detected']} | {_get_ci(r, 'rate')} | "
+                     f"{_get_ci(r, 'pct_life_mean', '.1f')} | {_f(r['pct_life_max'], '.1f')} | "
+                     f"{_get_ci(r, 'flights_after_onset_mean', '.1f')} | "
                      f"{_f(r['flights_after_onset_max'], '.0f')} | {r['other_unit_alarms']} |")
     out = {"detection": "\n".join(lines)}
     for key, title in (("at_first_alarm", "at the first alarm"),
@@ -183,25 +203,39 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
         c = result["classification"][key]
         cols = c["columns"]
         t = [f"Classification {title} (rows: true mode, columns: predicted; accuracy "
-             f"{_f(None if c['accuracy'] is None else 100 * c['accuracy'], '.1f')} %)", "",
-             "| true \\ predicted | " + " | ".join(cols) + " | recall |",
+             f"{_ci(c['accuracy'], c.get('accuracy_ci'), '.1f', 100.0)} %)", "",
+             "| true \\ predicted | " + " | ".join(cols) + " | recall [%] |",
              "|---|" + "---|" * (len(cols) + 1)]
         for row, vals in zip(c["rows"], c["matrix"], strict=True):
-            rec = c["per_class"][row]["recall"]
+            pc = c["per_class"][row]
             t.append(f"| {row} | " + " | ".join(str(v) for v in vals) +
-                     f" | {_f(None if rec is None else 100 * rec, '.0f')} % |")
+                     f" | {_ci(pc['recall'], pc.get('recall_ci'), '.0f', 100.0)} |")
         out[key] = "\n".join(t)
-    p = ["| mode | PH [-] ours | PH [-] paper | RA [%] ours | RA [%] paper | PH from detection "
-         "[-] | PH, +-20 % of life band [-] | alpha-lambda (0.2, 0.5) | CRA [%] | "
-         "convergence [-] | patterns (with predictions) |",
-         "|---|---|---|---|---|---|---|---|---|---|---|"]
+    p = ["Prognosis, RUL median as point estimate; mean [90 % bootstrap interval over "
+         "patterns]. PH: Saxena's (every later estimate within true RUL +- 0.2 x life), PH "
+         "cone: within +-20 % of the true RUL; both over the life. Calibration: share of the "
+         "predictions whose central 50 / 90 % RUL interval holds the true RUL.", "",
+         "| mode | PH (Saxena) [-] | PH cone (+-20 %) [-] | PH [-] paper | RA [%] | RA [%] paper | "
+         "PH from detection [-] | alpha-lambda (0.2, 0.5) | CRA [%] | convergence [-] | "
+         "calibration 50 % | calibration 90 % | predictions | patterns (with predictions) |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for m, r in result["prognosis"].items():
-        p.append(f"| {m} | {_f(r['ph'])} | {PAPER_TABLE2[m][0]:.2f} | {_f(r['ra'], '.1f')} | "
-                 f"{PAPER_TABLE2[m][1]:.1f} | {_f(r['ph_from_detection'])} | "
-                 f"{_f(r.get('ph_band'))} | {_f(r['alpha_lambda'])} | "
-                 f"{_f(None if r['cra'] is None else 100 * r['cra'], '.1f')} | "
-                 f"{_f(r['convergence'])} | {r['n_patterns']} ({r['n_with_predictions']}) |")
+        cal = r.get("calibration") or {}
+        p.append(f"| {m} | {_get_ci(r, 'ph')} | {_get_ci(r, 'ph_cone')} | "
+                 f"{PAPER_TABLE2[m][0]:.2f} | {_get_ci(r, 'ra', '.1f')} | "
+                 f"{PAPER_TABLE2[m][1]:.1f} | {_get_ci(r, 'ph_from_detection')} | "
+                 f"{_get_ci(r, 'alpha_lambda')} | {_get_ci(r, 'cra', '.1f', 100.0)} | "
+                 f"{_get_ci(r, 'convergence')} | {_get_ci(cal, 'central_50')} | "
+                 f"{_get_ci(cal, 'central_90')} | {cal.get('n_predictions', '-')} | "
+                 f"{r['n_patterns']} ({r['n_with_predictions']}) |")
     out["prognosis"] = "\n".join(p)
+    mp = ["Prognosis, most probable RUL as point estimate; mean [90 % bootstrap interval].",
+          "", "| mode | PH (Saxena) [-] | PH cone (+-20 %) [-] | RA [%] |", "|---|---|---|---|"]
+    for m, r in result["prognosis"].items():
+        q = r.get("most_probable") or {}
+        mp.append(f"| {m} | {_get_ci(q, 'ph')} | {_get_ci(q, 'ph_cone')} | "
+                  f"{_get_ci(q, 'ra', '.1f')} |")
+    out["prognosis_most_probable"] = "\n".join(mp)
     tm = result["timing"]
     rows = [
         ("features + detection per 80 Hz step, 3 EMAs, 19 features (amortised over a flight)",
@@ -276,6 +310,7 @@ def write_html_report(result: Mapping[str, Any], path: Path, *,
         "<h2>Classification</h2>", _md_to_html_table(tables["at_first_alarm"]),
         _md_to_html_table(tables["at_last_flight"]),
         "<h2>Prognosis (paper Table 2)</h2>", _md_to_html_table(tables["prognosis"]),
+        _md_to_html_table(tables["prognosis_most_probable"]),
         divs[0],
         "<h2>Timing (paper section 5.1)</h2>", _md_to_html_table(tables["timing"]),
         *divs[1:],

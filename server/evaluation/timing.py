@@ -104,7 +104,7 @@ def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
     root = Path(campaign_dir)
     manifest = json.loads((root / "manifest.json").read_text())
     files = [(fl["file"], fl.get("ground_temp_c")) for p in manifest["patterns"]
-             for fl in p["flights"]]
+             for fl in p["flights"] if fl.get("file")]  # a streamed flight kept no file
     if not files:
         return {}
     step = max(len(files) // n_flights, 1)

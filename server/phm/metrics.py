@@ -29,10 +29,14 @@ __all__ = [
     "alpha_bounds_hit",
     "alpha_lambda",
     "alpha_lambda_probability",
+    "bootstrap_indices",
+    "bootstrap_mean_interval",
     "convergence",
     "cumulative_relative_accuracy",
     "detection_time",
     "false_alarm_rate",
+    "interval_coverage",
+    "interval_hits",
     "mean_relative_accuracy",
     "missed_detection_rate",
     "prognostic_horizon",
@@ -263,3 +267,81 @@ def detection_time(times: ArrayLike, alarm: ArrayLike, onset_time: float) -> flo
         raise ValueError("times and alarm must have the same length")
     idx = np.flatnonzero(a & (t >= onset_time))
     return float(t[idx[0]] - onset_time) if idx.size else math.nan
+
+
+# ----------------------------------------------------------------------------------------------
+# uncertainty of the figures: interval coverage, bootstrap over clusters
+
+
+def interval_hits(value: ArrayLike, lower: ArrayLike, upper: ArrayLike) -> NDArray[np.bool_]:
+    """Whether each ``value`` lies in its closed interval [lower, upper], element-wise.
+
+    A NaN bound (no interval) is a miss; an infinite bound is open on that side.
+    """
+    v = np.asarray(value, dtype=float)
+    lo = np.asarray(lower, dtype=float)
+    hi = np.asarray(upper, dtype=float)
+    with np.errstate(invalid="ignore"):
+        return (v >= lo) & (v <= hi)
+
+
+def interval_coverage(value: ArrayLike, lower: ArrayLike, upper: ArrayLike) -> float:
+    """Share of the values inside their intervals (:func:`interval_hits`); nan when empty.
+
+    With the central ``p`` interval of a calibrated predictive distribution (e.g. its 25 and
+    75 % quantiles for p = 0.5) the coverage tends to ``p``.
+    """
+    hits = interval_hits(value, lower, upper)
+    return float(hits.mean()) if hits.size else math.nan
+
+
+def bootstrap_indices(n_clusters: int, *, n_boot: int = 2000, seed: int = 0) -> NDArray[np.intp]:
+    """(n_boot, n_clusters) cluster indices drawn with replacement (one resample per row).
+
+    Draw it once and pass it to every :func:`bootstrap_mean_interval` of the same clusters, so
+    the intervals of several figures come from the same resamples.
+    """
+    if n_clusters < 0 or n_boot < 1:
+        raise ValueError("n_clusters must be >= 0 and n_boot >= 1")
+    rng = np.random.default_rng(seed)
+    return rng.integers(0, max(n_clusters, 1), size=(n_boot, n_clusters)).astype(np.intp)
+
+
+def bootstrap_mean_interval(
+    values: ArrayLike,
+    *,
+    weights: ArrayLike | None = None,
+    level: float = 0.9,
+    indices: NDArray[np.intp] | None = None,
+    n_boot: int = 2000,
+    seed: int = 0,
+) -> tuple[float, float] | None:
+    """Percentile bootstrap interval of the (weighted) mean of per-cluster values.
+
+    ``values`` holds one value per cluster (a pattern); the statistic of a resample of the
+    clusters is sum(w v) / sum(w) over the drawn clusters, so a per-cluster rate with its
+    cluster size as weight gives the pooled rate (events / flights) resampled by cluster.
+    NaN values are missing (weight 0); resamples without any weight are left out. ``indices``:
+    a matrix from :func:`bootstrap_indices` (else one is drawn with ``n_boot`` and ``seed``).
+    Returns (lo, hi) at the central ``level``; None when no cluster has a value; (x, x) with
+    a single such cluster.
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    w = np.ones_like(v) if weights is None else np.asarray(weights, dtype=float).ravel()
+    if w.shape != v.shape or np.any(w < 0):
+        raise ValueError("weights must be non-negative, one per value")
+    if not (0 < level < 1):
+        raise ValueError("level must be in (0, 1)")
+    ok = np.isfinite(v) & (w > 0)
+    if not ok.any():
+        return None
+    wv = np.where(ok, w * np.where(ok, v, 0.0), 0.0)
+    w = np.where(ok, w, 0.0)
+    idx = bootstrap_indices(v.size, n_boot=n_boot, seed=seed) if indices is None else indices
+    if idx.ndim != 2 or idx.shape[1] != v.size:
+        raise ValueError("indices must have one column per value")
+    den = w[idx].sum(axis=1)
+    keep = den > 0
+    stat = wv[idx].sum(axis=1)[keep] / den[keep]
+    lo, hi = np.percentile(stat, [50.0 * (1 - level), 50.0 * (1 + level)])
+    return float(lo), float(hi)

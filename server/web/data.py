@@ -200,11 +200,19 @@ def evaluation_view(*, data_dir: Path) -> dict[str, Any]:
     rows = []
     for mode, (ph, ra) in PAPER_TABLE2.items():
         mine = (ours or {}).get(mode) or {}
+        saxena, cone = _horizons(mine)
         rows.append({"mode": mode, "paper_ph": ph, "paper_ra": ra,
-                     "ph": _num(mine.get("ph")), "ra": _percent(mine.get("ra")),
-                     "ph_band": _num(mine.get("ph_band"))})
+                     "ph": saxena, "ph_cone": cone, "ra": _percent(mine.get("ra"))})
     return {"rows": rows, "has_ours": ours is not None, "error": error,
             "path": "evaluation/latest.json", "campaign": campaign}
+
+
+def _horizons(mine: dict[str, Any]) -> tuple[float | None, float | None]:
+    """(Saxena's PH, the +-20 % cone's PH) of one mode: ``ph`` and ``ph_cone``; a document
+    written before the rename has the cone's as ``ph`` and Saxena's as ``ph_band``."""
+    if "ph_band" in mine and "ph_cone" not in mine:
+        return _num(mine.get("ph_band")), _num(mine.get("ph"))
+    return _num(mine.get("ph")), _num(mine.get("ph_cone"))
 
 
 def _campaign_label(campaign: Any, created_at: Any) -> str | None:

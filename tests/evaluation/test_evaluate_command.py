@@ -42,7 +42,10 @@ def test_hmsm_evaluate_reports_the_papers_section_5(evaluated) -> None:
     assert (out / "report.html").stat().st_size > 10_000
     assert {"TTS", "DMD", "MTEL", "MTWEAR", "REWEAR"} <= set(result["prognosis"])
     latest = json.loads((root / "data" / "evaluation" / "latest.json").read_text())
-    assert set(latest["prognosis"]["TTS"]) >= {"ph", "ra", "ph_band"}
+    assert set(latest["prognosis"]["TTS"]) >= {"ph", "ph_ci", "ph_cone", "ra", "calibration"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["prognosis"]["TTS"]["ph"] == result["prognosis"]["TTS"]["ph"]
+    assert (out / "summary.json").stat().st_size < 50_000
     # honest bounds on what this system reaches today (docs/RESULTS.md): TTS relative
     # accuracy at least the paper's, every fault pattern detected and classified by its last
     # flight, no false alarm on the healthy verification flights
@@ -63,10 +66,11 @@ _MET = {"TTS"}
                                   for m in PAPER_TABLE2])
 def test_prognosis_reaches_the_papers_table_2(evaluated, mode: str) -> None:
     """Issue 6: every mode at least the paper's prognostic horizon (+-20 % cone, normalised
-    over life) and relative accuracy."""
+    over life: ``ph_cone``, the definition these expectations were set with) and relative
+    accuracy."""
     got = evaluated[0]["prognosis"][mode]
     ph, ra = PAPER_TABLE2[mode]
-    assert got["ph"] >= ph and got["ra"] >= ra, (got["ph"], got["ra"])
+    assert got["ph_cone"] >= ph and got["ra"] >= ra, (got["ph_cone"], got["ra"])
 
 
 def test_rul_pages_draw_a_paper_scale_mode(evaluated) -> None:

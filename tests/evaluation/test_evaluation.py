@@ -73,13 +73,14 @@ def test_ph_and_ra_match_hand_computation() -> None:
     rul = {20: 120.0, 30: 105.0, 40: 66.0, 50: 45.0, 60: 44.0, 70: 27.0, 80: 21.0, 90: 9.0}
     p = pattern_prognosis(_progressive(rul, t_eol=t_eol))
     assert [q["flight"] for q in p["predictions"]] == [20, 30, 40, 50, 60, 70, 80, 90]
-    # within +-20 % from flight 40 on, and stays -> PH = 100 - 40 = 60 flights, life 100
-    assert p["ph_flights"] == pytest.approx(60.0)
-    assert p["ph"] == pytest.approx(0.6)
-    assert p["ph_from_detection"] == pytest.approx(60.0 / 80.0)
+    # within +-20 % from flight 40 on, and stays -> cone PH = 100 - 40 = 60 flights, life 100
+    assert p["ph_cone_flights"] == pytest.approx(60.0)
+    assert p["ph_cone"] == pytest.approx(0.6)
+    assert p["ph_cone_from_detection"] == pytest.approx(60.0 / 80.0)
     # Saxena's constant band, +-0.2 x life = +-20 flights: 120 vs 80 and 105 vs 70 are out,
     # 66 vs 60 on are in -> the same 60 flights here
-    assert p["ph_band"] == pytest.approx(0.6)
+    assert p["ph"] == pytest.approx(0.6) and p["ph_flights"] == pytest.approx(60.0)
+    assert p["ph_from_detection"] == pytest.approx(60.0 / 80.0)
     true = np.array([80, 70, 60, 50, 40, 30, 20, 10], dtype=float)
     pred = np.array([rul[i] for i in range(20, 100, 10)])
     assert p["ra"] == pytest.approx(float(np.mean(1 - np.abs(pred - true) / true)))
@@ -93,15 +94,15 @@ def test_ph_and_ra_match_hand_computation() -> None:
 def test_ph_requires_staying_in_the_cone_and_missing_predictions_count_outside() -> None:
     rul = {20: 80.0, 30: 70.0, 40: 60.0, 50: 50.0, 60: 40.0, 70: 30.0, 80: 40.0, 90: 10.0}
     p = pattern_prognosis(_progressive(rul))
-    assert p["ph_flights"] == pytest.approx(10.0)  # only the last one stays inside
+    assert p["ph_cone_flights"] == pytest.approx(10.0)  # only the last one stays inside
     # the constant band (+-0.2 x life = +-20 flights) keeps 40 vs 20 at flight 80 (on its
     # edge): every prediction from detection on is inside -> 80 flights
-    assert p["ph_band"] == pytest.approx(0.8)
+    assert p["ph"] == pytest.approx(0.8)
     p_b = pattern_prognosis(_progressive({**rul, 80: 45.0}))  # 25 off: outside both
-    assert p_b["ph_flights"] == pytest.approx(10.0) and p_b["ph_band"] == pytest.approx(0.1)
+    assert p_b["ph_cone_flights"] == pytest.approx(10.0) and p_b["ph"] == pytest.approx(0.1)
     del rul[90]
     p = pattern_prognosis(_progressive(rul))
-    assert p["ph"] == 0.0
+    assert p["ph"] == 0.0 and p["ph_cone"] == 0.0
     assert len(p["predictions"]) == 8 and p["predictions"][-1]["point"] is None
     assert p["ra"] is not None  # averaged over the 7 predictions that exist
 
@@ -112,12 +113,16 @@ def test_the_most_probable_rul_can_be_scored_instead_of_the_median() -> None:
     median = pattern_prognosis(_progressive(rul))
     mode = pattern_prognosis(_progressive(rul), point_estimate="mode")
     assert median["ra"] == pytest.approx(1.0) and mode["ra"] == pytest.approx(0.85)
-    assert median["ph"] == pytest.approx(0.8) and mode["ph"] == pytest.approx(0.8)
+    assert median["ph_cone"] == pytest.approx(0.8) and mode["ph_cone"] == pytest.approx(0.8)
     # medians 30 % high: outside the cone; their modes (1.105 x truth) inside
     rul = {i: 1.3 * (100.0 - i) for i in range(20, 100, 10)}
-    assert pattern_prognosis(_progressive(rul))["ph"] == 0.0
+    assert pattern_prognosis(_progressive(rul))["ph_cone"] == 0.0
     mode = pattern_prognosis(_progressive(rul), point_estimate="mode")
-    assert mode["ph"] == pytest.approx(0.8) and mode["ra"] == pytest.approx(1 - 0.105)
+    assert mode["ph_cone"] == pytest.approx(0.8) and mode["ra"] == pytest.approx(1 - 0.105)
+    # reported beside the median in the mode's summary
+    mp = summarise_prognosis([_progressive(rul)])["MTWEAR"]["most_probable"]
+    assert mp["ph_cone"] == pytest.approx(0.8) and mp["ra"] == pytest.approx(89.5)
+    assert mp["ph_cone_ci"] == [pytest.approx(0.8)] * 2
     with pytest.raises(ValueError, match="point_estimate"):
         pattern_prognosis(_progressive(rul), point_estimate="mean")
 
@@ -175,7 +180,7 @@ def test_outputs_and_latest_json_match_the_dashboard(tmp_path: Path) -> None:
     data = tmp_path / "data"
     written = write_outputs(result, tmp_path / "out", latest=data / "evaluation" / "latest.json")
     names = {p.name for p in written}
-    assert {"evaluation.json", "report.html", "rul_MTWEAR.html", "summary.md",
+    assert {"evaluation.json", "summary.json", "report.html", "rul_MTWEAR.html", "summary.md",
             "latest.json"} <= names
     page = (tmp_path / "out" / "report.html").read_text()
     assert 'src="http' not in page  # no CDN: plotly.js embedded, once
@@ -185,3 +190,6 @@ def test_outputs_and_latest_json_match_the_dashboard(tmp_path: Path) -> None:
     view = evaluation_view(data_dir=data)
     row = next(r for r in view["rows"] if r["mode"] == "MTWEAR")
     assert view["has_ours"] and row["ph"] == pytest.approx(0.8) and row["ra"] == pytest.approx(100)
+    assert row["ph_cone"] == pytest.approx(0.8)
+    md = (tmp_path / "out" / "summary.md").read_text()
+    assert "| MTWEAR | 0.80 [0.80, 0.80] | 0.80 [0.80, 0.80] |" in md

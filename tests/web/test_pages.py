@@ -182,16 +182,28 @@ def test_evaluation_page_reads_latest_json_or_says_not_run(client, keys, app) ->
     assert 'id="not-run"' in page and "0.82" in page and "81.2" in page
     path = app.state.settings.data_dir / "evaluation" / "latest.json"
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({"prognosis": {"DMD": {"ph": 0.5, "ra": 0.713, "ph_band": 0.64}},
+    path.write_text(json.dumps({"prognosis": {"DMD": {"ph": 0.64, "ra": 0.713, "ph_cone": 0.5}},
                                 "campaign": {"kind": "verification", "seed": 2,
                                              "scale": "quick", "render_every": 20,
                                              "patterns": 31},
                                 "created_at": "2026-12-01T06:38:06+00:00"}))
     page = client.get("/evaluation").text
-    assert 'id="not-run"' not in page and "0.50" in page and "71.3" in page
-    assert "0.64" in page  # Saxena's constant-band horizon beside the cone's
+    assert 'id="not-run"' not in page and "71.3" in page
+    assert "PH (Saxena, ±0.2·life)" in page and "PH cone (±20 %)" in page
+
+    def dmd_cells(page: str) -> list[str]:
+        row = page[page.index('<th scope="row">DMD</th>'):]
+        row = row[:row.index("</tr>")]
+        return [c.split(">", 1)[1].split("<", 1)[0] for c in row.split("<td")[1:]]
+
+    # paper PH, paper RA, ours: Saxena's PH (headline), the cone's, RA
+    assert dmd_cells(page) == ["0.55", "75.3", "0.64", "0.50", "71.3"]
     assert "verification campaign, seed 2, quick scale, 1 in 20 flights of a fault run" in page
     assert "evaluated 2026-12-01T06:38" in page
+    # a document written before the rename: the cone's horizon as "ph", Saxena's as "ph_band"
+    path.write_text(json.dumps({"prognosis": {"DMD": {"ph": 0.5, "ra": 0.713,
+                                                      "ph_band": 0.64}}}))
+    assert dmd_cells(client.get("/evaluation").text) == ["0.55", "75.3", "0.64", "0.50", "71.3"]
 
 
 def test_events_stream_needs_a_key_and_reports_new_alarms(client, keys, seeded, aircraft
