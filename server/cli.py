@@ -220,6 +220,13 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default 200: about 1 GB for the protocol scale; 1 keeps every one)")
     campaign.set_defaults(func=cmd_campaign)
 
+    from server.evaluation.protocol import add_protocol_arguments, run_protocol
+
+    protocol = sub.add_parser("protocol", help="the paper's assessment from nothing: stream a "
+                              "design and a verification campaign, train, evaluate")
+    add_protocol_arguments(protocol)
+    protocol.set_defaults(func=run_protocol)
+
     worker = sub.add_parser("worker", help="run analysis workers")
     worker.add_argument("--concurrency", type=int, default=1, help="worker processes")
     worker.add_argument("--lease", type=float, default=120.0, help="job lease [s]")

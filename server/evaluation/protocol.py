@@ -1,0 +1,84 @@
+"""``hmsm protocol``: the paper's assessment (sections 4.3 and 5) from nothing, in one command.
+
+Streams a design campaign and a verification campaign on unseen aircraft (every flight of
+every pattern simulated, features kept, logs sampled), trains the chain on the design one and
+evaluates it on the verification one::
+
+    OUT/design/          streamed design campaign (seed --design-seed)
+    OUT/verification/    streamed verification campaign (seed --verification-seed)
+    OUT/evaluation/      hmsm evaluate's outputs: summary.json, evaluation.json, report.html
+
+Each step resumes where an interrupted run stopped (a finished pattern is never simulated
+again, a finished campaign never regenerated). ``--scale ci`` runs the same machinery reduced
+(a few patterns per mode, short recordings, fast faults) in a few minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+from server.config import Settings
+
+__all__ = ["add_protocol_arguments", "run_protocol"]
+
+
+def add_protocol_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("--out", required=True, help="root directory of the run; run again "
+                        "with the same options to resume")
+    parser.add_argument("--scale", choices=("protocol", "ci"), default="protocol",
+                        help="protocol: the paper's (default); ci: reduced, a few minutes")
+    parser.add_argument("--design-seed", type=int, default=1)
+    parser.add_argument("--verification-seed", type=int, default=2)
+    parser.add_argument("--span-range", default=None, metavar="LOW,HIGH",
+                        help="verification only: range of fault-to-failure spans [flights] "
+                        "(faults faster or slower than design's)")
+    parser.add_argument("--keep-raw-every", type=int, default=200, metavar="K",
+                        help="keep the log of every K-th flight of a pattern (default 200)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="local worker processes (default: all cores)")
+    parser.add_argument("--dask", default=None, metavar="ADDRESS",
+                        help="simulate on a Dask distributed scheduler (tcp://host:8786)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    return parser
+
+
+def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
+                   span_range: str | None) -> argparse.Namespace:
+    return argparse.Namespace(kind=kind, out=str(out), seed=seed, scale=args.scale,
+                              workers=args.workers, dask=args.dask, render_every=None,
+                              span_range=span_range, no_progress=args.no_progress, bases=None,
+                              noise_scale=1.0)
+
+
+def _evaluate_args(args: argparse.Namespace, root: Path) -> argparse.Namespace:
+    return argparse.Namespace(campaign=str(root / "verification"), design=str(root / "design"),
+                              model_json=None, model_id=None, seed=0,
+                              out=str(root / "evaluation"),
+                              jobs=args.workers or min(2, os.cpu_count() or 1),
+                              timing_flights=6, no_latest=True, no_progress=args.no_progress,
+                              point_estimate="median", noise_free_features=False)
+
+
+def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
+    from server.campaigns import FeatureSink
+    from sim_worker.cli import run_campaign_command
+
+    from .cli import run_evaluate
+
+    root = Path(args.out)
+    sink = FeatureSink(keep_raw_every=args.keep_raw_every)
+    t0 = time.perf_counter()
+    for kind, seed, span in (("design", args.design_seed, None),
+                             ("verification", args.verification_seed, args.span_range)):
+        manifest = run_campaign_command(_campaign_args(args, kind, seed, root / kind, span),
+                                        sink=sink)
+        n = sum(len(p["flights"]) for p in manifest["patterns"])
+        print(f"{kind} campaign: {len(manifest['patterns'])} patterns, {n} flights "
+              f"({time.perf_counter() - t0:.0f} s so far)", flush=True)
+    code = run_evaluate(_evaluate_args(args, root), settings)
+    print(f"protocol run finished in {time.perf_counter() - t0:.0f} s: "
+          f"{root / 'evaluation' / 'summary.json'}")
+    return code

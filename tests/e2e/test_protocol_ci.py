@@ -1,0 +1,86 @@
+"""The paper's protocol end to end, reduced (``hmsm protocol --scale ci``): two streamed
+campaigns, every flight of every pattern, training, evaluation with intervals. A regression
+test of the machinery; its figures are not the system's (a few patterns, short recordings)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from server.vocabulary import PROGRESSIVE
+
+pytestmark = pytest.mark.slow
+
+KEEP = 10
+
+
+@pytest.fixture(scope="module")
+def protocol_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("protocol")
+    proc = subprocess.run(
+        [sys.executable, "-m", "server.cli", "protocol", "--scale", "ci", "--out", str(out),
+         "--workers", "2", "--keep-raw-every", str(KEEP), "--no-progress"],
+        capture_output=True, text=True, timeout=1200,
+        env={**os.environ, "HMSM_DATA_DIR": str(out / "data")})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out
+
+
+def _manifest(root: Path, kind: str) -> dict:
+    return json.loads((root / kind / "manifest.json").read_text())
+
+
+@pytest.mark.parametrize("kind", ["design", "verification"])
+def test_every_flight_is_streamed_and_a_sample_kept(protocol_run: Path, kind: str) -> None:
+    manifest = _manifest(protocol_run, kind)
+    assert manifest["render_every"] == 1 and manifest["sink"]["sink"] == "features"
+    stored = json.loads((protocol_run / kind / "phm_features.json").read_text())["flights"]
+    flights = [f for p in manifest["patterns"] for f in p["flights"]]
+    assert set(stored) == {f["flight"] for f in flights}
+    for f in flights:
+        assert bool(f["file"]) == (f["index"] % KEEP == 0)
+        if f["file"]:
+            assert (protocol_run / kind / f["file"]).is_file()
+    for p in manifest["patterns"]:
+        if p["mode"] in PROGRESSIVE:
+            assert [f["index"] for f in p["flights"]] == list(range(p["failure_flight"] + 1))
+    assert not (protocol_run / kind / "progress").exists()
+
+
+def test_every_verification_flight_is_analysed_and_scored_with_intervals(
+        protocol_run: Path) -> None:
+    manifest = _manifest(protocol_run, "verification")
+    result = json.loads((protocol_run / "evaluation" / "evaluation.json").read_text())
+    assert sum(len(p["flights"]) for p in result["patterns"]) == \
+        sum(len(p["flights"]) for p in manifest["patterns"])
+    summary = json.loads((protocol_run / "evaluation" / "summary.json").read_text())
+    healthy = sum(len(p["flights"]) for p in manifest["patterns"] if p["mode"] == "healthy")
+    onsets = sum(p["onset_flight"] for p in manifest["patterns"] if p["mode"] != "healthy")
+    assert summary["detection"]["false_alarms"]["healthy_flights"] == healthy + onsets
+    assert set(summary["prognosis"]) == set(PROGRESSIVE)
+    for mode, figures in summary["prognosis"].items():
+        assert figures["n_patterns"] == 2, mode
+        for key in ("ph", "ph_cone", "ra", "alpha_lambda"):
+            lo, hi = figures[f"{key}_ci"]
+            assert lo <= figures[key] <= hi, (mode, key)
+        cal = figures["calibration"]
+        assert cal["n_predictions"] > 0 and 0.0 <= cal["central_50"] <= cal["central_90"] <= 1.0
+    assert len((protocol_run / "evaluation" / "summary.json").read_bytes()) < 60_000
+
+
+def test_a_finished_campaign_is_never_overwritten(protocol_run: Path) -> None:
+    before = (protocol_run / "verification" / "phm_features.json").read_bytes()
+    proc = subprocess.run(
+        [sys.executable, "-c",
+         "import sys; from sim_worker.cli import main; sys.exit(main(sys.argv[1:]))",
+         "campaign", "--kind", "verification", "--scale", "ci", "--seed", "2",
+         "--out", str(protocol_run / "verification"), "--no-progress"],
+        capture_output=True, text=True, timeout=120)
+    # the raw-log runner is another sink: the finished streamed campaign is not overwritten
+    assert proc.returncode == 2 and "other settings" in proc.stderr
+    assert (protocol_run / "verification" / "phm_features.json").read_bytes() == before
