@@ -83,6 +83,9 @@ def main() -> None:
     flight_s = sum(per.values())
     load = os.getloadavg()[0]
     rows = [f"| {s} | {1000 * per[s]:.0f} | {100 * per[s] / flight_s:.0f} % |" for s in STAGES]
+    n_ver = expected_flights("verification")
+    budget = 2 * 3600 * args.workers / n_ver  # s per flight for the verification in 2 hours
+    sim_needed = budget - (flight_s - per["simulate"])
     camp = []
     for kind in ("design", "verification"):
         n = expected_flights(kind)
@@ -107,6 +110,10 @@ def main() -> None:
         f"| campaign | flights | hours on one core | hours on {args.workers} cores |",
         "|---|---|---|---|",
         *camp,
+        "",
+        f"The verification campaign within 2 hours on {args.workers} cores needs "
+        f"{1000 * budget:.0f} ms per flight: with the other stages as they are, the simulator "
+        f"at {1000 * sim_needed:.0f} ms, {per['simulate'] / sim_needed:.1f} times its speed.",
         "",
         f"Command: `python bench/bench_campaign.py --flights {args.flights} "
         f"--workers {args.workers}`",
