@@ -21,7 +21,7 @@ import json
 import math
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -298,7 +298,6 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     aircraft = fleet_for(task.kind, task.seed, **task.options)[spec.aircraft_index]
     rendered: list[tuple[int, str, str | None, FaultState, Any]] = []
     stored: dict[str, dict[str, Any]] = {}
-    threshold: float | None = None
     failure: int | None = None
 
     def render(fault: FaultState, index: int) -> Any:
@@ -310,34 +309,9 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
         return summ
 
     if spec.mode == "healthy" or spec.mode in A_PRIORI:
-        fault_on = healthy()
-        if spec.mode in A_PRIORI:
-            assert spec.position is not None
-            fault_on = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]))
-            threshold = fault_on.threshold
-        for index in range(spec.n_flights):
-            render(fault_on if index >= spec.onset else healthy(), index)
+        threshold = _constant_run(spec, render)
     else:
-        assert spec.position is not None
-        ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s,
-                                seed=spec.seed)
-        fault = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]),
-                          reference=ref, span_range=cfg.span_flights)
-        threshold = fault.threshold
-        for index in range(spec.onset):
-            render(healthy(), index)
-        for index in range(spec.onset, spec.onset + _MAX_FLIGHTS):
-            is_fail = fault.failed
-            if is_fail or (index - spec.onset) % cfg.render_every == 0:
-                summ = render(fault, index)
-            else:
-                summ = estimate_summary(aircraft, index, _flight_rng(spec, index, 0),
-                                        started_at=flight_start(index, day_offset=spec.day_offset),
-                                        duration_s=cfg.duration_s, fault=fault)
-            if is_fail:
-                failure = index
-                break
-            fault = advance_fault(fault, summ, _flight_rng(spec, index, 1))
+        threshold, failure = _fault_to_failure(aircraft, spec, cfg, render)
     flights = [_flight_entry(fid, rel, index, f, summ, failure,
                              flight_start(index, day_offset=spec.day_offset).isoformat())
                for index, fid, rel, f, summ in rendered]
@@ -354,6 +328,41 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
         },
         "stored": stored,
     }
+
+
+def _constant_run(spec: PatternSpec, render: Callable[[FaultState, int], Any]) -> float | None:
+    """A healthy cycle, or an a priori fault imposed from ``onset`` on; its threshold."""
+    fault_on = healthy()
+    if spec.mode in A_PRIORI:
+        assert spec.position is not None
+        fault_on = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]))
+    for index in range(spec.n_flights):
+        render(fault_on if index >= spec.onset else healthy(), index)
+    return fault_on.threshold
+
+
+def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
+                      render: Callable[[FaultState, int], Any]) -> tuple[float | None, int | None]:
+    """The healthy lead, then the fault advanced flight by flight to failure (every
+    ``render_every``-th flight and the failure flight rendered); threshold and failure flight."""
+    assert spec.position is not None
+    ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s, seed=spec.seed)
+    fault = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]),
+                      reference=ref, span_range=cfg.span_flights)
+    for index in range(spec.onset):
+        render(healthy(), index)
+    for index in range(spec.onset, spec.onset + _MAX_FLIGHTS):
+        if fault.failed:
+            render(fault, index)
+            return fault.threshold, index
+        if (index - spec.onset) % cfg.render_every == 0:
+            summ = render(fault, index)
+        else:
+            summ = estimate_summary(aircraft, index, _flight_rng(spec, index, 0),
+                                    started_at=flight_start(index, day_offset=spec.day_offset),
+                                    duration_s=cfg.duration_s, fault=fault)
+        fault = advance_fault(fault, summ, _flight_rng(spec, index, 1))
+    return fault.threshold, None
 
 
 def _completed(tasks: dict[int, PatternTask], workers: int, executor: Executor | None
@@ -477,26 +486,31 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     bar.close()
     ordered = [results[s.number] for s in specs]
     sink.finish(out, {fid: data for r in ordered for fid, data in r["stored"].items()})
-    manifest = {
-        "format": FORMAT,
-        "kind": kind,
-        "seed": int(seed),
-        "scale": scale,
-        "duration_s": cfg.duration_s,
-        "render_every": cfg.render_every,
-        "lead_flights": cfg.lead_flights,
-        "span_flights": list(cfg.span_flights),
-        "noise_scale": float(noise_scale),
-        "bases": list(bases) if bases else None,
-        "sink": sink.describe(),
-        "aircraft": [{"tail": a.tail, "base": a.base, "climate": BASES[a.base],
-                      "serials": dict(a.serials), "params": a.params_summary()} for a in fleet],
-        "patterns": [r["entry"] for r in ordered],
-    }
+    manifest = _manifest(settings, cfg, fleet, [r["entry"] for r in ordered])
     write_file(out / "manifest.json", json.dumps(manifest, indent=1).encode())
     write_file(out / SETTINGS_FILE, json.dumps(settings, sort_keys=True).encode())
     store.remove()
     return manifest
+
+
+def _manifest(settings: dict[str, Any], cfg: ScaleConfig, fleet: list[Aircraft],
+              patterns: list[dict[str, Any]]) -> dict[str, Any]:
+    return {
+        "format": FORMAT,
+        "kind": settings["kind"],
+        "seed": settings["seed"],
+        "scale": settings["scale"],
+        "duration_s": cfg.duration_s,
+        "render_every": cfg.render_every,
+        "lead_flights": cfg.lead_flights,
+        "span_flights": list(cfg.span_flights),
+        "noise_scale": settings["noise_scale"],
+        "bases": settings["bases"],
+        "sink": settings["sink"],
+        "aircraft": [{"tail": a.tail, "base": a.base, "climate": BASES[a.base],
+                      "serials": dict(a.serials), "params": a.params_summary()} for a in fleet],
+        "patterns": patterns,
+    }
 
 
 def _scale_config(scale: str, kind: str, render_every: int | None,

@@ -136,9 +136,9 @@ def test_span_range_sets_the_fault_to_failure_spans(tmp_path: Path) -> None:
     fast = run_campaign("verification", tmp_path / "fast", seed=3, scale="tiny",
                         progress=False, workers=1, sink=FeatureSink(keep_raw_every=1000))
     slow = run_campaign("verification", tmp_path / "slow", seed=3, scale="tiny",
-                        progress=False, workers=1, span_flights=(14.0, 18.0),
+                        progress=False, workers=1, span_flights=(30.0, 40.0),
                         sink=FeatureSink(keep_raw_every=1000))
-    assert slow["span_flights"] == [14.0, 18.0]
+    assert slow["span_flights"] == [30.0, 40.0]
 
     def spans(m: dict) -> list[int]:
         return [p["failure_flight"] - p["onset_flight"] for p in m["patterns"]
