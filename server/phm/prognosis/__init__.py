@@ -15,7 +15,14 @@ from .filter import (
     effective_sample_size,
     systematic_resample,
 )
-from .generic import GENERIC_CONFIG, estimate_noise_std, predict_rul, track_rul
+from .generic import (
+    GENERIC_CONFIG,
+    PriorDominatedWarning,
+    backtest_rul,
+    estimate_noise_std,
+    predict_rul,
+    track_rul,
+)
 from .laws import (
     LAWS,
     AffineLaw,
@@ -44,12 +51,14 @@ __all__ = [
     "ParticleFilterPrognoser",
     "PolynomialLaw",
     "PrognosisConstants",
+    "PriorDominatedWarning",
     "PrognoserConfig",
     "PrognoserState",
     "QuadraticLaw",
     "RateBasis",
     "RlsMeasurement",
     "RulDistribution",
+    "backtest_rul",
     "effective_sample_size",
     "estimate_noise_std",
     "growth_onset",

@@ -17,6 +17,8 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any, Literal
 
+import numpy as np
+
 from .laws import LAWS, DegradationLaw, ExponentialLaw, law_for
 
 __all__ = ["RATE_BASES", "PrognoserConfig", "RateBasis"]
@@ -137,8 +139,10 @@ class PrognoserConfig:
     _version: int = field(default=_CONFIG_VERSION, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        if isinstance(self.n_particles, bool) or not isinstance(self.n_particles, int):
-            raise ValueError("n_particles must be an int")
+        for name in ("n_particles", "max_horizon_flights", "prediction_steps", "histogram_bins"):
+            object.__setattr__(self, name, _whole(name, getattr(self, name)))
+        object.__setattr__(self, "pof_horizons_flights", tuple(
+            _whole("pof_horizons_flights", h) for h in self.pof_horizons_flights))
         if self.n_particles < 2:
             raise ValueError(f"n_particles must be >= 2, got {self.n_particles}")
         _positive("process_noise_std", self.process_noise_std)
@@ -170,9 +174,8 @@ class PrognoserConfig:
         if not (0.0 <= self.initial_severity_max < 1.0):
             raise ValueError("initial_severity_max must be in [0, 1)")
         for name in ("max_horizon_flights", "prediction_steps", "histogram_bins"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be a positive int, got {value!r}")
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be a positive int, got {getattr(self, name)!r}")
         if not isinstance(self.monotone_rate, bool):
             raise ValueError("monotone_rate must be a bool")
         if not (math.isfinite(self.param_uncertainty_scale) and self.param_uncertainty_scale >= 0):
@@ -181,10 +184,8 @@ class PrognoserConfig:
         if not levels or any(not (0.0 < q < 1.0) for q in levels) or list(levels) != sorted(levels):
             raise ValueError("quantile_levels must be increasing values in (0, 1)")
         object.__setattr__(self, "quantile_levels", levels)
-        horizons = tuple(self.pof_horizons_flights)
-        if any(isinstance(h, bool) or not isinstance(h, int) or h < 1 for h in horizons):
+        if any(h < 1 for h in self.pof_horizons_flights):
             raise ValueError("pof_horizons_flights must be positive ints")
-        object.__setattr__(self, "pof_horizons_flights", horizons)
         if self.rate_bounds is not None:
             lo, hi = (float(v) for v in self.rate_bounds)
             if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi):
@@ -251,3 +252,15 @@ class PrognoserConfig:
 def _positive(name: str, value: float) -> None:
     if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+
+
+def _whole(name: str, value: object) -> int:
+    """A count given as an int or as a whole float (5000.0 is 5000); anything else refused."""
+    if isinstance(value, bool):
+        raise ValueError(f"{name} must be a whole number, got {value!r}")
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating) and math.isfinite(value) \
+            and float(value).is_integer():
+        return int(value)
+    raise ValueError(f"{name} must be a whole number, got {value!r}")

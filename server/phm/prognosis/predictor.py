@@ -86,6 +86,27 @@ class RulDistribution:
             return self.quantiles[0.5]
         return float(weighted_quantiles(self.samples, self.weights, (0.5,))[0])
 
+    def quantile(self, level: float) -> float:
+        """RUL [flight] at ``level``, a fraction in (0, 1): a configured level's stored value,
+        any other computed from the particles (see :meth:`percentile` for percent)."""
+        q = float(level)
+        if not 0.0 < q < 1.0:
+            raise ValueError(f"level must be a fraction in (0, 1), got {level!r} "
+                             "(percentile() takes percent)")
+        if q in self.quantiles:
+            return self.quantiles[q]
+        if self.samples.size == 0:
+            raise ValueError(f"level {q} is not among the stored quantiles "
+                             f"{sorted(self.quantiles)} and the particles were not kept")
+        return float(weighted_quantiles(self.samples, self.weights, (q,))[0])
+
+    def percentile(self, percent: float) -> float:
+        """RUL [flight] at ``percent`` in (0, 100), e.g. ``percentile(5)``."""
+        p = float(percent)
+        if not 0.0 < p < 100.0:
+            raise ValueError(f"percent must lie in (0, 100), got {percent!r}")
+        return self.quantile(round(p / 100.0, 12))
+
     @property
     def failure_flight_median(self) -> float:
         """Median predicted failure flight [flight] = flight_index + median RUL."""
@@ -317,7 +338,7 @@ def summarise_rul(
         quantiles={lvl: float(v) for lvl, v in zip(levels, qs, strict=True)},
         mean=mean,
         p_fail_within=p_fail,
-        p_beyond_horizon=float(1.0 - mass_finite),
+        p_beyond_horizon=float(min(max(1.0 - mass_finite, 0.0), 1.0)),  # no -4e-16
         histogram_edges=edges,
         histogram_mass=mass.astype(float),
         severity_mean=sev_mean,
