@@ -31,6 +31,7 @@ def _tiny_scale(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def _stream(out: Path, **kw: object) -> dict:
+    """The tiny verification campaign, streamed (``sink=None``: every flight a file)."""
     kw.setdefault("sink", FeatureSink(keep_raw_every=4))
     return run_campaign("verification", out, seed=3, scale="tiny", progress=False, **kw)
 
@@ -148,3 +149,22 @@ def test_span_range_sets_the_fault_to_failure_spans(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="span range"):
         run_campaign("verification", tmp_path / "bad", seed=3, scale="tiny", progress=False,
                      span_flights=(50.0, 20.0))
+
+
+@pytest.mark.slow
+def test_the_dask_option_of_the_command_line_uses_the_scheduler_given(tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    from sim_worker.cli import main
+
+    _stream(tmp_path / "local", workers=1, sink=None)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        code = main(["campaign", "--kind", "verification", "--seed", "3", "--scale", "tiny",
+                     "--out", str(tmp_path / "dask"), "--dask", cluster.scheduler_address,
+                     "--no-progress"])
+        # every pattern ran on the cluster's workers, none in this process
+        tasks = cluster.scheduler.task_prefixes.get("run_pattern")
+        assert tasks is not None and tasks.state_counts["memory"] == len(
+            json.loads((tmp_path / "dask" / "manifest.json").read_text())["patterns"])
+    assert code == 0
+    assert _files(tmp_path / "local") == _files(tmp_path / "dask")
