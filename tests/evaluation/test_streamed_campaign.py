@@ -25,9 +25,11 @@ TINY = ScaleConfig(duration_s=14.0, healthy_patterns=2, healthy_flights=3, patte
                    span_flights=(6.0, 10.0))
 
 
-@pytest.fixture(autouse=True)
-def _tiny_scale(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(SCALES, "tiny", {"design": TINY, "verification": TINY})
+@pytest.fixture(scope="module", autouse=True)
+def _tiny_scale():  # type: ignore[no-untyped-def]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setitem(SCALES, "tiny", {"design": TINY, "verification": TINY})
+        yield
 
 
 def _stream(out: Path, **kw: object) -> dict:
@@ -41,8 +43,17 @@ def _files(out: Path) -> dict[str, bytes]:
             for p in sorted(out.rglob("*")) if p.is_file()}
 
 
-def test_streamed_features_equal_the_features_of_the_written_log(tmp_path: Path) -> None:
-    manifest = _stream(tmp_path, workers=1)
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The tiny campaign streamed in this process, read only by the tests."""
+    out = tmp_path_factory.mktemp("reference")
+    _stream(out, workers=1)
+    return out
+
+
+def test_streamed_features_equal_the_features_of_the_written_log(reference: Path) -> None:
+    tmp_path = reference
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
     stored = json.loads((tmp_path / FEATURE_CACHE).read_text())["flights"]
     flights = [f for p in manifest["patterns"] for f in p["flights"]]
     assert len(stored) == len(flights) > 30
@@ -65,28 +76,26 @@ def test_streamed_features_equal_the_features_of_the_written_log(tmp_path: Path)
         assert [f["index"] for f in p["flights"]] == list(range(p["failure_flight"] + 1))
 
 
-def test_stale_features_without_logs_are_refused(tmp_path: Path) -> None:
-    _stream(tmp_path, workers=1)
+def test_stale_features_without_logs_are_refused(reference: Path) -> None:
     with pytest.raises(CampaignError, match="streamed without their logs"):
-        load_campaign(tmp_path, config=FeatureConfig(min_events=4))
+        load_campaign(reference, config=FeatureConfig(min_events=4))
 
 
 @pytest.mark.slow
-def test_output_does_not_depend_on_the_number_of_workers(tmp_path: Path) -> None:
-    _stream(tmp_path / "one", workers=1)
+def test_output_does_not_depend_on_the_number_of_workers(reference: Path,
+                                                         tmp_path: Path) -> None:
     _stream(tmp_path / "two", workers=2)
-    assert _files(tmp_path / "one") == _files(tmp_path / "two")
+    assert _files(reference) == _files(tmp_path / "two")
 
 
 @pytest.mark.slow
-def test_dask_cluster_gives_the_same_bytes(tmp_path: Path) -> None:
+def test_dask_cluster_gives_the_same_bytes(reference: Path, tmp_path: Path) -> None:
     distributed = pytest.importorskip("distributed")
-    _stream(tmp_path / "local", workers=1)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
         _stream(tmp_path / "dask", executor=client.get_executor())
-    assert _files(tmp_path / "local") == _files(tmp_path / "dask")
+    assert _files(reference) == _files(tmp_path / "dask")
 
 
 _SIMULATED: list[str] = []
@@ -110,8 +119,7 @@ class _CountingSink(FeatureSink):
 
 @pytest.mark.slow
 def test_an_interrupted_campaign_resumes_without_simulating_finished_patterns(
-        tmp_path: Path) -> None:
-    _stream(tmp_path / "whole", workers=1)
+        reference: Path, tmp_path: Path) -> None:
     _SIMULATED.clear()
     # patterns run longest first (progressive ones), so DMD's finishes before SE's
     with pytest.raises(RuntimeError, match="interrupted"):
@@ -123,7 +131,7 @@ def test_an_interrupted_campaign_resumes_without_simulating_finished_patterns(
     _stream(tmp_path / "cut", workers=1, sink=_CountingSink(keep_raw_every=4))
     resumed = {f.rsplit("-", 1)[0] for f in _SIMULATED}
     assert resumed and not resumed & finished
-    assert _files(tmp_path / "whole") == _files(tmp_path / "cut")
+    assert _files(reference) == _files(tmp_path / "cut")
     # a finished campaign is not simulated again, and other settings are refused
     _SIMULATED.clear()
     _stream(tmp_path / "cut", workers=1, sink=_CountingSink(keep_raw_every=4))
