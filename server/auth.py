@@ -37,6 +37,8 @@ ALLOWED: dict[str, frozenset[str]] = {
     "read": frozenset(ROLES),
     "upload": frozenset({"uploader", "admin"}),
     "operate": frozenset({"operator", "admin"}),
+    # maintenance actions (replace, inspect / no fault found, defer): the maintenance engineer
+    "maintain": frozenset({"maintainer", "admin"}),
     "admin": frozenset({"admin"}),
 }
 

@@ -185,10 +185,12 @@ def build_parser() -> argparse.ArgumentParser:
     db.add_argument("revision", nargs="?", help="target revision (default head / base)")
     db.set_defaults(func=cmd_db)
 
+    from server.models import ROLES
+
     keys = sub.add_parser("keys", help="API keys")
     kact = keys.add_subparsers(dest="action", required=True)
     kc = kact.add_parser("create", help="create a key and print it once")
-    kc.add_argument("--role", required=True, choices=["viewer", "uploader", "operator", "admin"])
+    kc.add_argument("--role", required=True, choices=ROLES)
     kc.add_argument("--name", required=True)
     kr = kact.add_parser("revoke", help="revoke a key")
     kr.add_argument("id", type=int)

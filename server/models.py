@@ -52,12 +52,17 @@ __all__ = [
     "Injection",
     "GroundTruth",
     "ALARM_STATUSES",
+    "ALARM_RESOLUTIONS",
+    "MAINTENANCE_KINDS",
+    "MaintenanceAction",
     "FAULT_MODES",
 ]
 
 FLIGHT_STATUSES = ("received", "queued", "analyzing", "analyzed", "rejected", "failed")
 JOB_STATUSES = ("queued", "running", "done", "dead")
-ROLES = ("viewer", "uploader", "operator", "admin")
+#: viewer reads; uploader uploads flights; maintainer records maintenance actions (the line
+#: maintenance engineer); operator runs the test station; admin everything
+ROLES = ("viewer", "uploader", "maintainer", "operator", "admin")
 
 NAMING = {
     "ix": "ix_%(column_0_label)s",
@@ -153,6 +158,10 @@ class Actuator(Base):
     installed_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     removed_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     removal_note: Mapped[str | None] = mapped_column(Text)
+    #: the aircraft flight number at which this unit reached failure (a state: it stays so
+    #: until the unit is replaced); set when the test station reports the failure
+    failed_at_flight: Mapped[int | None] = mapped_column(Integer)
+    failed_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
 
     aircraft: Mapped[Aircraft] = relationship(back_populates="actuators")
 
@@ -258,6 +267,10 @@ class ApiKey(Base):
 # ---------------------------------------------------------------------------------------------
 
 ALARM_STATUSES = ("open", "acknowledged", "closed")
+#: how a closed alarm was resolved: by a replacement, an inspection that found no fault (a
+#: false alarm), or closed by hand
+ALARM_RESOLUTIONS = ("replaced", "no_fault_found", "closed")
+MAINTENANCE_KINDS = ("replace", "inspect", "defer")
 
 
 class ModelVersion(Base):
@@ -328,12 +341,43 @@ class Alarm(Base):
     class_probability: Mapped[float | None] = mapped_column(Float)
     features: Mapped[list[str]] = mapped_column(JSON, default=list)
     rul_median_flights: Mapped[float | None] = mapped_column(Float)
+    #: the 5 % quantile of the latest RUL distribution [flights]: what urgency is read from
+    rul_low_flights: Mapped[float | None] = mapped_column(Float)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     acknowledged_by: Mapped[str | None] = mapped_column(String(128))
     acknowledged_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     closed_by: Mapped[str | None] = mapped_column(String(128))
     closed_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     note: Mapped[str | None] = mapped_column(Text)
+    resolution: Mapped[str | None] = mapped_column(String(16))
+    #: a deferral holds until the actuator has seen this many flights, or until this time
+    deferred_until_flight: Mapped[int | None] = mapped_column(Integer)
+    deferred_until: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class MaintenanceAction(Base):
+    """One maintenance action on an actuator (the audit trail): who, when, the work order.
+
+    ``replace``: the unit was removed and ``new_actuator_id`` installed; ``inspect``: no fault
+    found, the alarm closed as a false alarm; ``defer``: the alarm held until a flight count or
+    a date, with a reason."""
+
+    __tablename__ = "maintenance_actions"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    actuator_id: Mapped[int] = mapped_column(ForeignKey("actuators.id"), index=True)
+    alarm_id: Mapped[int | None] = mapped_column(ForeignKey("alarms.id"))
+    kind: Mapped[str] = mapped_column(String(16))
+    work_order: Mapped[str] = mapped_column(String(32), index=True)
+    performed_by: Mapped[str] = mapped_column(String(128))
+    key_id: Mapped[int | None] = mapped_column(ForeignKey("api_keys.id"))
+    performed_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    note: Mapped[str | None] = mapped_column(Text)
+    new_actuator_id: Mapped[int | None] = mapped_column(ForeignKey("actuators.id"))
+    new_serial: Mapped[str | None] = mapped_column(String(64))
+    closed_alarms: Mapped[int] = mapped_column(Integer, default=0)
+    defer_until_flight: Mapped[int | None] = mapped_column(Integer)
+    defer_until: Mapped[datetime | None] = mapped_column(UTCDateTime)
 
 
 class Prognosis(Base):

@@ -12,6 +12,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from server.flightlog import ID_PATTERN, MAX_ID_LEN
+from server.models import ROLES
 from server.vocabulary import ABRUPT, FAULT_MODES, POSITIONS
 
 __all__ = [
@@ -23,6 +24,12 @@ __all__ = [
     "AircraftRead",
     "ActuatorRead",
     "ActuatorReplace",
+    "ActuatorInspect",
+    "ActuatorDefer",
+    "MaintenanceActionRead",
+    "WorkOrder",
+    "WORK_ORDER_FORM_PATTERN",
+    "WORK_ORDER_PATTERN",
     "FlightRead",
     "FlightAccepted",
     "SignalsRead",
@@ -34,9 +41,18 @@ __all__ = [
 ]
 
 Position = Literal[POSITIONS]  # type: ignore[valid-type]
-Role = Literal["viewer", "uploader", "operator", "admin"]
+Role = Literal[ROLES]  # type: ignore[valid-type]
 #: tails, flight codes, serials: ASCII letters, digits, '.', '_', '-', 1-64, not only dots
 Identifier = Annotated[str, Field(pattern=ID_PATTERN, max_length=MAX_ID_LEN)]
+
+#: a work-order reference: letters, digits and '-' '/' '_', 3-32, starting with a letter or
+#: digit (``WO-2026-0042``, ``AMM/27-51/113``)
+#: the form's ``pattern`` attribute uses the same text (escaped for the browser's v-flag
+#: regular expressions, which refuse a bare '/' or '-' in a class)
+WORK_ORDER_FORM_PATTERN = r"[A-Za-z0-9][A-Za-z0-9\/_\-]{2,31}"
+WORK_ORDER_PATTERN = f"^{WORK_ORDER_FORM_PATTERN}$"
+WorkOrder = Annotated[str, Field(pattern=WORK_ORDER_PATTERN, min_length=3, max_length=32,
+                                 description="Work-order reference, e.g. WO-2026-0042.")]
 
 T = TypeVar("T")
 
@@ -78,6 +94,10 @@ class ActuatorRead(BaseModel):
     installed_at: datetime
     removed_at: datetime | None
     removal_note: str | None
+    failed_at_flight: int | None = Field(None, description=(
+        "The aircraft flight at which this unit reached failure (it stays failed until "
+        "replaced); null when it has not failed."))
+    failed_at: datetime | None = None
 
 
 class AircraftRead(BaseModel):
@@ -90,7 +110,53 @@ class AircraftRead(BaseModel):
 class ActuatorReplace(BaseModel):
     model_config = ConfigDict(extra="forbid")
     new_serial: Identifier
+    work_order: WorkOrder
     note: str | None = Field(None, max_length=2000)
+
+
+class ActuatorInspect(BaseModel):
+    """Inspection found no fault: the unit's alarms close as false alarms."""
+
+    model_config = ConfigDict(extra="forbid")
+    work_order: WorkOrder
+    note: str | None = Field(None, max_length=2000)
+
+
+class ActuatorDefer(BaseModel):
+    """Defer the unit's open alarm for ``flights`` more flights or until ``until`` (or both:
+    whichever comes first)."""
+
+    model_config = ConfigDict(extra="forbid")
+    work_order: WorkOrder
+    reason: str = Field(min_length=3, max_length=2000)
+    flights: int | None = Field(None, ge=1, le=1000, strict=True)
+    until: datetime | None = Field(None, description="An aware date-time (with its zone).")
+
+    @model_validator(mode="after")
+    def _bounded(self) -> ActuatorDefer:
+        if self.flights is None and self.until is None:
+            raise ValueError("give flights or until (or both)")
+        if self.until is not None and self.until.tzinfo is None:
+            raise ValueError("until needs a time zone (e.g. 2027-01-31T00:00:00Z)")
+        return self
+
+
+class MaintenanceActionRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    actuator_id: int
+    kind: Literal["replace", "inspect", "defer"]
+    work_order: str
+    performed_by: str = Field(description="The name of the key that recorded the action.")
+    performed_at: datetime
+    note: str | None
+    alarm_id: int | None
+    closed_alarms: int
+    new_actuator_id: int | None
+    new_serial: str | None
+    defer_until_flight: int | None = Field(description=(
+        "Defer: the deferral ends when the unit has been analysed on this many flights."))
+    defer_until: datetime | None
 
 
 class FlightRead(BaseModel):

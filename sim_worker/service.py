@@ -12,9 +12,18 @@ Per aircraft and flight number ``n`` (flight id ``<tail>-F<n:05d>``), in this or
    injection failed and back-fill the true RUL of every reported flight (the true RUL is only
    known in hindsight).
 
+**A failed drive grounds its aircraft.** A flight-control actuator at failure is a no-go item:
+from the flight after the failure the aircraft does not fly (``fly`` returns ``"grounded"``,
+nothing is uploaded or reported) until the failed unit is replaced (its serial changes on the
+service, which then holds a healthy unit and has ended the injection). The fault is never
+healed while the unit is installed: not when its injection is no longer live (a failed
+injection is not), not on a restart (the service's actuator says ``failed_at_flight``).
+
 Every request is retried with exponential backoff until it succeeds, so an API outage delays
-flights but never loses or duplicates one. On restart the worker resumes at the last flight it
-uploaded or reported (re-running it is harmless) with the severity from its ground truth.
+flights but never loses or duplicates one. On restart the worker resumes after the last flight
+it uploaded, or at a flight it reported but did not upload (re-running that is harmless), with
+the severity from its ground truth. (An uploaded flight is not flown again: after a replacement
+its serials, hence its bytes, would differ from the stored ones.)
 """
 
 from __future__ import annotations
@@ -160,7 +169,7 @@ class SimFleetRunner:
     def _resume(self, run: AircraftRun) -> None:
         tail = run.aircraft.tail
         pattern = re.compile(rf"^{re.escape(tail)}-F(\d+)$")
-        last, offset = 0, 0
+        last, offset = 0, 0  # the last flight uploaded
         while True:
             page = self.api.request("GET", f"/flights?aircraft={tail}&limit=500&offset={offset}"
                                     ).json()
@@ -171,19 +180,20 @@ class SimFleetRunner:
             offset += len(page["items"])
             if offset >= page["total"] or not page["items"]:
                 break
+        reported = 0  # the last flight whose ground truth was reported
         live = self._live_injection(run)
         if live is not None and live["status"] == "active":
             truth = self.api.request("GET", f"/test-station/injections/{live['id']}/ground-truth"
                                      ).json()
             if truth:
                 latest = truth[-1]
-                last = max(last, int(latest["flight_number"]))
+                reported = int(latest["flight_number"])
                 run.fault = replace(self._fault_for(run, live),
                                     severity=float(latest["severity"]))
                 run.injection_id = live["id"]
                 if live.get("failure_flight") is not None:
                     run.failed_at = int(live["failure_flight"])
-        run.next_flight = max(1, last)
+        run.next_flight = max(1, last + 1, reported)
 
     # -- injections ---------------------------------------------------------------------------
 
@@ -206,6 +216,8 @@ class SimFleetRunner:
                          severity_norm=injection.get("severity"))
 
     def _sync_injection(self, run: AircraftRun, n: int) -> None:
+        if run.failed_at is not None:
+            return  # a failed drive keeps its fault until the unit is replaced
         live = self._live_injection(run)
         if run.injection_id is not None and (live is None or live["id"] != run.injection_id):
             log.info("%s: injection %s ended; flying healthy", run.aircraft.tail,
@@ -226,11 +238,25 @@ class SimFleetRunner:
 
     # -- one flight ---------------------------------------------------------------------------
 
+    @staticmethod
+    def failed_positions(aircraft_doc: dict[str, Any]) -> dict[str, int]:
+        """Position -> failure flight of the installed units the service holds as failed."""
+        return {p: int(a["failed_at_flight"]) for p, a in aircraft_doc["actuators"].items()
+                if a.get("failed_at_flight") is not None}
+
+    def grounded(self, run: AircraftRun, aircraft_doc: dict[str, Any]) -> bool:
+        """The documented rule: an aircraft with a failed drive installed does not fly."""
+        return run.failed_at is not None or bool(self.failed_positions(aircraft_doc))
+
     def fly(self, run: AircraftRun) -> str:
-        """Fly, report and upload the aircraft's next flight; return the upload outcome."""
+        """Fly, report and upload the aircraft's next flight; return the upload outcome, or
+        ``"grounded"`` (nothing flown) while a failed drive is installed."""
         n = run.next_flight
         tail = run.aircraft.tail
-        self._adopt_serials(run, self.api.request("GET", f"/aircraft/{tail}").json())
+        doc = self.api.request("GET", f"/aircraft/{tail}").json()
+        self._adopt_serials(run, doc)
+        if self.grounded(run, doc):
+            return "grounded"
         self._sync_injection(run, n)
         flight_id = f"{tail}-F{n:05d}"
         if run.injection_id is not None:
@@ -281,14 +307,24 @@ class SimFleetRunner:
             ) -> int:
         """Fly round-robin at the configured rate; return the number of flights flown."""
         self.register_fleet()
-        flown = 0
+        flown = turn = grounded_in_a_row = 0
         next_at = time.monotonic()
         while not stop() and (max_flights is None or flown < max_flights):
-            run = self.runs[flown % len(self.runs)]
+            run = self.runs[turn % len(self.runs)]
+            turn += 1
             try:
                 outcome = self.fly(run)
             except InterruptedError:
                 break
+            if outcome == "grounded":
+                grounded_in_a_row += 1
+                if grounded_in_a_row >= len(self.runs):  # the whole fleet is grounded
+                    if max_flights is not None:
+                        break
+                    grounded_in_a_row = 0
+                    self.sleep(self.interval_s)
+                continue
+            grounded_in_a_row = 0
             flown += 1
             log.info("%s-F%05d %s (%s)", run.aircraft.tail, run.next_flight - 1, outcome,
                      run.fault.mode if run.fault.mode != "healthy" else "healthy")

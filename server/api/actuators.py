@@ -1,4 +1,5 @@
-"""Actuators and the maintenance action that replaces one."""
+"""Actuators and the maintenance actions on them (replace, inspect / no fault found, defer),
+with their audit trail. Maintenance actions need the operator or admin role."""
 
 from __future__ import annotations
 
@@ -6,11 +7,19 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query
 
-from server.api.deps import Admin, Reader, SessionDep
+from server.api.deps import Maintainer, Reader, SessionDep
 from server.api.openapi import errors
 from server.api.presenters import actuator_read
-from server.schemas import ActuatorRead, ActuatorReplace, Page, Position
-from server.services import fleet
+from server.schemas import (
+    ActuatorDefer,
+    ActuatorInspect,
+    ActuatorRead,
+    ActuatorReplace,
+    MaintenanceActionRead,
+    Page,
+    Position,
+)
+from server.services import fleet, maintenance
 
 router = APIRouter(prefix="/actuators", tags=["actuators"])
 
@@ -34,10 +43,45 @@ def get(actuator_id: int, session: SessionDep, _: Reader) -> ActuatorRead:
 
 @router.post("/{actuator_id}/replace", status_code=201, response_model=ActuatorRead,
              responses=errors(409),
-             summary="Maintenance: replace an installed actuator (admin); history starts again")
-def replace(actuator_id: int, body: ActuatorReplace, session: SessionDep, _: Admin
+             summary="Maintenance: replace an installed actuator (operator/admin); the new "
+                     "unit's history starts again, the old one's alarms close")
+def replace(actuator_id: int, body: ActuatorReplace, session: SessionDep, key: Maintainer
             ) -> ActuatorRead:
-    new = fleet.replace_actuator(session=session, actuator_id=actuator_id,
-                                 new_serial=body.new_serial, note=body.note)
+    new, _ = maintenance.replace_actuator(session=session, actuator_id=actuator_id,
+                                          new_serial=body.new_serial, by=key,
+                                          work_order=body.work_order, note=body.note)
     session.commit()
     return actuator_read(fleet.get_actuator(session=session, actuator_id=new.id))
+
+
+@router.post("/{actuator_id}/inspect", status_code=201, response_model=MaintenanceActionRead,
+             responses=errors(409),
+             summary="Maintenance: inspected, no fault found (operator/admin); the alarms "
+                     "close as false alarms, monitoring goes on")
+def inspect(actuator_id: int, body: ActuatorInspect, session: SessionDep, key: Maintainer
+            ) -> MaintenanceActionRead:
+    row = maintenance.inspect_actuator(session=session, actuator_id=actuator_id, by=key,
+                                       work_order=body.work_order, note=body.note)
+    session.commit()
+    return MaintenanceActionRead.model_validate(row)
+
+
+@router.post("/{actuator_id}/defer", status_code=201, response_model=MaintenanceActionRead,
+             responses=errors(409),
+             summary="Maintenance: defer the open alarm for N flights or until a date "
+                     "(operator/admin)")
+def defer(actuator_id: int, body: ActuatorDefer, session: SessionDep, key: Maintainer
+          ) -> MaintenanceActionRead:
+    row = maintenance.defer_alarm(session=session, actuator_id=actuator_id, by=key,
+                                  work_order=body.work_order, reason=body.reason,
+                                  flights=body.flights, until=body.until)
+    session.commit()
+    return MaintenanceActionRead.model_validate(row)
+
+
+@router.get("/{actuator_id}/maintenance", response_model=list[MaintenanceActionRead],
+            summary="Audit trail: the maintenance actions on this unit (and the replacement "
+                    "that installed it), oldest first")
+def trail(actuator_id: int, session: SessionDep, _: Reader) -> list[MaintenanceActionRead]:
+    return [MaintenanceActionRead.model_validate(r)
+            for r in maintenance.audit_trail(session=session, actuator_id=actuator_id)]

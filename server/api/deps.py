@@ -26,8 +26,8 @@ from server.dependencies import BlobsDep, SessionDep, SettingsDep, own_origin
 from server.errors import Forbidden, Unauthorized
 from server.models import ApiKey
 
-__all__ = ["SessionDep", "SettingsDep", "BlobsDep", "Reader", "Uploader", "Operator", "Admin",
-           "CurrentKey", "presented_key"]
+__all__ = ["SessionDep", "SettingsDep", "BlobsDep", "Reader", "Uploader", "Operator",
+           "Maintainer", "Admin", "CurrentKey", "presented_key"]
 
 _bearer = HTTPBearer(auto_error=False, description="API key: `Authorization: Bearer hmsm_...`")
 
@@ -87,3 +87,5 @@ Reader = Annotated[ApiKey, Depends(_require("read"))]
 Uploader = Annotated[ApiKey, Depends(_require("upload"))]
 Operator = Annotated[ApiKey, Depends(_require("operate"))]
 Admin = Annotated[ApiKey, Depends(_require("admin"))]
+#: maintenance actions (replace, inspect, defer): operator or admin
+Maintainer = Annotated[ApiKey, Depends(_require("maintain"))]

@@ -64,18 +64,26 @@ class AlarmRead(BaseModel):
     actuator_id: int
     flight_id: int
     status: str
-    priority: float
+    urgency: str = Field(description="replace_now | act_within | monitor | deferred | healthy "
+                         "(closed); the inbox order (server/services/urgency.py)")
+    urgency_label: str
+    act_within_flights: int | None
     confidence: float
     fault_mode: str | None
     class_probability: float | None
     features: list[str]
     rul_median_flights: float | None
+    rul_low_flights: float | None = Field(description="5 % quantile of the latest RUL")
     created_at: datetime
     acknowledged_by: str | None
     acknowledged_at: datetime | None
     closed_by: str | None
     closed_at: datetime | None
     note: str | None
+    resolution: str | None = Field(description="replaced | no_fault_found | closed")
+    deferred_until_flight: int | None
+    deferred_until: datetime | None
+    deferral_expired: bool
 
 
 class AlarmAction(BaseModel):
@@ -89,25 +97,35 @@ class GridCellRead(BaseModel):
     position: str
     actuator_id: int
     serial: str
-    status: str
+    status: str = Field(description="the urgency's colour: red | amber | yellow | grey | green")
+    urgency: str
+    urgency_label: str
+    act_within_flights: int | None
+    failed_at_flight: int | None
     confidence: float
     fault_mode: str | None
     rul_median: float | None
+    rul_low: float | None
     open_alarm_id: int | None
     flights_seen: int
 
 
-def alarm_read(alarm, actuator, tail: str) -> AlarmRead:  # type: ignore[no-untyped-def]
-    return AlarmRead(id=alarm.id, aircraft=tail, position=actuator.position,
+def alarm_read(row: service.AlarmRow) -> AlarmRead:
+    alarm, actuator = row.alarm, row.actuator
+    return AlarmRead(id=alarm.id, aircraft=row.tail, position=actuator.position,
                      actuator_id=actuator.id, flight_id=alarm.flight_id, status=alarm.status,
-                     priority=service.alarm_priority(alarm.confidence, alarm.fault_mode,
-                                                     alarm.rul_median_flights),
+                     urgency=row.urgency.bucket, urgency_label=row.urgency.label,
+                     act_within_flights=row.urgency.within_flights,
                      confidence=alarm.confidence, fault_mode=alarm.fault_mode,
                      class_probability=alarm.class_probability, features=alarm.features,
-                     rul_median_flights=alarm.rul_median_flights, created_at=alarm.created_at,
+                     rul_median_flights=alarm.rul_median_flights,
+                     rul_low_flights=alarm.rul_low_flights, created_at=alarm.created_at,
                      acknowledged_by=alarm.acknowledged_by,
                      acknowledged_at=alarm.acknowledged_at, closed_by=alarm.closed_by,
-                     closed_at=alarm.closed_at, note=alarm.note)
+                     closed_at=alarm.closed_at, note=alarm.note, resolution=alarm.resolution,
+                     deferred_until_flight=alarm.deferred_until_flight,
+                     deferred_until=alarm.deferred_until,
+                     deferral_expired=row.deferral_expired)
 
 
 @router.get("/actuators/{actuator_id}/health", response_model=list[HealthRecordRead],
@@ -133,7 +151,8 @@ def fleet(session: SessionDep, _: Reader, base: str | None = None) -> list[GridC
 
 
 @router.get("/alarms", response_model=Page[AlarmRead],
-            summary="Alarm inbox, open first, by priority (confidence x mode x RUL urgency)")
+            summary="Alarm inbox: not closed first, then by urgency bucket (replace now, act "
+                    "within N flights, monitor, deferred)")
 def alarms(session: SessionDep, _: Reader,
            status: Annotated[str | None, Query(pattern="^(open|acknowledged|closed)$")] = None,
            aircraft: str | None = None,
@@ -141,15 +160,18 @@ def alarms(session: SessionDep, _: Reader,
            offset: Annotated[int, Query(ge=0)] = 0) -> Page[AlarmRead]:
     rows, total = service.list_alarms(session=session, status=status, tail=aircraft,
                                       limit=limit, offset=offset)
-    return Page(items=[alarm_read(*r) for r in rows], total=total, limit=limit, offset=offset)
+    return Page(items=[alarm_read(r) for r in rows], total=total, limit=limit, offset=offset)
 
 
 def _one(session: SessionDep, alarm_id: int) -> AlarmRead:
-    from server.models import Actuator, Aircraft, Alarm
+    from server.models import Actuator, ActuatorState, Aircraft, Alarm
 
     alarm = session.get(Alarm, alarm_id)
     actuator = session.get(Actuator, alarm.actuator_id)  # type: ignore[union-attr]
-    return alarm_read(alarm, actuator, session.get(Aircraft, actuator.aircraft_id).tail)  # type: ignore[union-attr]
+    state = session.get(ActuatorState, actuator.id)  # type: ignore[union-attr]
+    u, expired = service.alarm_urgency(alarm, actuator, state.flights_seen if state else 0)  # type: ignore[arg-type]
+    tail = session.get(Aircraft, actuator.aircraft_id).tail  # type: ignore[union-attr]
+    return alarm_read(service.AlarmRow(alarm, actuator, tail, u, expired))  # type: ignore[arg-type]
 
 
 @router.post("/alarms/{alarm_id}/acknowledge", response_model=AlarmRead, responses=errors(409),

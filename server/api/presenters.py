@@ -11,7 +11,8 @@ API = "/api/v1"
 def actuator_read(row: Actuator) -> ActuatorRead:
     return ActuatorRead(id=row.id, aircraft_tail=row.aircraft.tail, position=row.position,
                         serial=row.serial, installed_at=row.installed_at,
-                        removed_at=row.removed_at, removal_note=row.removal_note)
+                        removed_at=row.removed_at, removal_note=row.removal_note,
+                        failed_at_flight=row.failed_at_flight, failed_at=row.failed_at)
 
 
 def aircraft_read(row: Aircraft) -> AircraftRead:

@@ -33,6 +33,7 @@ from server.models import (
 from server.phm.chain import ActuatorHealth, ActuatorOutcome, PhmModel, analyze_flight
 from server.phm.features import FlightFeatures
 from server.phm.prognosis import RulDistribution
+from server.services.urgency import RUL_LOW_QUANTILE
 
 __all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "reject", "mark_failed",
            "retry_failed", "failed_flights", "store_analysis", "json_safe"]
@@ -224,11 +225,12 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
     """A new alarm is opened; an open one follows the actuator's latest class and RUL."""
     prob = (out.class_probabilities or {}).get(out.fault_mode or "")
     median = None if rul is None or not math.isfinite(rul.median) else float(rul.median)
+    low = None if rul is None else _finite(rul.quantiles.get(RUL_LOW_QUANTILE))
     if out.new_alarm:
         session.add(Alarm(actuator_id=act.id, flight_id=flight.id, status="open",
                           confidence=out.max_confidence, fault_mode=out.fault_mode,
                           class_probability=prob, features=out.alarm_features,
-                          rul_median_flights=median))
+                          rul_median_flights=median, rul_low_flights=low))
     elif out.alarm:
         open_alarm = session.scalar(select(Alarm).where(
             Alarm.actuator_id == act.id, Alarm.status != "closed").order_by(Alarm.id.desc()))
@@ -237,4 +239,9 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
             open_alarm.class_probability = prob
             open_alarm.confidence = max(open_alarm.confidence, out.max_confidence)
             open_alarm.rul_median_flights = median
+            open_alarm.rul_low_flights = low
     session.flush()
+
+
+def _finite(v: float | None) -> float | None:
+    return None if v is None or not math.isfinite(float(v)) else float(v)

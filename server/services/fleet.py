@@ -1,4 +1,5 @@
-"""Fleet registry: aircraft and the actuators installed on them, and maintenance actions."""
+"""Fleet registry: aircraft and the actuators installed on them (maintenance actions:
+:mod:`server.services.maintenance`)."""
 
 from __future__ import annotations
 
@@ -8,11 +9,10 @@ from sqlalchemy.orm import Session, selectinload
 
 from server.errors import Conflict, NotFound
 from server.flightlog import POSITIONS
-from server.models import Actuator, Aircraft, utcnow
-from server.services.health import close_alarms_of
+from server.models import Actuator, Aircraft
 
 __all__ = ["create_aircraft", "get_aircraft", "list_aircraft", "installed_serials",
-           "get_actuator", "list_actuators", "replace_actuator"]
+           "get_actuator", "list_actuators"]
 
 
 def create_aircraft(*, session: Session, tail: str, base: str, serials: dict[str, str]) -> Aircraft:
@@ -87,33 +87,3 @@ def list_actuators(*, session: Session, tail: str | None, position: str | None,
                            .limit(limit).offset(offset)
                            .options(selectinload(Actuator.aircraft))).all()
     return list(rows), total
-
-
-def replace_actuator(*, session: Session, actuator_id: int, new_serial: str,
-                     note: str | None) -> Actuator:
-    """Remove an installed actuator and install a new one at its position.
-
-    The old actuator's alarms are closed. The new actuator is a new row, so its health history
-    (features, detection and filter state, alarms, all keyed by actuator id) starts empty; the
-    old row and its history are kept.
-    """
-    old = get_actuator(session=session, actuator_id=actuator_id)
-    if old.removed_at is not None:
-        raise Conflict(f"Actuator {actuator_id} was already removed.", code="already_removed")
-    if session.scalar(select(Actuator.id).where(Actuator.serial == new_serial,
-                                                Actuator.removed_at.is_(None))) is not None:
-        raise Conflict(f"Serial '{new_serial}' is installed elsewhere.", code="serial_in_use")
-    old.removed_at = utcnow()
-    old.removal_note = note
-    close_alarms_of(session=session, actuator_id=old.id, by="maintenance",
-                    note=f"Actuator replaced by {new_serial}." + (f" {note}" if note else ""))
-    session.flush()
-    new = Actuator(aircraft_id=old.aircraft_id, position=old.position, serial=new_serial)
-    session.add(new)
-    try:
-        session.flush()
-    except IntegrityError:
-        raise Conflict("The actuator was replaced concurrently.", code="concurrent_change"
-                       ) from None
-    session.refresh(new, attribute_names=["aircraft"])
-    return new

@@ -1,50 +1,68 @@
 """Actuator health read-outs (records, prognoses, fleet grid) and the alarm workflow.
 
-Alarm priority (stated so engineers can reason about the inbox order)::
-
-    priority = confidence x criticality(mode) x (0.5 + urgency),  urgency = 1 / (1 + RUL50 / 50)
-
-criticality reflects how fast a mode can end in a failure once detected: a MOSFET base-drive open
-circuit (BDO) and a turn-to-turn short (TTS) evolve fastest (paper section 4.1), wear and
-lubricant ageing slowest. RUL50 is the latest median RUL in flights (urgency 0.5 when unknown).
+Inbox order and the grid's colours follow one rule, :func:`server.services.urgency.urgency`
+(buckets: replace now, act within N flights, monitor, deferred, healthy), never a decimal.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from datetime import datetime
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
 from server.models import Actuator, ActuatorState, Aircraft, Alarm, HealthRecord, Prognosis, utcnow
+from server.services.urgency import Urgency, deferral_active, sort_key, urgency
 
-__all__ = ["CRITICALITY", "alarm_priority", "list_alarms", "acknowledge_alarm", "close_alarm",
-           "health_records", "prognoses", "fleet_grid", "GridCell", "close_alarms_of"]
-
-CRITICALITY = {"BDO": 1.0, "TTS": 0.9, "DMD": 0.7, "SE": 0.6, "MTWEAR": 0.6, "REWEAR": 0.6,
-               "MTEL": 0.5}
+__all__ = ["alarm_urgency", "list_alarms", "acknowledge_alarm", "close_alarm",
+           "health_records", "prognoses", "fleet_grid", "GridCell", "close_alarms_of",
+           "AlarmRow", "actuator_urgency"]
 
 
-def alarm_priority(confidence: float, mode: str | None, rul_median: float | None) -> float:
-    urgency = 0.5 if rul_median is None else 1.0 / (1.0 + max(rul_median, 0.0) / 50.0)
-    return round(confidence * CRITICALITY.get(mode or "", 0.75) * (0.5 + urgency), 4)
+@dataclass(frozen=True)
+class AlarmRow:
+    alarm: Alarm
+    actuator: Actuator
+    tail: str
+    urgency: Urgency
+    deferral_expired: bool  # a deferral was set and has run out
+
+
+def alarm_urgency(alarm: Alarm, actuator: Actuator, flights_seen: int,
+                  now: datetime | None = None) -> tuple[Urgency, bool]:
+    """(the alarm's bucket, whether a deferral it had has expired)."""
+    now = now or utcnow()
+    had = alarm.deferred_until_flight is not None or alarm.deferred_until is not None
+    active = alarm.status != "closed" and deferral_active(
+        until_flight=alarm.deferred_until_flight, until=alarm.deferred_until,
+        flights_seen=flights_seen, now=now)
+    u = urgency(failed_at_flight=actuator.failed_at_flight, alarm_open=alarm.status != "closed",
+                fault_mode=alarm.fault_mode, rul_low_flights=alarm.rul_low_flights,
+                deferred=active)
+    return u, had and not active and alarm.status != "closed"
 
 
 def list_alarms(*, session: Session, status: str | None, tail: str | None, limit: int,
-                offset: int) -> tuple[list[tuple[Alarm, Actuator, str]], int]:
-    """Alarms with their actuator and tail, highest priority first."""
-    query = (select(Alarm, Actuator, Aircraft.tail).join(Actuator, Alarm.actuator_id ==
-                                                         Actuator.id).join(Aircraft))
+                offset: int) -> tuple[list[AlarmRow], int]:
+    """Alarms with their actuator, tail and urgency; not closed first, most urgent first."""
+    query = (select(Alarm, Actuator, Aircraft.tail, ActuatorState.flights_seen)
+             .join(Actuator, Alarm.actuator_id == Actuator.id).join(Aircraft)
+             .outerjoin(ActuatorState, ActuatorState.actuator_id == Actuator.id))
     if status:
         query = query.where(Alarm.status == status)
     if tail:
         query = query.where(Aircraft.tail == tail)
     total = session.scalar(select(func.count()).select_from(query.subquery())) or 0
-    rows = [(a, act, t) for a, act, t in session.execute(query).all()]
-    rows.sort(key=lambda r: (r[0].status != "open",
-                             -alarm_priority(r[0].confidence, r[0].fault_mode,
-                                             r[0].rul_median_flights), -r[0].id))
+    now = utcnow()
+    rows = []
+    for a, act, t, seen in session.execute(query).all():
+        u, expired = alarm_urgency(a, act, seen or 0, now)
+        rows.append(AlarmRow(a, act, t, u, expired))
+    rows.sort(key=lambda r: (r.alarm.status == "closed", *sort_key(r.urgency,
+                                                                    r.alarm.confidence),
+                             -r.alarm.id))
     return rows[offset:offset + limit], total
 
 
@@ -71,19 +89,24 @@ def close_alarm(*, session: Session, alarm_id: int, by: str, note: str | None) -
     if row.status == "closed":
         raise Conflict(f"Alarm {alarm_id} is already closed.", code="alarm_closed")
     row.status, row.closed_by, row.closed_at = "closed", by, utcnow()
+    row.resolution = "closed"
     if note:
         row.note = (row.note + "\n" if row.note else "") + note
     return row
 
 
-def close_alarms_of(*, session: Session, actuator_id: int, by: str, note: str) -> int:
-    """Maintenance: close every open or acknowledged alarm of an actuator."""
-    rows = session.scalars(select(Alarm).where(Alarm.actuator_id == actuator_id,
-                                               Alarm.status != "closed")).all()
+def close_alarms_of(*, session: Session, actuator_id: int, by: str, note: str,
+                    resolution: str = "closed") -> list[Alarm]:
+    """Maintenance: close every open or acknowledged alarm of an actuator, with how."""
+    rows = list(session.scalars(select(Alarm).where(Alarm.actuator_id == actuator_id,
+                                                    Alarm.status != "closed")
+                                .order_by(Alarm.id)))
     for row in rows:
         row.status, row.closed_by, row.closed_at = "closed", by, utcnow()
+        row.resolution = resolution
+        row.deferred_until_flight = row.deferred_until = None
         row.note = (row.note + "\n" if row.note else "") + note
-    return len(rows)
+    return rows
 
 
 def _actuator(session: Session, actuator_id: int) -> Actuator:
@@ -114,16 +137,36 @@ class GridCell:
     position: str
     actuator_id: int
     serial: str
-    status: str  # green | amber | red
+    status: str  # the urgency's colour: red | amber | yellow | grey | green
+    urgency: str  # replace_now | act_within | monitor | deferred | healthy
+    urgency_label: str
+    act_within_flights: int | None
+    failed_at_flight: int | None
     confidence: float
     fault_mode: str | None
     rul_median: float | None
+    rul_low: float | None
     open_alarm_id: int | None
     flights_seen: int
 
 
+def actuator_urgency(*, session: Session, actuator: Actuator) -> tuple[Urgency, Alarm | None,
+                                                                        bool]:
+    """One actuator's bucket, its latest not-closed alarm and whether a deferral expired."""
+    state = session.get(ActuatorState, actuator.id)
+    alarm = session.scalar(select(Alarm).where(Alarm.actuator_id == actuator.id,
+                                               Alarm.status != "closed")
+                           .order_by(Alarm.id.desc()).limit(1))
+    if alarm is None:
+        return urgency(failed_at_flight=actuator.failed_at_flight, alarm_open=False,
+                       fault_mode=None, rul_low_flights=None), None, False
+    u, expired = alarm_urgency(alarm, actuator, state.flights_seen if state else 0)
+    return u, alarm, expired
+
+
 def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCell]:
-    """One cell per installed actuator: green healthy, amber alarm, red alarm with RUL <= 25."""
+    """One cell per installed actuator, coloured by its urgency bucket
+    (:mod:`server.services.urgency`)."""
     query = (select(Aircraft.tail, Aircraft.base, Actuator, ActuatorState)
              .join(Actuator, Actuator.aircraft_id == Aircraft.id)
              .outerjoin(ActuatorState, ActuatorState.actuator_id == Actuator.id)
@@ -133,21 +176,26 @@ def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCell]:
     rows = session.execute(query.order_by(Aircraft.tail, Actuator.position)).all()
     alarms = {a.actuator_id: a for a in session.scalars(
         select(Alarm).where(Alarm.status != "closed").order_by(Alarm.id))}
+    now = utcnow()
     cells = []
     for tail, base_name, act, state in rows:
         alarm = alarms.get(act.id)
         det = (state.detection if state else {}) or {}
-        rul = alarm.rul_median_flights if alarm else None
+        seen = state.flights_seen if state else 0
         if alarm is None:
-            status = "green"
-        elif rul is not None and rul <= 25:
-            status = "red"
+            u = urgency(failed_at_flight=act.failed_at_flight, alarm_open=False,
+                        fault_mode=None, rul_low_flights=None)
         else:
-            status = "amber"
+            u, _ = alarm_urgency(alarm, act, seen, now)
         cells.append(GridCell(tail=tail, base=base_name, position=act.position,
-                              actuator_id=act.id, serial=act.serial, status=status,
+                              actuator_id=act.id, serial=act.serial, status=u.colour,
+                              urgency=u.bucket, urgency_label=u.label,
+                              act_within_flights=u.within_flights,
+                              failed_at_flight=act.failed_at_flight,
                               confidence=float(det.get("confidence", 0.0)),
-                              fault_mode=alarm.fault_mode if alarm else None, rul_median=rul,
+                              fault_mode=alarm.fault_mode if alarm else None,
+                              rul_median=alarm.rul_median_flights if alarm else None,
+                              rul_low=alarm.rul_low_flights if alarm else None,
                               open_alarm_id=alarm.id if alarm else None,
-                              flights_seen=state.flights_seen if state else 0))
+                              flights_seen=seen))
     return cells

@@ -3,6 +3,9 @@
 An injection is ``pending`` until the sim worker simulates its onset flight, then ``active``;
 ``cancelled`` by an operator, or ``failed`` once the actuator reaches the failure threshold.
 One pending/active injection per actuator at a time (one fault at a time, as in the paper).
+A reported failure makes the installed actuator at the position ``failed`` (a state, until it
+is replaced); replacing the actuator ends its injection (:func:`end_injections_at`): the new
+unit is healthy.
 """
 
 from __future__ import annotations
@@ -11,12 +14,12 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound, Unprocessable
-from server.models import Aircraft, GroundTruth, Injection, utcnow
+from server.models import Actuator, Aircraft, GroundTruth, Injection, utcnow
 from server.vocabulary import FAULT_MODES, PROGRESSIVE
 
 __all__ = ["PROGRESSIVE", "create_injection", "list_injections", "get_injection",
            "cancel_injection", "update_injection_status", "report_ground_truth",
-           "list_ground_truth"]
+           "list_ground_truth", "end_injections_at"]
 
 LIVE = ("pending", "active")
 
@@ -91,7 +94,29 @@ def update_injection_status(*, session: Session, injection_id: int, status: str,
     row.status = status
     if failure_flight is not None:
         row.failure_flight = failure_flight
+    if status == "failed":
+        unit = session.scalar(select(Actuator).where(
+            Actuator.aircraft_id == row.aircraft_id, Actuator.position == row.position,
+            Actuator.removed_at.is_(None)))
+        if unit is not None and unit.failed_at_flight is None:
+            unit.failed_at_flight = row.failure_flight if row.failure_flight is not None else 0
+            unit.failed_at = utcnow()
     return row
+
+
+def end_injections_at(*, session: Session, aircraft_id: int, position: str) -> list[Injection]:
+    """The actuator at ``position`` was replaced: its pending or active injection is cancelled
+    (the new unit carries no fault); a failed one stays failed, with ``cancelled_at`` marking
+    that its unit is gone."""
+    rows = list(session.scalars(select(Injection).where(
+        Injection.aircraft_id == aircraft_id, Injection.position == position,
+        Injection.status.in_((*LIVE, "failed")), Injection.cancelled_at.is_(None))))
+    now = utcnow()
+    for row in rows:
+        if row.status in LIVE:
+            row.status = "cancelled"
+        row.cancelled_at = now
+    return rows
 
 
 def report_ground_truth(*, session: Session, injection_id: int, flight_code: str,

@@ -19,19 +19,23 @@ from server.services import analysis as analysis_service
 from server.services import fleet as fleet_service
 from server.services import flights as flight_service
 from server.services import health as health_service
+from server.services import maintenance as maintenance_service
 from server.services import models as model_service
 from server.services import test_station as station_service
+from server.services import urgency as urgency_rule
 from server.vocabulary import FAULT_MODES, PAPER_TABLE2, POSITIONS, PROGRESSIVE
 
 __all__ = ["STATUS_RANK", "fleet_view", "failed_flights", "alarms_view", "actuator_view",
            "models_view", "station_view", "evaluation_view", "health_dict", "prognosis_dict"]
 
-STATUS_RANK = {"red": 0, "amber": 1, "green": 2}
+#: the grid's colours, most urgent first (the urgency rule's buckets, server.services.urgency)
+STATUS_RANK = {urgency_rule.COLOUR[b]: i for i, b in enumerate(urgency_rule.BUCKETS)}
 
 
 def fleet_view(*, session: Session, sort: str = "rul", base: str | None = None,
                status: str | None = None) -> dict[str, Any]:
-    """Aircraft rows x positions, sorted by RUL (shortest first) or tail; filtered."""
+    """Aircraft rows x positions, sorted by urgency (the most urgent cell, then the shortest
+    median RUL) or tail; filtered."""
     cells = health_service.fleet_grid(session=session)
     bases = sorted({c.base for c in cells})
     by_tail: dict[str, dict[str, Any]] = {}
@@ -53,8 +57,8 @@ def fleet_view(*, session: Session, sort: str = "rul", base: str | None = None,
     if sort == "tail":
         rows.sort(key=lambda r: r["tail"])
     else:
-        rows.sort(key=lambda r: (r["min_rul"] is None, r["min_rul"] or 0.0,
-                                 STATUS_RANK[r["worst"]], r["tail"]))
+        rows.sort(key=lambda r: (STATUS_RANK[r["worst"]], r["min_rul"] is None,
+                                 r["min_rul"] or 0.0, r["tail"]))
     return {"rows": rows, "positions": POSITIONS, "bases": bases, "counts": counts,
             "sort": "tail" if sort == "tail" else "rul", "base": base or "",
             "status": status if status in STATUS_RANK else "", "n_actuators": len(cells),
@@ -77,11 +81,16 @@ def _failure_reason(reasons: list[dict[str, Any]]) -> str:
 def alarms_view(*, session: Session, status: str | None, limit: int = 200) -> dict[str, Any]:
     rows, total = health_service.list_alarms(session=session, status=status, tail=None,
                                              limit=limit, offset=0)
-    items = [{"alarm": a, "actuator": act, "tail": tail,
-              "priority": health_service.alarm_priority(a.confidence, a.fault_mode,
-                                                        a.rul_median_flights)}
-             for a, act, tail in rows]
-    return {"items": items, "total": total, "status": status or ""}
+    items = [{"alarm": r.alarm, "actuator": r.actuator, "tail": r.tail, "urgency": r.urgency,
+              "deferral_expired": r.deferral_expired} for r in rows]
+    return {"items": items, "total": total, "status": status or "",
+            "rule": urgency_rule_view()}
+
+
+def urgency_rule_view() -> dict[str, Any]:
+    """The rule's constants, for the hint on the pages."""
+    return {"quantile": urgency_rule.RUL_LOW_QUANTILE,
+            "act_within_max": urgency_rule.ACT_WITHIN_MAX_FLIGHTS}
 
 
 def health_dict(row: Any) -> dict[str, Any]:
@@ -108,7 +117,11 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     previous = [a for a in history if a.id != actuator.id]
     alarms, _ = health_service.list_alarms(session=session, status=None, tail=tail, limit=500,
                                            offset=0)
-    own_alarms = [a for a, act, _t in alarms if act.id == actuator.id]
+    own_alarms = [r for r in alarms if r.actuator.id == actuator.id]
+    state_urgency, open_alarm, deferral_expired = health_service.actuator_urgency(
+        session=session, actuator=actuator)
+    trail = maintenance_service.position_trail(
+        session=session, actuator_ids=[a.id for a in history])
 
     # Ground truth from the test station: injections at this aircraft/position, aligned to the
     # prognoses through the flight codes of the flights those prognoses were made on.
@@ -143,7 +156,9 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     return {"actuator": actuator, "tail": tail, "records": records, "prognoses": progs,
             "truth": truth, "previous": previous, "alarms": own_alarms, "band": band,
             "threshold": threshold, "latest": latest, "latest_prognosis":
-            progs[-1] if progs else None}
+            progs[-1] if progs else None, "urgency": state_urgency, "open_alarm": open_alarm,
+            "deferral_expired": deferral_expired, "trail": trail,
+            "rule": urgency_rule_view()}
 
 
 def models_view(*, session: Session, model_id: int | None) -> dict[str, Any]:

@@ -32,9 +32,15 @@ from server.dependencies import SessionDep, SettingsDep, own_origin
 from server.errors import DomainError
 from server.models import ApiKey
 from server.phm.prognosis.document import rul_quantile
-from server.schemas import InjectionCreate
-from server.services import fleet as fleet_service
+from server.schemas import (
+    WORK_ORDER_FORM_PATTERN,
+    ActuatorDefer,
+    ActuatorInspect,
+    ActuatorReplace,
+    InjectionCreate,
+)
 from server.services import health as health_service
+from server.services import maintenance as maintenance_service
 from server.services import models as model_service
 from server.services import test_station as station_service
 from server.web import data, figures
@@ -57,6 +63,7 @@ def templates() -> Jinja2Templates:
     t.env.autoescape = True
     t.env.globals["figure_json"] = figures.figure_json
     t.env.globals["rul_quantile"] = rul_quantile
+    t.env.globals["work_order_pattern"] = WORK_ORDER_FORM_PATTERN
     return t
 
 
@@ -83,7 +90,8 @@ def _render(request: Request, name: str, key: ApiKey | None, status_code: int = 
     cookie = request.cookies.get(COOKIE, "")
     ctx = {"key": key, "role": key.role if key else None,
            "can": {"admin": bool(key and may(key.role, "admin")),
-                   "operate": bool(key and may(key.role, "operate"))},
+                   "operate": bool(key and may(key.role, "operate")),
+                   "maintain": bool(key and may(key.role, "maintain"))},
            "csrf": csrf_token(cookie) if cookie and key else "",
            "nav": name.removesuffix(".html"), **context}
     return templates().TemplateResponse(request, name, ctx, status_code=status_code,
@@ -232,24 +240,72 @@ def actuator_page(request: Request, session: SessionDep, actuator_id: int) -> Re
     return _render(request, "actuator.html", key, figs=figs, **view)
 
 
-@router.post("/actuators/{actuator_id}/replace")
-def replace(request: Request, session: SessionDep, actuator_id: int,
-            new_serial: str = Form(""), note: str = Form(""), csrf: str = Form("")
-            ) -> Response:
-    key = _check_post(request, session, csrf, "admin")
+def _form_error(exc: ValidationError) -> str:
+    return "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'form'}: {e['msg']}"
+                     for e in exc.errors())
+
+
+def _maintenance(request: Request, session: SessionDep, actuator_id: int, csrf: str,
+                 schema: type, raw: dict[str, str], act: Any) -> Response:
+    """A maintenance form post: CSRF and role (``maintain``), the API's schema, the service."""
+    key = _check_post(request, session, csrf, "maintain")
     if not isinstance(key, ApiKey):
         return key
-    serial = new_serial.strip()
-    if not serial or len(serial) > 64:
-        return _problem(request, key, 422, "A new serial (1-64 characters) is required.")
     try:
-        new = fleet_service.replace_actuator(session=session, actuator_id=actuator_id,
-                                             new_serial=serial, note=note.strip() or None)
+        body = schema.model_validate_strings({k: v.strip() for k, v in raw.items()
+                                              if v.strip()})
+        target = act(key, body)
+    except ValidationError as exc:
+        session.rollback()
+        return _problem(request, key, 422, _form_error(exc))
     except DomainError as exc:
         session.rollback()
         return _problem(request, key, exc.status_code, exc.message)
     session.commit()
-    return RedirectResponse(f"/actuators/{new.id}", status_code=303)
+    return RedirectResponse(f"/actuators/{target}", status_code=303)
+
+
+@router.post("/actuators/{actuator_id}/replace")
+def replace(request: Request, session: SessionDep, actuator_id: int,
+            new_serial: str = Form(""), work_order: str = Form(""), note: str = Form(""),
+            csrf: str = Form("")) -> Response:
+    def act(key: ApiKey, body: ActuatorReplace) -> int:
+        new, _ = maintenance_service.replace_actuator(
+            session=session, actuator_id=actuator_id, new_serial=body.new_serial, by=key,
+            work_order=body.work_order, note=body.note)
+        return new.id
+
+    return _maintenance(request, session, actuator_id, csrf, ActuatorReplace,
+                        {"new_serial": new_serial, "work_order": work_order, "note": note}, act)
+
+
+@router.post("/actuators/{actuator_id}/inspect")
+def inspect(request: Request, session: SessionDep, actuator_id: int,
+            work_order: str = Form(""), note: str = Form(""), csrf: str = Form("")) -> Response:
+    def act(key: ApiKey, body: ActuatorInspect) -> int:
+        maintenance_service.inspect_actuator(session=session, actuator_id=actuator_id, by=key,
+                                             work_order=body.work_order, note=body.note)
+        return actuator_id
+
+    return _maintenance(request, session, actuator_id, csrf, ActuatorInspect,
+                        {"work_order": work_order, "note": note}, act)
+
+
+@router.post("/actuators/{actuator_id}/defer")
+def defer(request: Request, session: SessionDep, actuator_id: int,
+          work_order: str = Form(""), reason: str = Form(""), flights: str = Form(""),
+          until: str = Form(""), csrf: str = Form("")) -> Response:
+    def act(key: ApiKey, body: ActuatorDefer) -> int:
+        maintenance_service.defer_alarm(session=session, actuator_id=actuator_id, by=key,
+                                        work_order=body.work_order, reason=body.reason,
+                                        flights=body.flights, until=body.until)
+        return actuator_id
+
+    # a date field gives a day: the deferral runs to the end of it, UTC
+    day = f"{until.strip()}T23:59:59Z" if until.strip() else ""
+    return _maintenance(request, session, actuator_id, csrf, ActuatorDefer,
+                        {"work_order": work_order, "reason": reason, "flights": flights,
+                         "until": day}, act)
 
 
 @router.get("/models", response_class=HTMLResponse)

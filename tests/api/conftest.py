@@ -11,6 +11,7 @@ from server.app import create_app
 from server.auth import create_key
 from server.config import Settings
 from server.db import session_scope
+from server.models import ROLES
 from tests.flightlog_factory import serials_for
 
 
@@ -31,7 +32,7 @@ def client(app) -> Iterator[TestClient]:  # type: ignore[no-untyped-def]
 def keys(app) -> dict[str, str]:  # type: ignore[no-untyped-def]
     out = {}
     with session_scope(app.state.session_factory) as session:
-        for role in ("viewer", "uploader", "operator", "admin"):
+        for role in ROLES:
             out[role] = create_key(session=session, name=f"test-{role}", role=role)[1]
     return out
 

@@ -64,8 +64,10 @@ def test_actuators_and_replacement(client: TestClient, keys: dict[str, str], air
         wl1["serial"])
 
     path = f"/api/v1/actuators/{wl1['id']}/replace"
-    assert client.post(path, json={"new_serial": "SN-NEW"}, headers=viewer).status_code == 403
-    r = client.post(path, json={"new_serial": "SN-NEW", "note": "backlash"}, headers=admin)
+    body = {"new_serial": "SN-NEW", "work_order": "WO-1"}
+    assert client.post(path, json=body, headers=viewer).status_code == 403
+    assert client.post(path, json={"new_serial": "SN-NEW"}, headers=admin).status_code == 422
+    r = client.post(path, json={**body, "note": "backlash"}, headers=admin)
     assert r.status_code == 201
     new = r.json()
     assert new["id"] != wl1["id"] and new["position"] == "WL1" and new["removed_at"] is None
@@ -75,10 +77,12 @@ def test_actuators_and_replacement(client: TestClient, keys: dict[str, str], air
     installed = client.get(f"/api/v1/aircraft/{aircraft}", headers=viewer).json()["actuators"]
     assert installed["WL1"]["serial"] == "SN-NEW"
     assert client.get("/api/v1/actuators?installed=false", headers=viewer).json()["total"] == 1
-    twice = client.post(path, json={"new_serial": "SN-NEW2"}, headers=admin)
+    twice = client.post(path, json={"new_serial": "SN-NEW2", "work_order": "WO-2"},
+                        headers=admin)
     assert twice.status_code == 409
     taken = client.post(f"/api/v1/actuators/{new['id']}/replace",
-                        json={"new_serial": installed["WT"]["serial"]}, headers=admin)
+                        json={"new_serial": installed["WT"]["serial"], "work_order": "WO-3"},
+                        headers=admin)
     assert taken.status_code == 409
     assert client.get("/api/v1/actuators/99999", headers=viewer).status_code == 404
 

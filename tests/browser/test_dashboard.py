@@ -58,7 +58,7 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Live]:
     factory = make_session_factory(engine)
     keys = {}
     with session_scope(factory) as session:
-        for role in ("viewer", "operator", "admin"):
+        for role in ("viewer", "maintainer", "operator", "admin"):
             keys[role] = create_key(session=session, name=f"browser-{role}", role=role)[1]
     with running_server({"HMSM_DATA_DIR": str(data_dir)}) as url:
         tails = ["B001", "B002", "B003"]
@@ -203,5 +203,49 @@ def test_viewer_cannot_inject(live: Live, browser) -> None:  # type: ignore[no-u
     r = context.request.post(f"{live.url}/api/v1/test-station/injections", data={
         "aircraft": live.tails[1], "position": "WT", "fault_mode": "SE"})
     assert r.status == 403
+    assert console.errors == [], console.errors
+    context.close()
+
+
+def test_replacement_with_a_work_order_from_the_actuator_page(live: Live, browser) -> None:  # type: ignore[no-untyped-def]
+    """A maintenance engineer replaces a unit in alarm (BDO: replace now) from its page with a work-order
+    number; the page of the new unit shows it healthy, the trail shows who, when, the order."""
+    tail = live.tails[2]
+    add_alarm(live.factory, tail=tail, position="WT", fault_mode="BDO", rul=None)  # type: ignore[arg-type]
+    context = browser.new_context(viewport={"width": 1280, "height": 800})
+    page = context.new_page()
+    console = Console(page)
+    _sign_in(page, live.url, live.keys["maintainer"])
+    cell = page.locator("#fleet-grid tbody tr", has_text=tail).locator("td.cell").nth(2)
+    assert "red" in (cell.get_attribute("class") or "")
+    assert "replace now" in cell.inner_text().lower()  # the badge is set in capitals
+    cell.locator("a").click()
+    page.wait_for_url(re.compile(r"/actuators/\d+$"))
+    old_url = page.url
+    assert "replace now" in page.locator("#urgency").inner_text().lower()
+    assert page.locator("#in-alarm").inner_text().startswith("yes")
+
+    form = page.locator("#replace-form")
+    form.get_by_label("New serial").fill("WT-BROWSER-1")
+    form.get_by_label("Work order").fill("WO-2026-0777")
+    form.get_by_label("Note").fill("open MOSFET leg confirmed")
+    form.get_by_role("button", name="Replace actuator").click()
+    page.wait_for_url(lambda u: u != old_url and "/actuators/" in u)
+    assert "WT-BROWSER-1" in page.locator("h1").inner_text()
+    assert "healthy" in page.locator("#urgency").inner_text().lower()
+    assert page.locator("#in-alarm").inner_text() == "no"
+    assert page.locator("#flights-seen").inner_text() == "0"
+    trail = page.locator("#maintenance-trail tbody tr").first
+    text = trail.inner_text()
+    assert "replaced" in text and "WO-2026-0777" in text and "browser-maintainer" in text
+    _shot(page, "actuator-replaced-1280")
+
+    page.goto(old_url)  # the removed unit says so, and is no longer "in alarm"
+    assert page.locator("#removed-notice").is_visible()
+    assert page.locator("#in-alarm").inner_text() == "removed"
+    assert page.locator("#replace-form").count() == 0
+    page.goto(f"{live.url}/fleet")
+    cell = page.locator("#fleet-grid tbody tr", has_text=tail).locator("td.cell").nth(2)
+    assert "green" in (cell.get_attribute("class") or "")
     assert console.errors == [], console.errors
     context.close()

@@ -83,7 +83,10 @@ def test_engineer_follows_an_actuator_from_alarm_to_rul_cone(real_run, browser) 
     page = context.new_page()
     console = Console(page)
     _sign_in(page, url, keys["admin"])
-    cells = page.locator("#fleet-grid tbody td.cell.amber, #fleet-grid tbody td.cell.red")
+    # the BDO drive is red (replace now); the wear alarm amber or yellow by its 5 % RUL
+    assert page.locator("#fleet-grid tbody td.cell.red").count() >= 1
+    cells = page.locator("#fleet-grid tbody td.cell.amber, #fleet-grid tbody td.cell.red, "
+                         "#fleet-grid tbody td.cell.yellow")
     assert cells.count() >= 2, page.locator("#fleet-grid").inner_text()
     _shot(page, "real-fleet-1280")
 

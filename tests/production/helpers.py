@@ -21,12 +21,12 @@ from server.auth import create_key
 from server.config import Settings
 from server.db import make_session_factory, session_scope
 from server.migrate import upgrade
+from server.models import ROLES
 from server.services import models as model_service
 
 __all__ = ["TcpProxy", "fresh_pg_database", "wait_until", "seed_system", "env_of",
            "worker_process", "ROLES"]
 
-ROLES = ("viewer", "uploader", "operator", "admin")
 
 
 def _pg(url: str) -> str:

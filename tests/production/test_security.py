@@ -37,6 +37,8 @@ def required_roles(method: str, path: str) -> set[str]:
         return {"uploader", "admin"}
     if path.startswith("/api/v1/test-station/"):
         return {"operator", "admin"}
+    if re.fullmatch(r"/api/v1/actuators/\{[^}]+\}/(replace|inspect|defer)", path):
+        return {"maintainer", "admin"}  # maintenance actions
     return {"admin"}  # fleet, actuator replacement, keys, models, alarms
 
 

@@ -169,11 +169,45 @@ def test_operator_injects_and_sees_it_listed_errors_are_shown(client, keys, airc
 def test_admin_replaces_actuator_and_history_shows_previous(client, keys, seeded) -> None:
     sign_in(client, keys["admin"])
     r = client.post(f"/actuators/{seeded.actuator_id}/replace", data={
-        "csrf": csrf_token(keys["admin"]), "new_serial": "NEW-001", "note": "worn rod end"},
-        follow_redirects=False)
+        "csrf": csrf_token(keys["admin"]), "new_serial": "NEW-001", "work_order": "WO-77",
+        "note": "worn rod end"}, follow_redirects=False)
     assert r.status_code == 303
     page = client.get(r.headers["location"]).text
-    assert "NEW-001" in page and "worn rod end" in page
+    assert "NEW-001" in page and "worn rod end" in page and "WO-77" in page
+    assert 'id="maintenance-trail"' in page and "test-admin" in page
+
+
+def test_maintenance_forms_validate_and_need_the_maintain_role(client, keys, seeded) -> None:
+    url = f"/actuators/{seeded.actuator_id}"
+    sign_in(client, keys["viewer"])
+    r = client.post(url + "/inspect", data={"csrf": csrf_token(keys["viewer"]),
+                                            "work_order": "WO-1"})
+    assert r.status_code == 403
+    client.cookies.clear()
+    sign_in(client, keys["operator"])  # the test station's role records no maintenance
+    assert 'id="inspect-form"' not in client.get(url).text
+    r = client.post(url + "/inspect", data={"csrf": csrf_token(keys["operator"]),
+                                            "work_order": "WO-1"})
+    assert r.status_code == 403
+    client.cookies.clear()
+    sign_in(client, keys["maintainer"])
+    token = csrf_token(keys["maintainer"])
+    page = client.get(url).text
+    assert 'id="inspect-form"' in page and 'id="defer-form"' in page
+    r = client.post(url + "/replace", data={"csrf": token, "new_serial": "NEW-2",
+                                            "work_order": "no spaces allowed"})
+    assert r.status_code == 422 and "work_order" in r.text
+    r = client.post(url + "/defer", data={"csrf": token, "work_order": "MEL-1",
+                                          "reason": "parts on order", "until": "2099-01-31"},
+                    follow_redirects=False)
+    assert r.status_code == 303
+    page = client.get(url).text
+    assert "deferred" in page and "MEL-1" in page and "2099-01-31" in page
+    r = client.post(url + "/inspect", data={"csrf": token, "work_order": "WO-2",
+                                            "note": "no play found"}, follow_redirects=False)
+    assert r.status_code == 303
+    page = client.get(url).text
+    assert "no fault found" in page and 'id="inspect-form"' not in page
 
 
 def test_evaluation_page_reads_latest_json_or_says_not_run(client, keys, app) -> None:
@@ -275,5 +309,5 @@ def test_fleet_page_100_aircraft_by_3_actuators(client, keys, capsys) -> None:
     # sorted by RUL: the first row holds the shortest median RUL (0 flights)
     first = r.text.index("<tbody>")
     assert ">0<" in r.text[first:first + 2500].replace(" ", "").replace("\n", "")
-    by_base = client.get("/fleet?sort=tail&base=Rome&status=red")
+    by_base = client.get("/fleet?sort=tail&base=Rome&status=yellow")  # DMD alarms: monitor
     assert by_base.status_code == 200 and "N002" in by_base.text and "N000" not in by_base.text

@@ -32,6 +32,18 @@ class ActuatorHealth:
     last_started_at: str | None = None
     flights_per_day: float | None = None
 
+    def rearm(self) -> None:
+        """After an inspection found no fault: clear the alarm latch, the class evidence and
+        the filter, so a fault that (re)appears raises a new alarm and is classified afresh;
+        the unit's own reference and residual history stay (it is the same unit)."""
+        self.detection.alarm = False
+        self.detection.alarm_flight = None
+        self.detection.alarm_features = []
+        self.alarm_index = None
+        self.class_log_prob = None
+        self.fault_mode = None
+        self.prognosis = None
+
     def to_dict(self) -> dict[str, Any]:
         return {"format": HEALTH_FORMAT, "position": self.position,
                 "detection": self.detection.to_dict(), "flights_seen": self.flights_seen,
