@@ -43,7 +43,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     from server.db import make_engine, make_session_factory, session_scope
     from server.jobs.training_job import train_into_version
     from server.migrate import ensure_schema
-    from server.models import Aircraft
+    from server.models import ROLES, Aircraft
     from server.services import fleet, test_station
     from server.services import models as model_service
     from sim_worker.service import fleet_plan
@@ -101,7 +101,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
                 session.rollback()
     keys: dict[str, str] = {}
     with session_scope(factory) as session:
-        for role in ("admin", "operator", "uploader", "viewer"):
+        for role in reversed(ROLES):  # admin first: the key to sign in with
             keys[role] = create_key(session=session, name=f"demo-{role}", role=role)[1]
     engine.dispose()
     return keys
@@ -145,7 +145,7 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
     print(f"  dashboard: {url}/            API: {url}/api/v1   OpenAPI: {url}/docs")
     print(f"  data dir:  {settings.data_dir}   logs: {logs}")
     for role, key in keys.items():
-        print(f"  {role:8s} key: {key}")
+        print(f"  {role:10s} key: {key}")
     print(f"  {n_aircraft} simulated aircraft fly {rate:g} flights a minute; faults injected: "
           + ", ".join(f"{t}/{p} {m}" for t, p, m, _, _ in DEMO_INJECTIONS
                       if int(t[3:]) <= n_aircraft))
