@@ -89,28 +89,41 @@ _UB, _UC, _VCM, _PLOSS, _XM, _XROD, _WPREV, _COS, _SIN, _THE = range(20, 30)
 _NST = 30
 # per-EMA coefficients held for one output period (temperature dependent)
 _C_R, _C_RON, _C_PSI, _C_AD, _C_AQ = range(5)
-_NCOEF = 5
+# and, in the same rows, per-EMA limits the step would otherwise recompute (with a division or a
+# square) every step
+_C_UMAX, _C_DT_J, _C_UMAX2 = range(5, 8)
+_NCOEF = 8
 
 
 @njit(cache=True, inline="always")
-def _uniform(rng: np.ndarray, k: int) -> float:
+def _bits53(rng: np.ndarray, k: int) -> np.uint64:
+    """Next draw of EMA ``k``'s xorshift generator, as an integer below 2^53 (a uniform in [0, 1)
+    is that times 2^-53)."""
     x = rng[k]
     x ^= x << np.uint64(13)
     x ^= x >> np.uint64(7)
     x ^= x << np.uint64(17)
     rng[k] = x
-    return float(x >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    return x >> np.uint64(11)
 
 
 @njit(cache=True, inline="always")
 def _noise(rng: np.ndarray, k: int) -> float:
-    """Zero-mean unit-variance noise (triangular, sum of two uniforms)."""
-    return (_uniform(rng, k) + _uniform(rng, k) - 1.0) * 2.449489742783178
+    """Zero-mean unit-variance noise (triangular, sum of two uniforms).
+
+    The two uniforms are added as integers and converted once: both are multiples of 2^-53, so
+    the float sum of the two uniforms rounds exactly as the conversion of the integer sum."""
+    b = _bits53(rng, k)
+    b += _bits53(rng, k)
+    return (float(b) * (1.0 / 9007199254740992.0) - 1.0) * 2.449489742783178
 
 
 @njit(cache=True, inline="always")
 def _quant(v: float, lsb: float) -> float:
-    return math.floor(v / lsb + 0.5) * lsb
+    """``v`` rounded to the nearest multiple of ``lsb``. np.floor keeps the value a float
+    (math.floor returns an int in numba: two extra conversions on the critical path; the same
+    value for any finite ``v``)."""
+    return np.floor(v / lsb + 0.5) * lsb
 
 
 # ---- sensors -------------------------------------------------------------------------------
@@ -259,8 +272,8 @@ def _svm_duties(udr: float, uqr: float, cm: float, sm: float, cbm: float, sbm: f
 
 
 @njit(cache=True, inline="always")
-def _pmsm_currents(id_: float, iq: float, ud: float, uq: float, we: float, r: float, ld: float,
-                   lq: float, psi: float, dpsi_dt: float, ad: float, aq: float
+def _pmsm_currents(id_: float, iq: float, ud: float, uq: float, we: float, r: float,
+                   ld: float, lq: float, psi: float, dpsi_dt: float, ad: float, aq: float
                    ) -> tuple[float, float]:
     """PMSM d-q current step, exact for frozen speed: ``a = exp(-dt R / L)``.
 
@@ -363,15 +376,20 @@ def _speed_loop(par: np.ndarray, st: np.ndarray, k: int, th_m: float, dt_w: floa
 
 @njit(cache=True, inline="always")
 def _current_pi(ed: float, eq: float, ud_ff: float, uq_ff: float, int_d: float, int_q: float,
-                kp: float, ki: float, udc: float, dt: float
+                kp: float, ki: float, umax: float, umax2: float, dt: float
                 ) -> tuple[float, float, float, float]:
     """d-q current PI on the errors (``ed``, ``eq``) plus the decoupling feed-forward -> voltage
     reference (u_d, u_q) and the integrators. The vector is limited to the inverter's linear
-    range; the integrators hold while it is limited (anti-windup)."""
+    range (``umax``, :func:`_period_coefficients`); the integrators hold while it is limited
+    (anti-windup)."""
     udr = kp * ed + int_d - ud_ff
     uqr = kp * eq + int_q + uq_ff
-    umax = 0.95 * udc / math.sqrt(3.0)
-    umag = math.sqrt(udr * udr + uqr * uqr)
+    usq = udr * udr + uqr * uqr
+    # ``umax2`` is a little below umax^2: below it sqrt(usq) <= umax for sure, and the usual
+    # case skips the square root (on the critical path); near the limit the root decides
+    if usq <= umax2:
+        return udr, uqr, int_d + ki * ed * dt, int_q + ki * eq * dt
+    umag = math.sqrt(usq)
     if umag > umax:
         return udr * (umax / umag), uqr * (umax / umag), int_d, int_q
     return udr, uqr, int_d + ki * ed * dt, int_q + ki * eq * dt
@@ -414,20 +432,20 @@ def _rod_position(xnut: float, dx: float, fs: float, bl_s: float, bl: float, k_s
 
 
 @njit(cache=True, inline="always")
-def _shaft_speed(w: float, te: float, tl: float, dt: float, jm: float, tc: float, tcs: float,
+def _shaft_speed(w: float, te: float, tl: float, dt_j: float, tc: float, tcs: float,
                  eta_d: float, eta_b: float) -> tuple[float, float, bool]:
     """Motor shaft (rotor + screw) under the motor, link and friction torques, Karnopp stick
-    -> (new speed, friction torque, stuck)."""
+    -> (new speed, friction torque, stuck); ``dt_j`` is the step over the inertia, dt / J."""
     net = te - tl
     if w == 0.0:
         direction = 1.0 if net > 0.0 else -1.0
         if abs(net) <= _screw_friction(tl, direction, tcs, eta_d, eta_b):
             return 0.0, 0.0, True
         tf = _screw_friction(tl, direction, tc, eta_d, eta_b)
-        return w + dt / jm * (net - direction * tf), tf, False
+        return w + dt_j * (net - direction * tf), tf, False
     direction = 1.0 if w > 0.0 else -1.0
     tf = _screw_friction(tl, direction, tc, eta_d, eta_b)
-    w_n = w + dt / jm * (net - direction * tf)
+    w_n = w + dt_j * (net - direction * tf)
     if w_n * w < 0.0 or abs(w_n) < 1e-9:
         w_n = 0.0  # friction stops the shaft; breakaway is decided on the next step
     return w_n, tf, False
@@ -471,8 +489,8 @@ def _winding_temperature(par: np.ndarray, st: np.ndarray, k: int, div: int, dt_o
 @njit(cache=True, inline="always")
 def _period_coefficients(par: np.ndarray, st: np.ndarray, k: int, dt: float, coef: np.ndarray
                          ) -> None:
-    """Temperature-dependent R_s, R_on and PM flux (with the DMD loss) and the current update's
-    decay factors, held for one output period."""
+    """Temperature-dependent R_s, R_on and PM flux (with the DMD loss), the current update's
+    decay factors and the reciprocals the step multiplies by, held for one output period."""
     tw = st[k, _TW]
     dtc = tw - par[k, P.TREF]
     coef[k, _C_R] = par[k, P.R0] * (1.0 + par[k, P.ALPHA_CU] * dtc)
@@ -482,6 +500,10 @@ def _period_coefficients(par: np.ndarray, st: np.ndarray, k: int, dt: float, coe
     rt = coef[k, _C_R] + coef[k, _C_RON]
     coef[k, _C_AD] = math.exp(-dt * rt / par[k, P.LD])
     coef[k, _C_AQ] = math.exp(-dt * rt / par[k, P.LQ])
+    coef[k, _C_UMAX] = 0.95 * par[k, P.UDC] / math.sqrt(3.0)  # the inverter's linear range
+    coef[k, _C_DT_J] = dt / par[k, P.J]
+    # (1 - 2^-50) covers the rounding of the square: umax2 < umax^2 exactly
+    coef[k, _C_UMAX2] = coef[k, _C_UMAX] * coef[k, _C_UMAX] * (1.0 - 2.0 ** -50)
 
 
 # ---- accounting ----------------------------------------------------------------------------
@@ -541,8 +563,8 @@ def simulate_motor(u_dq: np.ndarray, r: float, ld: float, lq: float, psi: float,
         # speed at mid-step, extrapolated from the last step (as in the kernel)
         w_mid = 1.5 * w - 0.5 * w_prev
         w_prev = w
-        id_n, iq_n = _pmsm_currents(id_, iq, u_dq[n, 0], u_dq[n, 1], pp * w_mid, r, ld, lq,
-                                    psi, 0.0, ad, aq)
+        id_n, iq_n = _pmsm_currents(id_, iq, u_dq[n, 0], u_dq[n, 1], pp * w_mid, r, ld,
+                                    lq, psi, 0.0, ad, aq)
         # torque at mid-step current (as in the kernel)
         te = _pmsm_torque(0.5 * (id_ + id_n), 0.5 * (iq + iq_n), pp, ld, lq, psi)
         id_, iq = id_n, iq_n
@@ -614,6 +636,9 @@ def simulate(
         arm_surf[s] = _surface_arm(par, s)
     xfb = np.zeros(n_surf)  # consolidated LVDT position per surface
     nfb = np.zeros(n_surf)
+    fracs = np.empty(div)  # sub / div, the position within the output period
+    for sub in range(div):
+        fracs[sub] = sub / div
     a_wf = 1.0 - math.exp(-dt_w * 2.0 * math.pi * 1000.0)  # speed-estimate low-pass
     _initial_state(par, xcmd, st, delta, acc)
 
@@ -624,7 +649,7 @@ def simulate(
     for step in range(n_out * div):
         j = step // div
         sub = step - j * div
-        frac = sub / div
+        frac = fracs[sub]
         jn = j + 1 if j + 1 < n_out else j
         record = sub == 0
         if record:
@@ -699,13 +724,14 @@ def simulate(
             weh = pp * st[k, _WF]  # decoupling on the controller's own speed and parameters
             udr, uqr, st[k, _ICD], st[k, _ICQ] = _current_pi(
                 -id_m, st[k, _IQREF] - iq_m, weh * lh * iq_m, weh * (lh * id_m + par[k, P.PSIHAT]),
-                st[k, _ICD], st[k, _ICQ], par[k, P.KP_I], par[k, P.KI_I], udc, dt)
+                st[k, _ICD], st[k, _ICQ], par[k, P.KP_I], par[k, P.KI_I], coef[k, _C_UMAX],
+                coef[k, _C_UMAX2], dt)
             st[k, _DA], st[k, _DB], st[k, _DC] = _svm_duties(udr, uqr, cm, sm, cbm, sbm, udc)
             # ---- PMSM electrical update (exact for frozen speed), torque at mid-step --------
             ld = par[k, P.LD]
             lq = par[k, P.LQ]
-            id_n, iq_n = _pmsm_currents(id_, iq, ud, uq, we, rt, ld, lq, psi, dpsi_dt,
-                                        coef[k, _C_AD], coef[k, _C_AQ])
+            id_n, iq_n = _pmsm_currents(id_, iq, ud, uq, we, rt, ld, lq, psi,
+                                        dpsi_dt, coef[k, _C_AD], coef[k, _C_AQ])
             id_mid = 0.5 * (id_ + id_n)
             iq_mid = 0.5 * (iq + iq_n)
             te = _pmsm_torque(id_mid, iq_mid, pp, ld, lq, psi)
@@ -723,7 +749,7 @@ def simulate(
             st[k, _XROD] = xrod
             torque_surf[s_idx] += arm * f
             tl = rr * f
-            w_n, tf, stuck = _shaft_speed(w, te, tl, dt, par[k, P.J], par[k, P.TC],
+            w_n, tf, stuck = _shaft_speed(w, te, tl, coef[k, _C_DT_J], par[k, P.TC],
                                           par[k, P.TCS], par[k, P.ETA_D], par[k, P.ETA_B])
             st[k, _W] = w_n
             st[k, _TH] = th + dt * w_n
