@@ -110,12 +110,12 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
     # The same protocol reduced for CI: every flight, a few patterns per mode, short
     # recordings and fast faults (a regression test of the machinery, not a figure).
     "ci": {
-        "design": ScaleConfig(duration_s=40.0, healthy_patterns=10, healthy_flights=6,
+        "design": ScaleConfig(duration_s=30.0, healthy_patterns=10, healthy_flights=6,
                               patterns_per_mode=2, render_every=1, apriori_flights=4,
-                              apriori_onset=2, span_flights=(20.0, 40.0)),
-        "verification": ScaleConfig(duration_s=40.0, healthy_patterns=10, healthy_flights=6,
+                              apriori_onset=2, span_flights=(15.0, 30.0)),
+        "verification": ScaleConfig(duration_s=30.0, healthy_patterns=10, healthy_flights=6,
                                     patterns_per_mode=2, render_every=1, apriori_flights=4,
-                                    apriori_onset=2, span_flights=(20.0, 40.0)),
+                                    apriori_onset=2, span_flights=(15.0, 30.0)),
     },
 }
 
