@@ -1,5 +1,5 @@
 """Actuators and the maintenance actions on them (replace, inspect / no fault found, defer),
-with their audit trail. Maintenance actions need the operator or admin role."""
+with their audit trail. Maintenance actions need the maintainer or admin role."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def get(actuator_id: int, session: SessionDep, _: Reader) -> ActuatorRead:
 
 @router.post("/{actuator_id}/replace", status_code=201, response_model=ActuatorRead,
              responses=errors(409),
-             summary="Maintenance: replace an installed actuator (operator/admin); the new "
+             summary="Maintenance: replace an installed actuator (maintainer/admin); the new "
                      "unit's history starts again, the old one's alarms close")
 def replace(actuator_id: int, body: ActuatorReplace, session: SessionDep, key: Maintainer
             ) -> ActuatorRead:
@@ -56,7 +56,7 @@ def replace(actuator_id: int, body: ActuatorReplace, session: SessionDep, key: M
 
 @router.post("/{actuator_id}/inspect", status_code=201, response_model=MaintenanceActionRead,
              responses=errors(409),
-             summary="Maintenance: inspected, no fault found (operator/admin); the alarms "
+             summary="Maintenance: inspected, no fault found (maintainer/admin); the alarms "
                      "close as false alarms, monitoring goes on")
 def inspect(actuator_id: int, body: ActuatorInspect, session: SessionDep, key: Maintainer
             ) -> MaintenanceActionRead:
@@ -69,7 +69,7 @@ def inspect(actuator_id: int, body: ActuatorInspect, session: SessionDep, key: M
 @router.post("/{actuator_id}/defer", status_code=201, response_model=MaintenanceActionRead,
              responses=errors(409),
              summary="Maintenance: defer the open alarm for N flights or until a date "
-                     "(operator/admin)")
+                     "(maintainer/admin)")
 def defer(actuator_id: int, body: ActuatorDefer, session: SessionDep, key: Maintainer
           ) -> MaintenanceActionRead:
     row = maintenance.defer_alarm(session=session, actuator_id=actuator_id, by=key,

@@ -87,5 +87,5 @@ Reader = Annotated[ApiKey, Depends(_require("read"))]
 Uploader = Annotated[ApiKey, Depends(_require("upload"))]
 Operator = Annotated[ApiKey, Depends(_require("operate"))]
 Admin = Annotated[ApiKey, Depends(_require("admin"))]
-#: maintenance actions (replace, inspect, defer): operator or admin
+#: maintenance actions (replace, inspect, defer): maintainer or admin
 Maintainer = Annotated[ApiKey, Depends(_require("maintain"))]
