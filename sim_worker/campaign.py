@@ -1,18 +1,22 @@
 """Campaigns: design / verification sets of flight logs plus a manifest with the ground truth.
 
 Layout: ``DIR/manifest.json`` and ``DIR/flights/<tail>/<flight>.parquet``. The manifest schema
-(``ema-campaign/1``) is a contract with the PHM chain; see :func:`run_campaign`.
+(``ema-campaign/1``) is a contract with the PHM chain; see :func:`run_campaign`. What becomes of
+a rendered flight is the campaign's :class:`FlightSink`'s choice: its file (:class:`ParquetSink`,
+the default) or, streamed, its features (``server.campaigns.FeatureSink``).
 
 Determinism: every aircraft seed, pattern seed and flight seed derives from the campaign seed via
 ``numpy.random.SeedSequence`` with a fixed key (kind, aircraft, pattern, flight), never from the
-worker that runs it; results are identical for any number of workers.
+worker that runs it; results are identical for any number of workers or any executor.
+Resumable: finished patterns are kept in ``DIR/progress/`` until the manifest is written.
 
 Fault-to-failure runs start with ``lead_flights`` healthy flights (the actuator's service before
 the fault, every one rendered), then advance the progression law every flight from the onset;
 only every ``render_every``-th flight after the onset (and the failure flight) is simulated at
-12 kHz and written; the others use the quasi-static :func:`~sim_worker.flight.estimate_summary`
-of the same flight conditions, fault-aware (a worn drive's measured load share), so a run's
-expected life does not depend on ``render_every``.
+12 kHz and given to the sink; the others use the quasi-static
+:func:`~sim_worker.flight.estimate_summary` of the same flight conditions, fault-aware (a
+worn drive's measured load share), so a run's expected life does not depend on
+``render_every``.
 """
 
 from __future__ import annotations
