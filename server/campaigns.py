@@ -211,7 +211,9 @@ def _record(root: Path, fl: Mapping[str, Any], features: Mapping[str, Any]) -> F
 
 def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | None = None,
                   jobs: int = 1, cache: bool = True) -> Campaign:
-    """Read a campaign manifest and the features of every flight (cached with ``cache``)."""
+    """Read a campaign manifest and the features of every flight (cached with ``cache``;
+    ``cache=False`` recomputes them all from the files, so a streamed campaign, whose dropped
+    logs live on only as stored features, needs the default)."""
     root = Path(directory)
     manifest = read_manifest(root)
     cached = _cached_features(root, manifest, config or FeatureConfig(), jobs, cache)
