@@ -93,10 +93,17 @@ def feature_config_key(cfg: FeatureConfig) -> str:
     return f"{FEATURE_VERSION} {cfg!r}"
 
 
+def _write_atomic(path: Path, data: bytes) -> None:
+    """A reader sees the whole file or none of it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(data)
+    tmp.replace(path)
+
+
 def _write_cache(root: Path, key: str, flights: Mapping[str, Any]) -> None:
-    tmp = root / (FEATURE_CACHE + ".tmp")
-    tmp.write_text(json.dumps({"format": _CACHE_FORMAT, "config": key, "flights": flights}))
-    tmp.replace(root / FEATURE_CACHE)
+    doc = {"format": _CACHE_FORMAT, "config": key, "flights": flights}
+    _write_atomic(root / FEATURE_CACHE, json.dumps(doc).encode())
 
 
 def _read_cache(root: Path, key: str) -> dict[str, Any]:
@@ -131,11 +138,7 @@ class FeatureSink:
                                    ground_temp_c=ground_temp_c).to_dict()
         if index % self.keep_raw_every:
             return None, features
-        path = out_dir / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_bytes(data)
-        tmp.replace(path)
+        _write_atomic(out_dir / rel, data)
         return rel, features
 
     def describe(self) -> dict[str, Any]:
