@@ -33,15 +33,15 @@ class AlarmRow:
 def alarm_urgency(alarm: Alarm, actuator: Actuator, flights_seen: int,
                   now: datetime | None = None) -> tuple[Urgency, bool]:
     """(the alarm's bucket, whether a deferral it had has expired)."""
-    now = now or utcnow()
+    is_open = alarm.status != "closed"
     had = alarm.deferred_until_flight is not None or alarm.deferred_until is not None
-    active = alarm.status != "closed" and deferral_active(
+    active = is_open and deferral_active(
         until_flight=alarm.deferred_until_flight, until=alarm.deferred_until,
-        flights_seen=flights_seen, now=now)
-    u = urgency(failed_at_flight=actuator.failed_at_flight, alarm_open=alarm.status != "closed",
+        flights_seen=flights_seen, now=now or utcnow())
+    u = urgency(failed_at_flight=actuator.failed_at_flight, alarm_open=is_open,
                 fault_mode=alarm.fault_mode, rul_low_flights=alarm.rul_low_flights,
                 deferred=active)
-    return u, had and not active and alarm.status != "closed"
+    return u, is_open and had and not active
 
 
 def list_alarms(*, session: Session, status: str | None, tail: str | None, limit: int,
