@@ -209,7 +209,8 @@ def test_viewer_cannot_inject(live: Live, browser) -> None:  # type: ignore[no-u
 
 def test_replacement_with_a_work_order_from_the_actuator_page(live: Live, browser) -> None:  # type: ignore[no-untyped-def]
     """A maintenance engineer replaces a unit in alarm (BDO: replace now) from its page with a
-    work-order number; the page of the new unit shows it healthy, the trail shows who, when, the order."""
+    work-order number; the page of the new unit shows it healthy, the trail shows who, when,
+    the order."""
     tail = live.tails[2]
     add_alarm(live.factory, tail=tail, position="WT", fault_mode="BDO", rul=None)  # type: ignore[arg-type]
     context = browser.new_context(viewport={"width": 1280, "height": 800})
