@@ -25,7 +25,7 @@ import json
 import math
 import os
 import shutil
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -34,7 +34,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from server.flightlog import FlightLog, write_parquet
-from server.vocabulary import POSITIONS, WINGLET_PAIR
+from server.vocabulary import POSITIONS, SENSORS, WINGLET_PAIR
 
 from .faults import (
     A_PRIORI,
@@ -55,8 +55,8 @@ from .flight import (
 )
 
 __all__ = ["ScaleConfig", "SCALES", "plan_campaign", "run_campaign", "run_pattern", "FORMAT",
-           "SETTINGS_FILE", "FlightSink", "ParquetSink", "PatternTask", "fleet_for",
-           "write_file"]
+           "SETTINGS_FILE", "FlightSink", "ParquetSink", "PatternTask", "SensorFault",
+           "fleet_for", "write_file"]
 
 FORMAT = "ema-campaign/1"
 #: the settings a finished campaign was made with, beside its manifest
@@ -124,18 +124,96 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
 }
 
 
+#: the noise field of each sensor in :class:`~sim_worker.params.SensorParams`
+_NOISE_FIELD = {"current": "current_noise_a", "voltage": "voltage_noise_v",
+                "resolver": "resolver_noise_rad", "lvdt": "lvdt_noise_m"}
+_FAULT_KINDS = ("noise", "drift")
+
+
+@dataclass(frozen=True)
+class SensorFault:
+    """One degraded sensor of one actuator (sensor-health studies), on every aircraft.
+
+    ``noise``: that actuator's noise of that sensor multiplied by ``value`` (> 0, on top of
+    ``noise_scale``). ``drift`` (LVDT only): its offset grows by ``value`` metres per flight,
+    rigging offset + value x flight index of the pattern. Spec: ``WT.lvdt:noise=2``,
+    ``WL1.lvdt:drift=1e-06``.
+    """
+
+    position: str
+    sensor: str
+    kind: str
+    value: float
+
+    def __post_init__(self) -> None:
+        if self.position not in POSITIONS:
+            raise ValueError(f"unknown position {self.position!r}; expected one of "
+                             f"{', '.join(POSITIONS)}")
+        if self.sensor not in SENSORS:
+            raise ValueError(f"unknown sensor {self.sensor!r}; expected one of "
+                             f"{', '.join(SENSORS)}")
+        if self.kind not in _FAULT_KINDS:
+            raise ValueError(f"unknown sensor fault {self.kind!r}; expected noise or drift")
+        if self.kind == "drift" and self.sensor != "lvdt":
+            raise ValueError(f"drift is an LVDT fault, not a {self.sensor} one")
+        value = float(self.value)
+        if not math.isfinite(value):
+            raise ValueError(f"{self.kind} must be finite, got {value}")
+        if self.kind == "noise" and not value > 0:
+            raise ValueError(f"noise factor must be positive, got {value:g}")
+        object.__setattr__(self, "value", value)  # a plain float: the spec is canonical
+
+    @classmethod
+    def parse(cls, spec: str) -> SensorFault:
+        """``<POSITION>.<SENSOR>:noise=<factor>`` or ``<POSITION>.lvdt:drift=<m per flight>``."""
+        target, sep, setting = spec.strip().partition(":")
+        position, dot, sensor = target.partition(".")
+        kind, eq, text = setting.partition("=")
+        if not (sep and dot and eq):
+            raise ValueError(f"sensor fault {spec!r} is not POSITION.SENSOR:noise=FACTOR or "
+                             "POSITION.lvdt:drift=METRES")
+        try:
+            value = float(text)
+        except ValueError:
+            raise ValueError(f"sensor fault {spec!r}: {text!r} is not a number") from None
+        return cls(position.strip(), sensor.strip(), kind.strip(), value)
+
+    @property
+    def spec(self) -> str:
+        # repr round-trips the float exactly; "2.0" is written "2"
+        text = repr(self.value)
+        return f"{self.position}.{self.sensor}:{self.kind}=" + text.removesuffix(".0")
+
+
+def _sensor_faults(faults: Iterable[SensorFault | str] | None) -> tuple[SensorFault, ...]:
+    """Faults (specs parsed) in a canonical order, so that the settings of a campaign do not
+    depend on the order they were given in; one fault per position, sensor and kind."""
+    parsed = [f if isinstance(f, SensorFault) else SensorFault.parse(f) for f in faults or ()]
+    seen: set[tuple[str, str, str]] = set()
+    for f in parsed:
+        key = (f.position, f.sensor, f.kind)
+        if key in seen:
+            raise ValueError(f"sensor fault {f.position}.{f.sensor}:{f.kind} given twice")
+        seen.add(key)
+    return tuple(sorted(parsed, key=lambda f: (POSITIONS.index(f.position),
+                                               SENSORS.index(f.sensor), f.kind)))
+
+
 def _seed(*key: int) -> int:
     return int(np.random.SeedSequence(list(key)).generate_state(1, dtype=np.uint64)[0] >> 1)
 
 
 def fleet_for(kind: str, seed: int, *, bases: tuple[str, ...] | None = None,
-              noise_scale: float = 1.0) -> list[Aircraft]:
+              noise_scale: float = 1.0,
+              sensor_faults: Iterable[SensorFault | str] = ()) -> list[Aircraft]:
     """The ten aircraft of a campaign; verification tails and seeds never equal design ones.
 
     ``bases`` (robustness studies) cycles the given bases over the ten aircraft instead of
     4 Turin / 3 Vancouver / 3 Abu Dhabi; ``noise_scale`` multiplies every sensor's noise
-    (currents, voltages, resolver, LVDT; offsets and quantisation unchanged). Tails and
-    aircraft seeds do not depend on either.
+    (currents, voltages, resolver, LVDT; offsets and quantisation unchanged). A ``noise``
+    sensor fault multiplies one position's noise of one sensor further; a ``drift`` leaves
+    the fleet as rigged (it is flown per flight, see :func:`_at_flight`). Tails and aircraft
+    seeds depend on none of these.
     """
     code = _KIND_CODE[kind]
     prefix = "I-DSG" if kind == "design" else "I-VER"
@@ -145,6 +223,9 @@ def fleet_for(kind: str, seed: int, *, bases: tuple[str, ...] | None = None,
              for i, base in enumerate(order)]
     if noise_scale != 1.0:
         fleet = [_with_noise(a, noise_scale) for a in fleet]
+    noisy = [f for f in _sensor_faults(sensor_faults) if f.kind == "noise"]
+    if noisy:
+        fleet = [_with_sensor_noise(a, noisy) for a in fleet]
     return fleet
 
 
@@ -158,6 +239,27 @@ def _with_noise(aircraft: Aircraft, factor: float) -> Aircraft:
             lvdt_noise_m=sen.lvdt_noise_m * factor))
 
     return replace(aircraft, ema={pos: scaled(p) for pos, p in aircraft.ema.items()})
+
+
+def _with_sensor_noise(aircraft: Aircraft, faults: Iterable[SensorFault]) -> Aircraft:
+    ema = dict(aircraft.ema)
+    for f in faults:
+        sen, field = ema[f.position].sensors, _NOISE_FIELD[f.sensor]
+        ema[f.position] = ema[f.position].with_(
+            sensors=replace(sen, **{field: getattr(sen, field) * f.value}))
+    return replace(aircraft, ema=ema)
+
+
+def _at_flight(aircraft: Aircraft, faults: Iterable[SensorFault], index: int) -> Aircraft:
+    """The aircraft as flown at flight ``index`` of a pattern: each drifting LVDT's offset
+    grown linearly from its rigging offset (the kernel reads the offset from the parameter
+    row, so the drift acts in the loop that closes on the LVDT, as a real one would)."""
+    flown = aircraft
+    for f in faults:
+        if f.kind == "drift":
+            rigging = aircraft.offsets[f.position][3]
+            flown = flown.with_lvdt_offset(f.position, rigging + f.value * index)
+    return flown
 
 
 @dataclass(frozen=True)
@@ -249,12 +351,13 @@ class ParquetSink:
 
 
 def _render(out_dir: Path, aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index: int,
-            duration_s: float, sink: FlightSink
+            duration_s: float, sink: FlightSink, sensor_faults: tuple[SensorFault, ...] = ()
             ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
     flight_id = f"{spec.id}-{index:04d}"
     start = flight_start(index, day_offset=spec.day_offset)
-    log, summary = simulate_flight(aircraft, fault, index, _flight_rng(spec, index, 0),
-                                   flight_id=flight_id, started_at=start, duration_s=duration_s)
+    log, summary = simulate_flight(_at_flight(aircraft, sensor_faults, index), fault, index,
+                                   _flight_rng(spec, index, 0), flight_id=flight_id,
+                                   started_at=start, duration_s=duration_s)
     rel, stored = sink(out_dir, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
                        _ground_temp(summary))
     return flight_id, rel, summary, stored
@@ -304,9 +407,11 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     stored: dict[str, dict[str, Any]] = {}
     failure: int | None = None
 
+    faults = tuple(task.options.get("sensor_faults", ()))
+
     def render(fault: FaultState, index: int) -> Any:
         fid, rel, summ, data = _render(out_dir, aircraft, spec, fault, index, cfg.duration_s,
-                                       sink)
+                                       sink, faults)
         rendered.append((index, fid, rel, fault, summ))
         if data is not None:
             stored[fid] = data
@@ -390,9 +495,15 @@ def _completed(tasks: dict[int, PatternTask], workers: int, executor: Executor |
 def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[str, Any],
               sink: FlightSink) -> dict[str, Any]:
     """What determines the campaign's content: a resumed campaign must match it exactly."""
-    return {"format": FORMAT, "kind": kind, "seed": int(seed), "scale": scale,
-            "config": asdict(cfg), "bases": list(options["bases"]) if options["bases"] else None,
-            "noise_scale": options["noise_scale"], "sink": sink.describe()}
+    settings = {"format": FORMAT, "kind": kind, "seed": int(seed), "scale": scale,
+                "config": asdict(cfg),
+                "bases": list(options["bases"]) if options["bases"] else None,
+                "noise_scale": options["noise_scale"], "sink": sink.describe()}
+    if options["sensor_faults"]:
+        # only when given: campaigns without sensor faults keep the settings they had
+        # before the option existed, so finished ones are still recognised
+        settings["sensor_faults"] = [f.spec for f in options["sensor_faults"]]
+    return settings
 
 
 class _Progress:
@@ -428,6 +539,7 @@ class _Progress:
 def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "quick",
                  workers: int | None = None, progress: bool = True,
                  bases: tuple[str, ...] | None = None, noise_scale: float = 1.0,
+                 sensor_faults: Iterable[SensorFault | str] = (),
                  render_every: int | None = None,
                  span_flights: tuple[float, float] | None = None,
                  sink: FlightSink | None = None,
@@ -437,7 +549,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     Manifest (``DIR/manifest.json``)::
 
         {"format": "ema-campaign/1", "kind", "seed", "scale", "duration_s", "render_every",
-         "lead_flights", "span_flights", "noise_scale", "bases", "sink",
+         "lead_flights", "span_flights", "noise_scale", "bases", "sensor_faults", "sink",
          "aircraft": [{"tail", "base", "climate", "serials": {pos: serial}, "params": {...}}],
          "patterns": [{"id", "aircraft", "mode", "position", "threshold", "onset_flight",
                        "failure_flight", "flights": [{"flight", "index", "file", "started_at",
@@ -445,13 +557,15 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                        "ground_temp_c", "measured_summary"}]}]}
 
     A flight's ``file`` is None when the sink kept no log of it (a streamed campaign keeps
-    its features instead). ``render_every`` overrides the scale's rendering step of
-    fault-to-failure runs (1 renders every flight, as a fleet in service downloads every one);
-    ``span_flights`` the range of expected fault-to-failure spans. ``sink`` decides what is
-    kept of a rendered flight (default: its Parquet file). Patterns run on ``executor``
-    (any ``concurrent.futures.Executor``, e.g. a Dask client's) if given, else on a local
-    pool of ``workers`` processes; the output does not depend on either. An interrupted run
-    resumes where it stopped when called again with the same arguments.
+    its features instead). ``sensor_faults`` (:class:`SensorFault` or their specs) degrade
+    one sensor of one actuator on every aircraft, written as their specs
+    (``["WT.lvdt:noise=2"]``, empty when none). ``render_every`` overrides the scale's
+    rendering step of fault-to-failure runs (1 renders every flight, as a fleet in service
+    downloads every one); ``span_flights`` the range of expected fault-to-failure spans.
+    ``sink`` decides what is kept of a rendered flight (default: its Parquet file). Patterns
+    run on ``executor`` (any ``concurrent.futures.Executor``, e.g. a Dask client's) if given,
+    else on a local pool of ``workers`` processes; the output does not depend on either. An
+    interrupted run resumes where it stopped when called again with the same arguments.
     """
     if scale not in SCALES:
         raise ValueError(f"scale must be one of {sorted(SCALES)}")
@@ -459,6 +573,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
         raise ValueError(f"bases must be among {sorted(BASES)}")
     if not noise_scale > 0:
         raise ValueError("noise_scale must be positive")
+    faults = _sensor_faults(sensor_faults)
     cfg = _scale_config(scale, kind, render_every, span_flights)
     sink = sink if sink is not None else ParquetSink()
     from tqdm import tqdm
@@ -467,7 +582,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale)}
+    # a plain tuple of frozen dataclasses: pickled as is to pool and Dask workers
+    options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale),
+               "sensor_faults": faults}
     settings = _settings(kind, seed, scale, cfg, options, sink)
     finished = _finished_manifest(out, settings)
     if finished is not None:
@@ -510,6 +627,7 @@ def _manifest(settings: dict[str, Any], cfg: ScaleConfig, fleet: list[Aircraft],
         "span_flights": list(cfg.span_flights),
         "noise_scale": settings["noise_scale"],
         "bases": settings["bases"],
+        "sensor_faults": settings.get("sensor_faults", []),
         "sink": settings["sink"],
         "aircraft": [{"tail": a.tail, "base": a.base, "climate": BASES[a.base],
                       "serials": dict(a.serials), "params": a.params_summary()} for a in fleet],

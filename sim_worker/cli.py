@@ -108,7 +108,32 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
                       "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
     camp.add_argument("--noise-scale", type=float, default=1.0,
                       help="robustness: multiply every sensor's noise by this factor")
+    camp.add_argument("--sensor-fault", action=_SensorFaultAction, default=[], metavar="SPEC",
+                      help="sensor health: degrade one sensor of one actuator on every "
+                      "aircraft, POSITION.SENSOR:noise=FACTOR (noise x FACTOR) or "
+                      "POSITION.lvdt:drift=METRES (LVDT offset + METRES per flight); "
+                      "repeatable, e.g. WT.lvdt:noise=2")
     return camp
+
+
+class _SensorFaultAction(argparse.Action):
+    """Appends a parsed :class:`~sim_worker.campaign.SensorFault`; a bad or repeated spec is
+    an argparse error (usage and message) before any simulation starts."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        from .campaign import SensorFault
+
+        try:
+            fault = SensorFault.parse(str(values))
+        except ValueError as exc:
+            raise argparse.ArgumentError(self, str(exc)) from None
+        given = list(getattr(namespace, self.dest, None) or [])  # never the shared default
+        if any((f.position, f.sensor, f.kind) == (fault.position, fault.sensor, fault.kind)
+               for f in given):
+            raise argparse.ArgumentError(
+                self, f"{fault.position}.{fault.sensor}:{fault.kind} given twice")
+        setattr(namespace, self.dest, [*given, fault])
 
 
 def parse_span_range(text: str | None) -> tuple[float, float] | None:
@@ -146,7 +171,10 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None
     with campaign_executor(args.dask) as executor:
         return run_campaign(args.kind, args.out, seed=args.seed, scale=args.scale,
                             workers=args.workers, progress=not args.no_progress, bases=bases,
-                            noise_scale=args.noise_scale, render_every=args.render_every,
+                            noise_scale=args.noise_scale,
+                            # callers building their own namespace may predate the option
+                            sensor_faults=tuple(args.sensor_fault or ()),
+                            render_every=args.render_every,
                             span_flights=parse_span_range(args.span_range),
                             sink=sink, executor=executor)  # type: ignore[arg-type]
 

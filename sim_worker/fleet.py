@@ -73,6 +73,12 @@ class Aircraft:
     def climate(self) -> str:
         return BASES[self.base]
 
+    def with_lvdt_offset(self, position: str, metres: float) -> Aircraft:
+        """This aircraft with the LVDT of ``position`` off by ``metres`` (its rigging offset
+        replaced; the current offsets kept): a drifting sensor, flown as the kernel reads it."""
+        ia, ib, ic, _ = self.offsets[position]
+        return replace(self, offsets={**self.offsets, position: (ia, ib, ic, float(metres))})
+
     def params_summary(self) -> dict[str, Any]:
         """Per-position parameters that differ between aircraft (for the manifest)."""
         out: dict[str, Any] = {}

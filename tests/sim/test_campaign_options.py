@@ -1,10 +1,34 @@
-"""Robustness options of campaigns: other bases, scaled sensor noise; tails and seeds fixed."""
+"""Robustness options of campaigns: other bases, scaled sensor noise, one degraded sensor;
+tails and seeds fixed."""
 
 from __future__ import annotations
 
+import pickle
+
+import numpy as np
 import pytest
 
-from sim_worker.campaign import fleet_for, run_campaign
+from server.flightlog import FlightLog
+from server.vocabulary import POSITIONS
+from sim_worker.campaign import (
+    SCALES,
+    ParquetSink,
+    SensorFault,
+    _at_flight,
+    _manifest,
+    _Progress,
+    _render,
+    _sensor_faults,
+    _settings,
+    fleet_for,
+    plan_campaign,
+    run_campaign,
+)
+from sim_worker.cli import build_parser
+from sim_worker.faults import healthy
+from sim_worker.flight import draw_conditions, run_scenario
+from sim_worker.kernel import D
+from sim_worker.scenario import build_scenario
 
 
 def test_noise_scale_multiplies_sensor_noise_only() -> None:
@@ -38,3 +62,159 @@ def test_unknown_base_is_refused(tmp_path) -> None:
 def test_render_every_must_be_a_positive_int(tmp_path, bad) -> None:
     with pytest.raises(ValueError, match="render_every"):
         run_campaign("design", tmp_path, seed=1, render_every=bad, progress=False)
+
+
+# ---- sensor faults: one sensor of one actuator degraded on every aircraft -------------------
+
+
+def test_sensor_fault_spec_round_trips() -> None:
+    f = SensorFault.parse("WT.lvdt:noise=2")
+    assert f == SensorFault("WT", "lvdt", "noise", 2.0)
+    assert f.spec == "WT.lvdt:noise=2"
+    for spec in ("WL1.lvdt:drift=1e-06", "WL2.current:noise=0.5", "WT.lvdt:drift=-3e-07"):
+        assert SensorFault.parse(spec).spec == spec
+    assert pickle.loads(pickle.dumps((f,))) == (f,)  # PatternTask options go to workers
+
+
+@pytest.mark.parametrize(("spec", "message"), [
+    ("WX.lvdt:noise=2", "unknown position"),
+    ("WT.gyro:noise=2", "unknown sensor"),
+    ("WT.lvdt:bias=2", "unknown sensor fault"),
+    ("WT.current:drift=1e-6", "drift is an LVDT fault"),
+    ("WT.lvdt:noise=0", "positive"),
+    ("WT.lvdt:noise=-1", "positive"),
+    ("WT.lvdt:noise=nan", "finite"),
+    ("WT.lvdt:noise=inf", "finite"),
+    ("WT.lvdt:drift=inf", "finite"),
+    ("WT.lvdt:noise=two", "not a number"),
+    ("WT.lvdt", "POSITION.SENSOR"),
+    ("lvdt:noise=2", "POSITION.SENSOR"),
+])
+def test_bad_sensor_fault_specs_say_what_is_wrong(spec, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        SensorFault.parse(spec)
+
+
+def test_noise_fault_scales_one_sensor_of_one_actuator() -> None:
+    nominal = fleet_for("design", 3)
+    faulty = fleet_for("design", 3, noise_scale=2.0,
+                       sensor_faults=("WT.lvdt:noise=3", "WL1.current:noise=0.5"))
+    for a, b in zip(nominal, faulty, strict=True):
+        assert b.offsets == a.offsets
+        for pos in POSITIONS:
+            sa, sb = a.ema[pos].sensors, b.ema[pos].sensors
+            # combined multiplicatively with the campaign's noise scale
+            assert sb.lvdt_noise_m == pytest.approx(sa.lvdt_noise_m * (6 if pos == "WT" else 2))
+            assert sb.current_noise_a == pytest.approx(
+                sa.current_noise_a * (1 if pos == "WL1" else 2))
+            assert sb.voltage_noise_v == pytest.approx(2 * sa.voltage_noise_v)
+            assert sb.resolver_noise_rad == pytest.approx(2 * sa.resolver_noise_rad)
+
+
+def test_drift_leaves_the_fleet_as_rigged() -> None:
+    nominal = fleet_for("design", 3)
+    drifting = fleet_for("design", 3, sensor_faults=(SensorFault.parse("WT.lvdt:drift=1e-5"),))
+    assert [a.offsets for a in drifting] == [a.offsets for a in nominal]
+    assert [a.ema for a in drifting] == [a.ema for a in nominal]
+
+
+def test_same_sensor_fault_twice_is_refused(tmp_path) -> None:
+    with pytest.raises(ValueError, match="twice"):
+        run_campaign("design", tmp_path, seed=1, progress=False,
+                     sensor_faults=("WT.lvdt:noise=2", "WT.lvdt:noise=3"))
+
+
+def test_sensor_faults_are_campaign_settings(tmp_path) -> None:
+    cfg = SCALES["ci"]["design"]
+    opts = {"bases": None, "noise_scale": 1.0}
+    plain = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": ()}, ParquetSink())
+    faults = _sensor_faults(["WT.lvdt:noise=2", "WL1.lvdt:drift=1e-06"])
+    faulty = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": faults}, ParquetSink())
+    assert "sensor_faults" not in plain  # campaigns made before the option stay recognised
+    assert faulty["sensor_faults"] == ["WL1.lvdt:drift=1e-06", "WT.lvdt:noise=2"]  # canonical
+    _Progress(tmp_path, plain)
+    with pytest.raises(ValueError, match="other settings"):
+        _Progress(tmp_path, faulty)  # resuming with other sensor faults is refused
+    fleet = fleet_for("design", 1)
+    assert _manifest(plain, cfg, fleet, [])["sensor_faults"] == []
+    assert _manifest(faulty, cfg, fleet, [])["sensor_faults"] == faulty["sensor_faults"]
+
+
+class _Keep:
+    """A sink that keeps the rendered log in memory."""
+
+    def __init__(self) -> None:
+        self.logs: dict[int, FlightLog] = {}
+
+    def __call__(self, out_dir, rel, index, log, ground_temp_c):
+        self.logs[index] = log
+        return None, None
+
+    def describe(self):
+        return {"sink": "keep"}
+
+    def finish(self, out_dir, stored):
+        return None
+
+
+def _rendered_x(tmp_path, faults: tuple[SensorFault, ...], index: int) -> dict[str, np.ndarray]:
+    aircraft = fleet_for("design", 1)[0]
+    spec = plan_campaign("design", 1, "ci")[0]
+    sink = _Keep()
+    _render(tmp_path, aircraft, spec, healthy(), index, 4.0, sink, faults)
+    return {pos: sink.logs[index].channels[f"{pos}.x"].astype(float) for pos in POSITIONS}
+
+
+def test_lvdt_drift_shifts_the_rendered_winglet_lvdts(tmp_path) -> None:
+    drift, index = 2e-5, 5
+    faults = (SensorFault.parse(f"WL1.lvdt:drift={drift}"),)
+    base, drifted = _rendered_x(tmp_path, (), index), _rendered_x(tmp_path, faults, index)
+    shift = {pos: float(np.median(drifted[pos] - base[pos])) for pos in POSITIONS}
+    lsb = 2.0**-19
+    # the position loop closes on the mean of the two winglet LVDTs: the tab moves by half the
+    # offset, so WL1 reads +offset/2, WL2 -offset/2, and their difference the whole offset
+    assert shift["WL1"] - shift["WL2"] == pytest.approx(drift * index, abs=2 * lsb)
+    assert shift["WL1"] == pytest.approx(drift * index / 2, abs=2 * lsb)
+    assert shift["WT"] == 0.0
+    # flight 0 is the rigged one
+    assert np.array_equal(_rendered_x(tmp_path, faults, 0)["WL1"],
+                          _rendered_x(tmp_path, (), 0)["WL1"])
+
+
+def test_lvdt_drift_moves_the_wingtip_rod_under_its_own_loop() -> None:
+    aircraft = fleet_for("design", 1)[0]
+    drift, index = 2e-5, 5
+    flown = _at_flight(aircraft, (SensorFault.parse(f"WT.lvdt:drift={drift}"),), index)
+    assert flown.offsets["WT"][3] == pytest.approx(aircraft.offsets["WT"][3] + drift * index)
+    assert flown.offsets["WL1"] == aircraft.offsets["WL1"]
+    k = POSITIONS.index("WT")
+
+    def rod(ac):
+        rng = np.random.default_rng(7)
+        cond = draw_conditions(ac, index, rng)
+        return run_scenario(ac, healthy(), build_scenario(cond.warp, cond.ground_temp_c, rng,
+                                                          duration_s=4.0), rng).truth[:, k, D.XROD]
+
+    # the single wingtip LVDT is its loop's feedback: the true rod sits off by -offset
+    assert float(np.median(rod(flown) - rod(aircraft))) == pytest.approx(-drift * index,
+                                                                           rel=0.05)
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--sensor-fault", "WT.current:drift=1e-6"], "drift is an LVDT fault"),
+    (["--sensor-fault", "WT.lvdt:noise=2", "--sensor-fault", "WT.lvdt:noise=3"], "twice"),
+])
+def test_cli_refuses_a_bad_sensor_fault(capsys, args, message) -> None:
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(["campaign", "--kind", "design", "--out", "x", *args])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_cli_collects_sensor_faults() -> None:
+    args = build_parser().parse_args(["campaign", "--kind", "design", "--out", "x",
+                                      "--sensor-fault", "WT.lvdt:noise=2",
+                                      "--sensor-fault", "WT.lvdt:drift=1e-6"])
+    assert [f.spec for f in args.sensor_fault] == ["WT.lvdt:noise=2", "WT.lvdt:drift=1e-06"]
+    assert build_parser().parse_args(["campaign", "--kind", "design", "--out", "x"]
+                                     ).sensor_fault == []
