@@ -172,7 +172,6 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None
         return run_campaign(args.kind, args.out, seed=args.seed, scale=args.scale,
                             workers=args.workers, progress=not args.no_progress, bases=bases,
                             noise_scale=args.noise_scale,
-                            # callers building their own namespace may predate the option
                             sensor_faults=tuple(args.sensor_fault or ()),
                             render_every=args.render_every,
                             span_flights=parse_span_range(args.span_range),
