@@ -165,7 +165,8 @@ def _features_from_dict(d: Mapping[str, Any]) -> FlightFeatures:
     summ = {k: FeatureSummary(float(v["value"]), float(v["dispersion"]), int(v["n_valid"]))
             for k, v in d["summaries"].items()}
     cond = {p: {k: float(v) for k, v in c.items()} for p, c in d["conditions"].items()}
-    return FlightFeatures(summ, cond)
+    quality = {ch: {k: float(v) for k, v in q.items()} for ch, q in d.get("quality", {}).items()}
+    return FlightFeatures(summ, cond, quality=quality)
 
 
 def _cached_features(root: Path, manifest: Mapping[str, Any], cfg: FeatureConfig, jobs: int,
@@ -221,15 +222,16 @@ def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | 
     manifest = read_manifest(root)
     cached = _cached_features(root, manifest, config or FeatureConfig(), jobs, cache)
     bases = {str(a.get("tail")): a.get("base") for a in manifest.get("aircraft", [])}
-    patterns = []
+    patterns, study = [], []
     for pat in manifest["patterns"]:
         recs = [_record(root, fl, cached[fl["flight"]])
                 for fl in sorted(pat["flights"], key=lambda f: int(f["index"]))]
-        patterns.append(Pattern(str(pat["id"]), str(pat["aircraft"]), str(pat["mode"]),
-                                pat.get("position"), pat.get("onset_flight"),
-                                pat.get("failure_flight"), recs, bases.get(str(pat["aircraft"]))))
+        (study if pat.get("sensor_study") else patterns).append(Pattern(
+            str(pat["id"]), str(pat["aircraft"]), str(pat["mode"]), pat.get("position"),
+            pat.get("onset_flight"), pat.get("failure_flight"), recs,
+            bases.get(str(pat["aircraft"])), pat.get("sensor_study")))
     return Campaign(str(manifest.get("kind")), int(manifest.get("seed", 0)), patterns,
-                    list(manifest.get("aircraft", [])))
+                    list(manifest.get("aircraft", [])), study)
 
 
 def train_from_directory(design_dir: str | os.PathLike[str], *, seed: int = 0,

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from server.vocabulary import POSITIONS
+from server.vocabulary import POSITIONS, SIGNALS
 
 __all__ = [
     "FORMAT",
@@ -69,7 +69,6 @@ __all__ = [
 ]
 
 FORMAT = "ema-flightlog/1"
-SIGNALS: tuple[str, ...] = ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")
 NOMINAL_SAMPLE_RATE_HZ = 800.0
 REQUIRED_CHANNELS: tuple[str, ...] = ("t",) + tuple(f"{p}.{s}" for p in POSITIONS for s in SIGNALS)
 OPTIONAL_CHANNELS: tuple[str, ...] = tuple(f"{p}.x_cmd" for p in POSITIONS) + (

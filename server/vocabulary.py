@@ -10,6 +10,9 @@ from __future__ import annotations
 
 __all__ = [
     "POSITIONS",
+    "SIGNALS",
+    "SENSOR_OF_SIGNAL",
+    "SENSORS",
     "WINGLET_PAIR",
     "WINGLET_UNIT",
     "FAULT_MODES",
@@ -31,6 +34,17 @@ POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
 WINGLET_PAIR: tuple[str, str] = ("WL1", "WL2")
 #: detection unit of the features that belong to the winglet pair, not to one drive
 WINGLET_UNIT = "WL"
+
+#: the recorded sensor signals of one actuator (flight-log v1 ``"<position>.<signal>"``):
+#: phase currents [A], phase voltages [V], resolver shaft angle [rad], LVDT rod position [m]
+SIGNALS: tuple[str, ...] = ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")
+
+#: the sensor each signal comes from (the three phase currents share one current-sensor
+#: chain's design, likewise the voltages); a sensor finding names the channel and its sensor
+SENSOR_OF_SIGNAL: dict[str, str] = {"ia": "current", "ib": "current", "ic": "current",
+                                    "va": "voltage", "vb": "voltage", "vc": "voltage",
+                                    "theta": "resolver", "x": "lvdt"}
+SENSORS: tuple[str, ...] = tuple(dict.fromkeys(SENSOR_OF_SIGNAL.values()))
 
 #: the seven fault modes (paper section 4.2), one at a time per actuator
 FAULT_MODES: tuple[str, ...] = ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR", "REWEAR")

@@ -82,6 +82,13 @@ class ScaleConfig:
     span_flights: tuple[float, float] = SPAN_FLIGHTS
 
 
+#: the design campaign's sensor study: per sensor, this many of its healthy patterns flown
+#: again with that sensor's noise multiplied by SENSOR_STUDY_NOISE on every actuator (the same
+#: flights, seeds and noise draws as their twins): training learns from the pairs what a
+#: noisier sensor does to each feature, loops included (server.phm.sensor_health)
+SENSOR_STUDY_PATTERNS = 2
+SENSOR_STUDY_NOISE = 2.0
+
 SCALES: dict[str, dict[str, ScaleConfig]] = {
     # Quick scale: big enough for honest statistics in CI (>= 250 healthy verification
     # flights on 10 aircraft, >= 3 patterns per mode), small enough for ~1 min per campaign.
@@ -273,6 +280,20 @@ class PatternSpec:
     onset: int
     seed: int
     day_offset: float
+    sensor_study: str | None = None  # the sensor flown noisier (design sensor study)
+    twin: str | None = None  # the healthy pattern it repeats
+
+
+def _sensor_study(specs: list[PatternSpec], healthy_patterns: int) -> list[PatternSpec]:
+    """The sensor-study patterns of a design campaign: twins of its first healthy patterns."""
+    out = []
+    for si, sensor in enumerate(SENSORS):
+        for j in range(SENSOR_STUDY_PATTERNS):
+            twin = specs[(si * SENSOR_STUDY_PATTERNS + j) % healthy_patterns]
+            out.append(replace(twin, id=f"D-sensor-{sensor}-{j + 1:02d}",
+                               number=len(specs) + len(out), sensor_study=sensor,
+                               twin=twin.id))
+    return out
 
 
 def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
@@ -302,6 +323,8 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
                 add(mode, pos, ai, cfg.apriori_flights, cfg.apriori_onset, j)
             else:
                 add(mode, pos, ai, 0, cfg.lead_flights, j)
+    if kind == "design" and cfg.healthy_patterns:
+        specs += _sensor_study(specs, cfg.healthy_patterns)
     return specs
 
 
@@ -403,6 +426,9 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     cfg, spec, sink = task.cfg, task.spec, task.sink
     out_dir = Path(task.out_dir)
     aircraft = fleet_for(task.kind, task.seed, **task.options)[spec.aircraft_index]
+    if spec.sensor_study is not None:
+        aircraft = _with_sensor_noise(aircraft, [
+            SensorFault(p, spec.sensor_study, "noise", SENSOR_STUDY_NOISE) for p in POSITIONS])
     rendered: list[tuple[int, str, str | None, FaultState, Any]] = []
     stored: dict[str, dict[str, Any]] = {}
     failure: int | None = None
@@ -433,10 +459,18 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
             "threshold": threshold,
             "onset_flight": spec.onset,
             "failure_flight": failure,
+            **_study_entry(spec),
             "flights": flights,
         },
         "stored": stored,
     }
+
+
+def _study_entry(spec: PatternSpec) -> dict[str, Any]:
+    if spec.sensor_study is None:
+        return {}
+    return {"sensor_study": {"sensor": spec.sensor_study, "noise": SENSOR_STUDY_NOISE,
+                             "twin": spec.twin}}
 
 
 def _constant_run(spec: PatternSpec, render: Callable[[FaultState, int], Any]) -> float | None:
@@ -499,6 +533,9 @@ def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[
                 "config": asdict(cfg),
                 "bases": list(options["bases"]) if options["bases"] else None,
                 "noise_scale": options["noise_scale"], "sink": sink.describe()}
+    if kind == "design":
+        settings["sensor_study"] = {"patterns": SENSOR_STUDY_PATTERNS,
+                                    "noise": SENSOR_STUDY_NOISE}
     if options["sensor_faults"]:
         # only when given: campaigns without sensor faults keep the settings they had
         # before the option existed, so finished ones are still recognised
@@ -555,6 +592,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                        "failure_flight", "flights": [{"flight", "index", "file", "started_at",
                        "severity", "severity_norm", "true_rul_flights", "block_hours",
                        "ground_temp_c", "measured_summary"}]}]}
+
+    A design campaign ends with its sensor study: patterns with ``"sensor_study": {"sensor",
+    "noise", "twin"}``, healthy, each the twin pattern again with one sensor noisier.
 
     A flight's ``file`` is None when the sink kept no log of it (a streamed campaign keeps
     its features instead). ``sensor_faults`` (:class:`SensorFault` or their specs) degrade

@@ -91,6 +91,28 @@ class AlarmAction(BaseModel):
     note: str | None = Field(None, max_length=2000)
 
 
+class SensorFindingRead(BaseModel):
+    """A channel whose signal-quality figure left its healthy band (server/phm/sensor_health.py)."""
+
+    channel: str = Field(description='"<position>.<signal>", e.g. "WT.x" (the LVDT)')
+    sensor: str = Field(description="current | voltage | resolver | lvdt")
+    metric: str = Field(description="noise (floor, rms) | offset (LVDT against the motor "
+                        "shaft, m) | lsb (quantisation step) | stuck | saturated (share)")
+    value: float | None
+    low: float | None = Field(description="healthy band, learned on the design campaign")
+    high: float | None
+
+
+class SensorFlightRead(BaseModel):
+    flight_id: int
+    flight_index: int
+    started_at: datetime | None
+    findings: list[SensorFindingRead]
+    set_aside: list[str] = Field(description="features not judged on this flight")
+    widened: dict[str, float] = Field(
+        description="features judged with a widened flight scatter: added variance [z^2]")
+
+
 class GridCellRead(BaseModel):
     tail: str
     base: str
@@ -108,6 +130,8 @@ class GridCellRead(BaseModel):
     rul_low: float | None
     open_alarm_id: int | None
     flights_seen: int
+    sensor_findings: list[SensorFindingRead] = Field(
+        description="sensor advisory: findings of the latest analysed flight")
 
 
 def alarm_read(row: service.AlarmRow) -> AlarmRead:
@@ -142,6 +166,15 @@ def prognoses(actuator_id: int, session: SessionDep, _: Reader,
               limit: Annotated[int, Query(ge=1, le=5000)] = 500) -> list[PrognosisRead]:
     return [PrognosisRead.model_validate(r) for r in
             service.prognoses(session=session, actuator_id=actuator_id, limit=limit)]
+
+
+@router.get("/actuators/{actuator_id}/sensor-findings", response_model=list[SensorFlightRead],
+            summary="Sensor advisories: flights whose signal quality left its healthy band")
+def sensor_findings(actuator_id: int, session: SessionDep, _: Reader,
+                    limit: Annotated[int, Query(ge=1, le=5000)] = 500
+                    ) -> list[SensorFlightRead]:
+    return [SensorFlightRead(**f.__dict__) for f in
+            service.sensor_findings(session=session, actuator_id=actuator_id, limit=limit)]
 
 
 @router.get("/fleet/health", response_model=list[GridCellRead],

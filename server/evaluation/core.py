@@ -66,6 +66,9 @@ no per-flight trace and no per-pattern prediction list; keys in this order::
                           "most_probable": {"point_estimate": "mode", "ph", "ph_ci",
                                             "ph_cone", "ph_cone_ci", "ra", "ra_ci"},
                           "n_patterns", "n_with_predictions", "paper": {"ph", "ra"}}},
+     "sensors": {"flights", "flights_with_finding", "healthy_cycle_flights",
+                 "healthy_cycle_flights_with_finding",
+                 "by_channel": {"<channel> <metric>": flights}},
      "timing": {...}, "wall_s": float | None}
 
 A mean without any value (e.g. RA of a mode none of whose patterns was detected) is None, and
@@ -195,6 +198,8 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
             else None,
             "fault_mode": o.fault_mode if o is not None else None,
             "rul": o.rul.to_dict() if o is not None and o.rul is not None else None,
+            "sensor": sorted({f"{x['channel']} {x['metric']}" for v in out.values()
+                              for x in v.sensor_findings}),
         })
     return {"id": pattern.id, "aircraft": pattern.aircraft, "mode": pattern.mode,
             "position": pattern.position, "onset": pattern.onset_flight,
@@ -246,6 +251,27 @@ def _argmax(probs: Mapping[str, float] | None) -> str:
     if not probs:
         return UNDETECTED
     return max(sorted(probs), key=lambda c: probs[c])
+
+
+def summarise_sensors(traces: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Sensor findings over the campaign: per ``"<channel> <metric>"`` the flights with it,
+    and how many flights of healthy cycles and of fault patterns had any."""
+    per: dict[str, int] = {}
+    flights = healthy = with_any = healthy_with_any = 0
+    for t in traces:
+        is_healthy = t["mode"] == "healthy"
+        for f in t["flights"]:
+            found = f.get("sensor") or []
+            flights += 1
+            healthy += is_healthy
+            with_any += bool(found)
+            healthy_with_any += bool(found) and is_healthy
+            for key in found:
+                per[key] = per.get(key, 0) + 1
+    return {"flights": flights, "flights_with_finding": with_any,
+            "healthy_cycle_flights": healthy,
+            "healthy_cycle_flights_with_finding": healthy_with_any,
+            "by_channel": dict(sorted(per.items()))}
 
 
 def summarise_detection(traces: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
@@ -680,6 +706,7 @@ def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, 
         "detection": summarise_detection(traces),
         "classification": classification_summary(traces, classes),
         "prognosis": summarise_prognosis(traces, point_estimate=point_estimate),
+        "sensors": summarise_sensors(traces),
         "timing": _timing_summary(chain_timing, feat, model),
         "patterns": traces,
     }
@@ -714,6 +741,7 @@ def summary_document(result: Mapping[str, Any]) -> dict[str, Any]:
         "classification": result["classification"],
         "prognosis": {m: {k: v for k, v in r.items() if k != "patterns"}
                       for m, r in result["prognosis"].items()},
+        "sensors": result.get("sensors"),
         "timing": result.get("timing"),
         "wall_s": result.get("wall_s"),
     }

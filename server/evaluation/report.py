@@ -197,6 +197,13 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
                      f"{_get_ci(r, 'pct_life_mean', '.1f')} | {_f(r['pct_life_max'], '.1f')} | "
                      f"{_get_ci(r, 'flights_after_onset_mean', '.1f')} | "
                      f"{_f(r['flights_after_onset_max'], '.0f')} | {r['other_unit_alarms']} |")
+    sens = result.get("sensors")
+    if sens:
+        named = ", ".join(f"{k} ({n})" for k, n in sens["by_channel"].items()) or "none"
+        lines += ["", f"Sensor findings: {sens['flights_with_finding']} of {sens['flights']} "
+                      f"flights ({sens['healthy_cycle_flights_with_finding']} of "
+                      f"{sens['healthy_cycle_flights']} flights of healthy cycles); by channel "
+                      f"and figure, flights: {named}."]
     out = {"detection": "\n".join(lines)}
     for key, title in (("at_first_alarm", "at the first alarm"),
                        ("at_last_flight", "at the last flight")):

@@ -40,6 +40,9 @@ class Pattern:
     failure_flight: int | None
     flights: list[FlightRecord] = field(default_factory=list)
     base: str | None = None  # the aircraft's home base
+    #: design sensor study: {"sensor", "noise", "twin"}, the twin healthy pattern flown again
+    #: with one sensor noisier (None for every other pattern)
+    sensor_study: dict[str, Any] | None = None
 
 
 @dataclass
@@ -48,6 +51,9 @@ class Campaign:
     seed: int
     patterns: list[Pattern]
     aircraft: list[dict[str, Any]]
+    #: the design campaign's sensor-study patterns, kept apart: they are healthy actuators
+    #: with noisier sensors, for :mod:`server.phm.sensor_health` only
+    sensor_study: list[Pattern] = field(default_factory=list)
 
 
 def is_healthy_flight(p: Pattern, r: FlightRecord) -> bool:

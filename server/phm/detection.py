@@ -644,13 +644,14 @@ class FaultDetector:
                                         self.reference_flights)
 
     def _self_one(self, state: DetectionState, f: str, i: int,
-                  v: float) -> tuple[float, float]:
-        """``(z_self, u_hat)`` of one feature value against the state's reference."""
+                  v: float, extra_variance: float = 0.0) -> tuple[float, float]:
+        """``(z_self, u_hat)`` of one feature value against the state's reference;
+        ``extra_variance`` adds to the flight scatter (a noisier sensor's share)."""
         ref = state.reference.get(f, [])
         med = float(np.median(ref)) if ref else 0.0
         u_hat, sd = _reference_posterior(np.array(med), np.array(len(ref)),
                                          self.within_std_[i], self.between_std_[i])
-        return (v - float(u_hat)) / float(sd), float(u_hat)
+        return (v - float(u_hat)) / math.sqrt(float(sd) ** 2 + extra_variance), float(u_hat)
 
     @property
     def z_alarm(self) -> float:
@@ -682,8 +683,14 @@ class FaultDetector:
             conf = np.fmax(conf, np.where(np.isfinite(c) & allowed, c, 0.0))
         return conf
 
-    def update(self, state: DetectionState, z: Mapping[str, float]) -> DetectionResult:
-        """Add one flight's residuals to ``state`` (in place) and evaluate the alarm."""
+    def update(self, state: DetectionState, z: Mapping[str, float],
+               extra_variance: Mapping[str, float] | None = None) -> DetectionResult:
+        """Add one flight's residuals to ``state`` (in place) and evaluate the alarm.
+
+        ``extra_variance`` (feature -> variance in residual units) widens a feature's flight
+        scatter for this flight: the share a sensor measured noisier than in design adds
+        (:mod:`server.phm.sensor_health`)."""
+        extra = extra_variance or {}
         self._check()
         keep = max(self.windows)
         conf: dict[str, float] = {}
@@ -695,7 +702,8 @@ class FaultDetector:
             i = self.feature_names_.index(f)
             v = z.get(f, math.nan)
             if v is not None and math.isfinite(v):
-                z_self[f], offset[f] = self._self_one(state, f, i, float(v))
+                z_self[f], offset[f] = self._self_one(state, f, i, float(v),
+                                                      extra.get(f, 0.0))
                 if len(ref) < self.reference_flights:
                     ref.append(float(v))
                 hist.append(z_self[f])

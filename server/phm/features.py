@@ -62,10 +62,13 @@ from functools import partial
 import numpy as np
 from scipy.signal import lfilter
 
-from server.vocabulary import ACTUATOR_FEATURES, POSITIONS, REWEAR_NAME, WINGLET_PAIR
+from server.vocabulary import ACTUATOR_FEATURES, POSITIONS, REWEAR_NAME, SIGNALS, WINGLET_PAIR
+
+from .signal_quality import flight_quality
 
 __all__ = [
     "FEATURE_VERSION",
+    "FEATURE_SENSORS",
     "ACTUATOR_FEATURES",
     "POSITIONS",
     "WINGLET_PAIR",
@@ -102,15 +105,21 @@ __all__ = [
 
 #: bumped whenever a feature formula or validity changes (invalidates cached campaign
 #: features); the history of the bumps is in docs/TUNING.md
-FEATURE_VERSION = "features/6"
+FEATURE_VERSION = "features/7"
+#: the sensors each generic feature reads: its own actuator's, both winglet drives' for
+#: F_REWEAR. Every feature's validity windows read the motor speed, hence the resolver
+FEATURE_SENSORS: dict[str, tuple[str, ...]] = {
+    "F_TTS": ("current", "voltage", "resolver"), "F_DMD": ("current", "voltage", "resolver"),
+    "F_SE": ("current", "voltage", "resolver"), "F_BDO": ("current", "voltage", "resolver"),
+    "F_MTEL": ("current", "resolver", "lvdt"), "F_MTWEAR": ("current", "resolver", "lvdt"),
+    "F_REWEAR": ("resolver", "lvdt"),
+}
 #: the 19 feature names of one aircraft, ``"<position>.<feature>"`` plus ``"WL.F_REWEAR"``
 AIRCRAFT_FEATURES: tuple[str, ...] = tuple(
     f"{p}.{f}" for p in POSITIONS for f in ACTUATOR_FEATURES) + (REWEAR_NAME,)
 #: per-actuator operating conditions used by the baselines
 CONDITION_NAMES: tuple[str, ...] = (
     "temp_ground_c", "temp_mean_c", "load_rms_n", "speed_rms_rad_s", "temp_winding_est_c")
-#: the channels of one actuator the features read (flight-log v1 ``"<position>.<signal>"``)
-SIGNALS: tuple[str, ...] = ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x")
 
 
 @dataclass(frozen=True)
@@ -275,13 +284,16 @@ class FlightFeatures:
     summaries: dict[str, FeatureSummary]  # AIRCRAFT_FEATURES -> summary
     conditions: dict[str, dict[str, float]]  # position -> CONDITION_NAMES -> value
     tracks: dict[str, FeatureTrack] | None = None  # only when asked for
+    #: channel -> signal-quality figures (:mod:`server.phm.signal_quality`); empty when the
+    #: features were stored without them
+    quality: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def values(self) -> dict[str, float]:
         return {k: s.value for k, s in self.summaries.items()}
 
     def to_dict(self) -> dict[str, object]:
         return {"summaries": {k: s.to_dict() for k, s in self.summaries.items()},
-                "conditions": self.conditions}
+                "conditions": self.conditions, "quality": self.quality}
 
 
 # --------------------------------------------------------------------------------------------
@@ -963,4 +975,8 @@ def flight_features(
                if np.isfinite([conditions[a][k], conditions[b][k]]).any() else float("nan")
                for k in CONDITION_NAMES}
     conditions["WL"] = wl_cond
-    return FlightFeatures(summaries, conditions, tracks_all if keep_tracks else None)
+    mc = motor or MotorConstants()
+    quality = flight_quality(channels, screw_radius_m=mc.screw_radius_m,
+                             pole_pairs=mc.pole_pairs,
+                             electrical_offset_rad=cfg.electrical_offset_rad)
+    return FlightFeatures(summaries, conditions, tracks_all if keep_tracks else None, quality)

@@ -11,6 +11,9 @@
 4. Measurement models of the particle filter, per progressive mode: the mode's own feature
    (paper Table 1) as a physical-unit residual, and a monotone polynomial h(severity) with
    its residual noise.
+5. Sensor model (:mod:`server.phm.sensor_health`): healthy bands of every channel's
+   signal-quality figures, and from the campaign's sensor study what a noisier sensor does
+   to each feature.
 
 Nothing of the verification campaign is read here.
 """
@@ -39,15 +42,17 @@ from .chain import (
     surface_of,
 )
 from .classification import train_classifier
-from .dataset import Campaign, FlightRecord, Pattern
+from .dataset import Campaign, FlightRecord, Pattern, healthy_flights
 from .detection import DetectionResult
 from .evaluate_detection import fit_detection
+from .features import FlightFeatures
 from .prognosis import MeasurementModel, PrognoserConfig
 from .prognosis.degradation import MIN_LEVEL_GAP
 from .season import SeasonalClimate, StressClock, day_of_year
+from .sensor_health import fit_sensor_model
 
 __all__ = ["TrainingConfig", "TRAINING", "training_rows", "fit_measurement_models",
-           "train_phm_model"]
+           "sensor_study_pairs", "train_phm_model"]
 
 Progress = Callable[[str, float], None]
 @dataclass(frozen=True)
@@ -401,6 +406,23 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
     return specs, report
 
 
+def sensor_study_pairs(campaign: Campaign
+                       ) -> list[tuple[str, str, FlightFeatures, FlightFeatures]]:
+    """``(sensor, study pattern, study flight, twin flight)`` of the design campaign's sensor
+    study, the flights paired by index with those of the twin healthy pattern."""
+    twins = {p.id: p for p in campaign.patterns}
+    pairs = []
+    for study in campaign.sensor_study:
+        info = study.sensor_study or {}
+        twin = twins.get(str(info.get("twin")))
+        if twin is None:
+            continue
+        by_index = {r.index: r for r in twin.flights}
+        pairs += [(str(info["sensor"]), study.id, r.features, by_index[r.index].features)
+                  for r in study.flights if r.index in by_index]
+    return pairs
+
+
 def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | None = None
                     ) -> tuple[PhmModel, dict[str, Any]]:
     """Fit the whole chain on a design campaign whose features are computed; return the
@@ -425,8 +447,10 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
     climate = fit_climate(campaign)
     specs, meas_report = fit_measurement_models(
         campaign, bare, PrognoserConfig(), climate)
+    sensors = fit_sensor_model([f for _, seq in healthy_flights(campaign) for f in seq],
+                               sensor_study_pairs(campaign), detection.baseline)
     model = PhmModel(detection.baseline, detection.detector, classifier, specs,
-                     PrognoserConfig(), climate)
+                     PrognoserConfig(), climate, sensors)
     t_end = time.perf_counter()
     tick("done", 1.0)
     n_flights = sum(len(p.flights) for p in campaign.patterns)

@@ -192,7 +192,9 @@ def _store_record(session: Session, flight: Flight, act: Actuator, out: Actuator
         flight_index=out.flight_index, started_at=flight.started_at,
         features=json_safe(out.features),
         scores=json_safe({"z": out.z, "confidence": out.confidence,
-                          "alarm_features": out.alarm_features}),
+                          "alarm_features": out.alarm_features,
+                          "sensor_findings": out.sensor_findings,
+                          "set_aside": out.set_aside, "widened": out.widened}),
         confidence=out.max_confidence, alarm=out.alarm,
         class_probabilities=json_safe(out.class_probabilities)))
 
@@ -201,6 +203,7 @@ def _store_state(session: Session, flight: Flight, act: Actuator, out: ActuatorO
                  health: ActuatorHealth, state: ActuatorState | None) -> None:
     doc = json_safe(health.to_dict())
     doc["confidence"] = out.max_confidence
+    doc["sensor_findings"] = json_safe(out.sensor_findings)  # the latest flight's
     if state is None:
         state = ActuatorState(actuator_id=act.id)
         session.add(state)

@@ -6,8 +6,9 @@ Inbox order and the grid's colours follow one rule, :func:`server.services.urgen
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
+from typing import Any
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
@@ -123,6 +124,32 @@ def health_records(*, session: Session, actuator_id: int, limit: int) -> list[He
     return list(reversed(rows))
 
 
+@dataclass(frozen=True)
+class SensorFlight:
+    """The sensor findings of one analysed flight of an actuator."""
+
+    flight_id: int
+    flight_index: int
+    started_at: datetime | None
+    findings: list[dict[str, Any]]
+    set_aside: list[str]
+    widened: dict[str, float]
+
+
+def sensor_findings(*, session: Session, actuator_id: int, limit: int) -> list[SensorFlight]:
+    """The actuator's flights with a sensor finding among its latest ``limit`` analysed
+    flights, oldest first."""
+    out = []
+    for r in health_records(session=session, actuator_id=actuator_id, limit=limit):
+        scores = r.scores or {}
+        if scores.get("sensor_findings"):
+            out.append(SensorFlight(r.flight_id, r.flight_index, r.started_at,
+                                    list(scores["sensor_findings"]),
+                                    list(scores.get("set_aside") or []),
+                                    dict(scores.get("widened") or {})))
+    return out
+
+
 def prognoses(*, session: Session, actuator_id: int, limit: int) -> list[Prognosis]:
     _actuator(session, actuator_id)
     rows = session.scalars(select(Prognosis).where(Prognosis.actuator_id == actuator_id)
@@ -148,6 +175,8 @@ class GridCell:
     rul_low: float | None
     open_alarm_id: int | None
     flights_seen: int
+    #: sensor findings of the actuator's latest analysed flight (SensorFinding.to_dict)
+    sensor_findings: list[dict[str, Any]] = field(default_factory=list)
 
 
 def actuator_urgency(*, session: Session, actuator: Actuator) -> tuple[Urgency, Alarm | None,
@@ -197,5 +226,6 @@ def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCell]:
                               rul_median=alarm.rul_median_flights if alarm else None,
                               rul_low=alarm.rul_low_flights if alarm else None,
                               open_alarm_id=alarm.id if alarm else None,
-                              flights_seen=seen))
+                              flights_seen=seen,
+                              sensor_findings=list(det.get("sensor_findings") or [])))
     return cells

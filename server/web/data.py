@@ -104,6 +104,43 @@ def prognosis_dict(row: Any) -> dict[str, Any]:
             "fault_mode": row.fault_mode, "distribution": row.distribution}
 
 
+#: how a sensor's figures are shown: unit and scale per sensor (SI values stored)
+_SENSOR_UNITS = {"current": ("A", 1.0), "voltage": ("V", 1.0), "resolver": ("mrad", 1e3),
+                 "lvdt": ("µm", 1e6)}
+_SENSOR_NAMES = {"current": "phase-current sensor", "voltage": "phase-voltage sensor",
+                 "resolver": "resolver (motor angle)", "lvdt": "LVDT (rod position)"}
+_METRIC_NAMES = {"noise": "noise floor (rms)", "offset": "offset against the motor shaft",
+                 "lsb": "quantisation step", "stuck": "share of the flight stuck",
+                 "saturated": "share of the flight at a rail"}
+
+
+def finding_text(f: dict[str, Any]) -> dict[str, str]:
+    """One sensor finding in words and in the sensor's unit."""
+    unit, scale = _SENSOR_UNITS.get(f.get("sensor", ""), ("", 1.0))
+    if f.get("metric") in ("stuck", "saturated"):
+        unit, scale = "%", 100.0
+
+    def num(v: Any) -> str:
+        return "–" if v is None else f"{float(v) * scale:.3g}"
+
+    low, high = f.get("low"), f.get("high")
+    band = f"≤ {num(high)}" if not low else f"{num(low)} to {num(high)}"
+    channel = str(f.get("channel")).replace(".i_sum", ".ia+ib+ic").replace(".v_sum", ".va+vb+vc")
+    return {"channel": channel,
+            "sensor": _SENSOR_NAMES.get(f.get("sensor", ""), str(f.get("sensor"))),
+            "metric": _METRIC_NAMES.get(f.get("metric", ""), str(f.get("metric"))),
+            "value": f"{num(f.get('value'))} {unit}", "band": f"{band} {unit}"}
+
+
+def sensor_view(*, session: Session, actuator_id: int, limit: int) -> list[dict[str, Any]]:
+    """The latest flights with sensor findings of an actuator, newest first, in words."""
+    flights = health_service.sensor_findings(session=session, actuator_id=actuator_id,
+                                             limit=limit)
+    return [{"flight_index": f.flight_index, "findings": [finding_text(x) for x in f.findings],
+             "set_aside": f.set_aside, "widened": sorted(f.widened)}
+            for f in reversed(flights[-10:])]
+
+
 def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> dict[str, Any]:
     actuator = fleet_service.get_actuator(session=session, actuator_id=actuator_id)
     tail = actuator.aircraft.tail
@@ -158,7 +195,9 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
             "threshold": threshold, "latest": latest, "latest_prognosis":
             progs[-1] if progs else None, "urgency": state_urgency, "open_alarm": open_alarm,
             "deferral_expired": deferral_expired, "trail": trail,
-            "rule": urgency_rule_view()}
+            "rule": urgency_rule_view(),
+            "sensor_flights": sensor_view(session=session, actuator_id=actuator_id,
+                                          limit=limit)}
 
 
 def models_view(*, session: Session, model_id: int | None) -> dict[str, Any]:

@@ -13,6 +13,7 @@ from ..classification import FaultClassifier
 from ..detection import DetectionState, FaultDetector
 from ..prognosis import MeasurementModel, PrognoserConfig
 from ..season import SeasonalClimate
+from ..sensor_health import SensorModel
 from .inputs import actuator_feature_names, surface_of
 from .state import ActuatorHealth
 
@@ -90,6 +91,9 @@ class PhmModel:
     prognoser: PrognoserConfig = field(default_factory=PrognoserConfig)
     #: annual temperature cycle of each base (the stress clock's temperatures); None: flights
     climate: SeasonalClimate | None = None
+    #: healthy bands of the signal-quality figures and the features' noise sensitivity;
+    #: None (a document without them): no sensor findings, every feature judged as it is
+    sensors: SensorModel | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": MODEL_FORMAT, "baseline": self.baseline.to_dict(),
@@ -97,7 +101,8 @@ class PhmModel:
                 "classifier": None if self.classifier is None else self.classifier.to_dict(),
                 "measurement": {m: s.to_dict() for m, s in self.measurement.items()},
                 "prognoser": self.prognoser.to_dict(),
-                "climate": None if self.climate is None else self.climate.to_dict()}
+                "climate": None if self.climate is None else self.climate.to_dict(),
+                "sensors": None if self.sensors is None else self.sensors.to_dict()}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> PhmModel:
@@ -111,7 +116,8 @@ class PhmModel:
                    None if clf is None else FaultClassifier.from_dict(clf),
                    {m: MeasurementSpec.from_dict(s) for m, s in d["measurement"].items()},
                    PrognoserConfig.from_dict(dict(d["prognoser"])),
-                   None if d.get("climate") is None else SeasonalClimate.from_dict(d["climate"]))
+                   None if d.get("climate") is None else SeasonalClimate.from_dict(d["climate"]),
+                   None if d.get("sensors") is None else SensorModel.from_dict(d["sensors"]))
 
     def new_health(self, position: str) -> ActuatorHealth:
         known = set(self.detector.feature_names_)

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
+from typing import Any
 
 import numpy as np
 
@@ -14,6 +15,7 @@ from ..detection import DetectionResult
 from ..features import FlightFeatures
 from ..prognosis import RulDistribution
 from ..season import next_flights_per_day
+from ..sensor_health import SensorJudgement
 from .config import CHAIN
 from .inputs import actuator_feature_names, classifier_vector, measurement_values, self_residuals
 from .model import PhmModel
@@ -41,6 +43,12 @@ class ActuatorOutcome:
     class_probabilities: dict[str, float] | None
     fault_mode: str | None
     rul: RulDistribution | None = None
+    #: the flight's sensor findings on this actuator's channels (SensorFinding.to_dict)
+    sensor_findings: list[dict[str, Any]] = field(default_factory=list)
+    #: this actuator's features not judged on the flight (an unusable channel)
+    set_aside: list[str] = field(default_factory=list)
+    #: features judged with a widened flight scatter (a noisier sensor): added variance
+    widened: dict[str, float] = field(default_factory=dict)
 
 
 def analyze_flight(model: PhmModel, features: FlightFeatures,
@@ -65,11 +73,15 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     noise-free features (``hmsm evaluate --noise-free-features``). Never used in service.
     """
     z_all = model.baseline.zscores(features)
+    judged = _judge_sensors(model, features, z_all)
+    if judged is not None:
+        z_all = judged.z
     out: dict[str, ActuatorOutcome] = {}
     for position, h in health.items():
         index = _advance(h, flight_index)
         _track_calendar(h, index, started_at)
-        det = model.detector.update(h.detection, z_all)
+        det = model.detector.update(h.detection, z_all,
+                                    None if judged is None else judged.extra_variance)
         if det.new_alarm:
             h.alarm_index = index
         generic = measurement_values(self_residuals(model.baseline, z_all, det), position)
@@ -81,7 +93,25 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         rul = (prognose(model, h, generic, position, index, base=base, seed=seed)
                if det.alarm else None)
         out[position] = _outcome(features, z_all, det, h, position, index, probs, rul)
+        if judged is not None:
+            _note_sensors(out[position], judged, position)
     return out
+
+
+def _judge_sensors(model: PhmModel, features: FlightFeatures,
+                   z: dict[str, float]) -> SensorJudgement | None:
+    """The flight's residuals judged with its sensors' findings (None: no sensor model, or
+    features stored without their signal-quality figures)."""
+    if model.sensors is None or not features.quality:
+        return None
+    return model.sensors.judge(features.quality, z)
+
+
+def _note_sensors(out: ActuatorOutcome, judged: SensorJudgement, position: str) -> None:
+    names = set(actuator_feature_names(position))
+    out.sensor_findings = [f.to_dict() for f in judged.for_position(position)]
+    out.set_aside = [n for n in judged.set_aside if n in names]
+    out.widened = {n: v for n, v in judged.extra_variance.items() if n in names}
 
 
 def _advance(h: ActuatorHealth, flight_index: int | None) -> int:

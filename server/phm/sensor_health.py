@@ -1,0 +1,415 @@
+"""Healthy bands of the signal-quality figures, and the sensor findings of a flight.
+
+Time base: one assessment per flight. Input: the figures of
+:func:`server.phm.signal_quality.flight_quality` (channel -> metric -> value).
+
+Bands, learned per channel on the healthy design flights:
+
+* ``noise``, on each sensor's floor channel (``i_sum``, ``v_sum``, ``theta``, ``x``: the
+  figures that carry the sensor's own noise, not the drive's ripple), on a log scale:
+  ``log(floor)`` against its healthy median ``m`` with robust spread ``s`` (1.4826 MAD),
+  a finding above ``m + max(k s, log(1 + min_rise))``.
+  One-sided: a quieter channel harms no feature, and a dead one is ``stuck``.
+  ``k`` is set for a stated rate of spurious findings per flight (``false_finding_rate``,
+  shared by Sidak's rule among every channel and metric of the aircraft), and
+  ``min_rise`` (30 %) keeps a band that a handful of design flights measured too narrow from
+  flagging a sensor whose floor moved by a few per cent with the season or the load.
+* ``offset`` (LVDT): the rod position against the motor shaft [m], within the healthy
+  ``offset_quantile`` (0.5 %) and ``1 - offset_quantile`` quantiles widened by
+  ``min_offset_m`` (20 um) each side: the fleet's rigging offsets (5 um, 1 sigma) and load
+  deflections spread it, with tails heavier than normal.
+* ``lsb``, on every recorded channel: coarser than the design's step by more than half a step
+  (another recorder or a bit lost).
+* ``stuck`` and ``saturated``, on every recorded channel: a share of the flight above the
+  design's largest share plus ``max_share`` (1 %).
+
+A finding names the channel, its sensor, the metric, the measured value and its band. The
+chain uses the findings to judge the features that read the channel
+(:mod:`server.phm.chain.run`). Persisted as JSON (``to_dict`` / ``from_dict``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.special import ndtri
+
+from server.vocabulary import POSITIONS, SENSOR_OF_SIGNAL, SIGNALS, WINGLET_PAIR
+
+from .features import FEATURE_SENSORS, FlightFeatures
+from .signal_quality import FLOOR_CHANNELS
+
+__all__ = ["SENSOR_HEALTH_FORMAT", "SensorFinding", "SensorBands", "NoiseSensitivity",
+           "SensorJudgement", "SensorModel", "channel_sensor", "fit_sensor_model"]
+
+SENSOR_HEALTH_FORMAT = "ema-sensor-bands/1"
+_METRICS = ("noise", "offset", "lsb", "stuck", "saturated")  # "noise_median": no test
+
+
+def channel_sensor(channel: str) -> tuple[str, str]:
+    """``"WT.ia"`` -> ``("WT", "current")``: the actuator and the sensor of a channel (a
+    recorded one or a floor channel such as ``"WT.i_sum"``)."""
+    position, signal = channel.split(".", 1)
+    return position, SENSOR_OF_SIGNAL.get(signal) or FLOOR_CHANNELS[signal]
+
+
+#: the floor channel of each sensor
+_FLOOR_OF = {sensor: ch for ch, sensor in FLOOR_CHANNELS.items()}
+
+
+@dataclass(frozen=True)
+class SensorFinding:
+    """A channel whose figure left its healthy band on one flight."""
+
+    channel: str  # "<position>.<signal>"
+    metric: str  # one of noise, offset, lsb, stuck, saturated
+    value: float
+    low: float
+    high: float
+
+    @property
+    def position(self) -> str:
+        return channel_sensor(self.channel)[0]
+
+    @property
+    def sensor(self) -> str:
+        return channel_sensor(self.channel)[1]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"channel": self.channel, "sensor": self.sensor, "metric": self.metric,
+                "value": self.value, "low": self.low, "high": self.high}
+
+
+def _robust(x: np.ndarray) -> tuple[float, float]:
+    med = float(np.median(x))
+    return med, float(1.4826 * np.median(np.abs(x - med)))
+
+
+@dataclass
+class SensorBands:
+    """Healthy bands of every channel's signal-quality figures (see the module docstring)."""
+
+    false_finding_rate: float = 1e-3
+    min_rise: float = 0.3
+    offset_quantile: float = 0.005
+    min_offset_m: float = 20e-6
+    max_share: float = 0.01
+
+    def __post_init__(self) -> None:
+        self.bands_: dict[str, dict[str, tuple[float, float]]] = {}
+
+    @property
+    def k(self) -> float:
+        """Robust scales at which a figure leaves its band."""
+        tests = len(POSITIONS) * len(FLOOR_CHANNELS)  # the noise floors, one-sided
+        q = 1.0 - (1.0 - self.false_finding_rate) ** (1.0 / tests)
+        return float(ndtri(1.0 - q))
+
+    def fit(self, qualities: Sequence[Mapping[str, Mapping[str, float]]]) -> SensorBands:
+        """Learn the bands from the figures of healthy design flights."""
+        if not qualities:
+            raise ValueError("no healthy flights with signal-quality figures to learn from")
+        channels = [f"{p}.{s}" for p in POSITIONS
+                    for s in dict.fromkeys(SIGNALS + tuple(FLOOR_CHANNELS))]
+        self.bands_ = {ch: self._channel_bands(ch, [q[ch] for q in qualities if ch in q])
+                       for ch in channels}
+        return self
+
+    def _channel_bands(self, channel: str, figs: Sequence[Mapping[str, float]]
+                       ) -> dict[str, tuple[float, float]]:
+        def col(metric: str) -> np.ndarray:
+            v = np.array([f.get(metric, math.nan) for f in figs], dtype=np.float64)
+            return v[np.isfinite(v)]
+
+        out: dict[str, tuple[float, float]] = {}
+        noise = col("noise") if channel.split(".", 1)[1] in FLOOR_CHANNELS else np.zeros(0)
+        if noise.size and np.all(noise > 0):
+            m, s = _robust(np.log(noise))
+            # one-sided: a floor below the healthy one harms no feature (the loops' share of
+            # the floor falls with light loads); a channel gone dead is "stuck"
+            out["noise"] = (0.0, math.exp(m + max(self.k * s, math.log1p(self.min_rise))))
+            out["noise_median"] = (math.exp(m), math.exp(m))
+        offset = col("offset")
+        if offset.size:
+            lo, hi = np.quantile(offset, [self.offset_quantile, 1.0 - self.offset_quantile])
+            out["offset"] = (float(lo) - self.min_offset_m, float(hi) + self.min_offset_m)
+        lsb = col("lsb")
+        if lsb.size:
+            step = float(np.median(lsb))
+            out["lsb"] = (0.0, 1.5 * step)
+        for metric in ("stuck", "saturated"):
+            share = col(metric)
+            if share.size:
+                out[metric] = (0.0, float(share.max()) + self.max_share)
+        return out
+
+    def _check(self) -> None:
+        if not self.bands_:
+            raise RuntimeError("SensorBands is not fitted")
+
+    def assess(self, quality: Mapping[str, Mapping[str, float]]) -> list[SensorFinding]:
+        """The findings of one flight: every figure outside its band (NaN figures, e.g. a
+        flight without holds, are no finding)."""
+        self._check()
+        found = []
+        for ch, bands in self.bands_.items():
+            figs = quality.get(ch, {})
+            for metric in _METRICS:
+                if metric not in bands:
+                    continue
+                v = figs.get(metric, math.nan)
+                lo, hi = bands[metric]
+                if v is not None and math.isfinite(v) and not lo <= v <= hi:
+                    found.append(SensorFinding(ch, metric, float(v), lo, hi))
+        return found
+
+    def to_dict(self) -> dict[str, Any]:
+        self._check()
+        return {"format": SENSOR_HEALTH_FORMAT, "false_finding_rate": self.false_finding_rate,
+                "min_rise": self.min_rise, "offset_quantile": self.offset_quantile,
+                "min_offset_m": self.min_offset_m,
+                "max_share": self.max_share,
+                "bands": {ch: {m: list(b) for m, b in bands.items()}
+                          for ch, bands in self.bands_.items()}}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> SensorBands:
+        if d.get("format") != SENSOR_HEALTH_FORMAT:
+            raise ValueError(f"not a {SENSOR_HEALTH_FORMAT} document")
+        obj = cls(float(d["false_finding_rate"]), float(d["min_rise"]),
+                  float(d["offset_quantile"]), float(d["min_offset_m"]), float(d["max_share"]))
+        obj.bands_ = {str(ch): {str(m): (float(b[0]), float(b[1])) for m, b in bands.items()}
+                      for ch, bands in d["bands"].items()}
+        return obj
+
+
+# --------------------------------------------------------------------------------------------
+# what a noisier sensor does to the features
+# --------------------------------------------------------------------------------------------
+
+
+def _floor_ratio(study: Mapping[str, Mapping[str, float]],
+                 twin: Mapping[str, Mapping[str, float]], position: str, sensor: str) -> float:
+    """The study flight's noise floor of the sensor over its twin's."""
+    ch = f"{position}.{_FLOOR_OF[sensor]}"
+    try:
+        return study[ch]["noise"] / twin[ch]["noise"]
+    except (KeyError, ZeroDivisionError):
+        return math.nan
+
+
+@dataclass
+class NoiseSensitivity:
+    """How a sensor's noise moves each generic feature's standardised residual.
+
+    Learned on the design campaign's sensor study: healthy patterns flown twice, once as
+    rigged and once with one sensor's noise raised (same flights, seeds and noise draws), so
+    that each pair of flights differs by that sensor's noise alone, loops included. Per unit
+    of excess noise variance ``e = r^2 - 1`` (``r``: the measured floor ratio of the pair) a
+    feature's residual moves by ``bias_[g][s] e`` and its flight scatter gains
+    ``variance_[g][s] e``: to first order a feature's noise-driven error scales with the
+    sensor's noise variance (a bias such as a noisy magnitude's, a variance such as a noisy
+    slope's). The bias is the mean paired difference (none unless beyond three standard
+    errors); the added variance is ``var(z_study) - var(z_twin)`` (not the paired
+    difference's variance: with the same draws scaled, a pair's noise errors are correlated)
+    within each study pattern and position, averaged over them, never below zero.
+
+    White noise added to logged channels instead of flown in the loops gave TTS's bias and
+    variance two to three times too large and SE's too small (docs/RESULTS.md, Sensor health):
+    a noisier sensor also makes its loops move more, and only a flown study shows that.
+    """
+
+    #: "scaled_pair" (robust: the pairs' spread, as the scaled noise draws give it) or
+    #: "difference" (the variances' difference, moved by a few heavy-tailed flights)
+    estimator: str = "scaled_pair"
+
+    def __post_init__(self) -> None:
+        if self.estimator not in ("scaled_pair", "difference"):
+            raise ValueError("estimator must be scaled_pair or difference")
+        self.bias_: dict[str, dict[str, float]] = {}
+        self.variance_: dict[str, dict[str, float]] = {}
+
+    def fit(self, pairs: Sequence[tuple[str, str, FlightFeatures, FlightFeatures]],
+            baseline: Any) -> NoiseSensitivity:
+        """``pairs``: ``(sensor, study pattern, study flight, twin flight)`` with their
+        :class:`~server.phm.features.FlightFeatures`; ``baseline``: the fitted
+        :class:`server.phm.baselines.FleetBaseline`. Variances are taken within each study
+        pattern and position (one actuator's flights), so that the actuators' own offsets
+        do not enter them."""
+        groups: dict[tuple[str, str, str], list[tuple[float, float, float]]] = {}
+        for sensor, pattern, study, twin in pairs:
+            z_s, z_t = baseline.zscores(study), baseline.zscores(twin)
+            for name, zt in z_t.items():
+                _, positions = _feature_positions(name)
+                e = float(np.mean([_floor_ratio(study.quality, twin.quality, p, sensor) ** 2
+                                   - 1.0 for p in positions]))
+                zs = z_s.get(name, math.nan)
+                if math.isfinite(zs) and math.isfinite(zt) and e > 0.05:
+                    groups.setdefault((name, sensor, pattern), []).append((zs, zt, e))
+        per_generic: dict[tuple[str, str], list[tuple[float, float, float, int]]] = {}
+        for (name, sensor, _), rows in groups.items():
+            a = np.asarray(rows)
+            if a.shape[0] < 3:
+                continue
+            d = (a[:, 0] - a[:, 1]) / a[:, 2]
+            added = self._added_variance(a[:, 0], a[:, 1], float(a[:, 2].mean()))
+            per_generic.setdefault((name.split(".", 1)[1], sensor), []).append(
+                (float(d.sum()), float(np.sum(d * d)), float(added), d.size))
+        self.bias_ = {g: {} for g in FEATURE_SENSORS}
+        self.variance_ = {g: {} for g in FEATURE_SENSORS}
+        for (g, sensor), stats in per_generic.items():
+            if g not in FEATURE_SENSORS or sensor not in FEATURE_SENSORS[g]:
+                continue
+            n = sum(st[3] for st in stats)
+            mean = sum(st[0] for st in stats) / n
+            var = max(sum(st[1] for st in stats) / n - mean * mean, 0.0) * n / max(n - 1, 1)
+            se = math.sqrt(var / n)
+            self.bias_[g][sensor] = mean if abs(mean) > 3.0 * se else 0.0
+            weighted = sum(st[2] * st[3] for st in stats) / n
+            self.variance_[g][sensor] = max(weighted, 0.0)
+        return self
+
+    def _added_variance(self, z_study: np.ndarray, z_twin: np.ndarray, e: float) -> float:
+        """Added flight scatter per unit excess noise variance, from one group's pairs."""
+        if self.estimator == "difference":
+            return float(np.var(z_study, ddof=1) - np.var(z_twin, ddof=1)) / e
+        # the same noise draws scaled r times: a linear feature's noise error n becomes r n,
+        # the pair differs by (r - 1) n, and the scatter grows by (r^2 - 1) var(n)
+        r = math.sqrt(1.0 + e)
+        d = z_study - z_twin
+        mad = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+        return (mad / (r - 1.0)) ** 2
+
+    def fitted(self) -> bool:
+        return bool(self.variance_)
+
+    def effect(self, generic: str, excess: Mapping[str, float]) -> tuple[float, float]:
+        """``(bias, added variance)`` of feature ``generic`` for the sensors' excess noise
+        variances ``excess`` (sensor -> r^2 - 1)."""
+        bias = sum(self.bias_.get(generic, {}).get(s, 0.0) * e for s, e in excess.items())
+        var = sum(self.variance_.get(generic, {}).get(s, 0.0) * e for s, e in excess.items())
+        return bias, var
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"estimator": self.estimator, "bias": self.bias_, "variance": self.variance_}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> NoiseSensitivity:
+        obj = cls(str(d.get("estimator", "scaled_pair")))
+        obj.bias_ = {g: {s: float(v) for s, v in m.items()} for g, m in d["bias"].items()}
+        obj.variance_ = {g: {s: float(v) for s, v in m.items()}
+                         for g, m in d["variance"].items()}
+        return obj
+
+
+# --------------------------------------------------------------------------------------------
+# judging a flight's features with its sensors' findings
+# --------------------------------------------------------------------------------------------
+
+#: findings after which a channel's values are no longer a measurement: its features are set
+#: aside for the flight
+_UNUSABLE = ("lsb", "stuck", "saturated")
+
+
+@dataclass(frozen=True)
+class SensorJudgement:
+    """A flight's sensor findings and what they did to its residuals."""
+
+    findings: list[SensorFinding]
+    z: dict[str, float]  # residuals after the noise compensation (NaN: set aside)
+    extra_variance: dict[str, float]  # feature -> added flight scatter [residual units^2]
+    set_aside: list[str]  # features not judged on this flight
+
+    def for_position(self, position: str) -> list[SensorFinding]:
+        return [f for f in self.findings if f.position == position]
+
+
+def _feature_positions(name: str) -> tuple[str, list[str]]:
+    """``"WT.F_SE"`` -> ``("F_SE", ["WT"])``; the winglet pair's feature reads both drives."""
+    unit, generic = name.split(".", 1)
+    return generic, [unit] if unit in POSITIONS else list(WINGLET_PAIR)
+
+
+@dataclass
+class SensorModel:
+    """The healthy bands and the noise sensitivity of the features, learned on a design
+    campaign; :meth:`judge` applies them to one flight."""
+
+    bands: SensorBands
+    sensitivity: NoiseSensitivity | None = None
+
+    def _excess(self, quality: Mapping[str, Mapping[str, float]],
+                findings: Sequence[SensorFinding]) -> dict[str, dict[str, float]]:
+        """position -> sensor -> excess noise variance ``r^2 - 1`` of the sensors with a
+        noise floor above its band (``r``: median over the sensor's channels of the floor
+        over its healthy median)."""
+        noisy = {(f.position, f.sensor) for f in findings
+                 if f.metric == "noise" and f.value > f.high}
+        out: dict[str, dict[str, float]] = {}
+        for p, sensor in noisy:
+            ratios = [quality[ch]["noise"] / b["noise_median"][0]
+                      for ch, b in self.bands.bands_.items()
+                      if channel_sensor(ch) == (p, sensor) and "noise_median" in b
+                      and math.isfinite(quality.get(ch, {}).get("noise", math.nan))]
+            if ratios:
+                out.setdefault(p, {})[sensor] = max(float(np.median(ratios)) ** 2 - 1.0, 0.0)
+        return out
+
+    def judge(self, quality: Mapping[str, Mapping[str, float]],
+              z: Mapping[str, float]) -> SensorJudgement:
+        """Findings of the flight's signal-quality figures, and the residuals ``z``
+        (feature -> value) judged with them: a feature reading an unusable channel (coarser
+        step, stuck or clipped) is set aside; one reading a noisier sensor is compensated
+        for its bias and gets the added scatter (without a learned sensitivity it is set
+        aside). No finding, no change."""
+        findings = self.bands.assess(quality)
+        if not findings:
+            return SensorJudgement([], dict(z), {}, [])
+        unusable = {(f.position, f.sensor) for f in findings if f.metric in _UNUSABLE}
+        excess = self._excess(quality, findings)
+        compensate = self.sensitivity is not None and self.sensitivity.fitted()
+        if not compensate:
+            unusable |= {(p, s) for p, m in excess.items() for s in m}
+        out, extra, aside = dict(z), {}, []
+        for name in z:
+            generic, positions = _feature_positions(name)
+            reads = [(p, s) for p in positions for s in FEATURE_SENSORS.get(generic, ())]
+            if any(r in unusable for r in reads):
+                out[name] = math.nan
+                aside.append(name)
+                continue
+            e = {s: sum(excess.get(p, {}).get(s, 0.0) for p in positions) / len(positions)
+                 for s in FEATURE_SENSORS.get(generic, ())}
+            if compensate and any(v > 0 for v in e.values()):
+                bias, var = self.sensitivity.effect(generic, e)  # type: ignore[union-attr]
+                out[name] = z[name] - bias
+                extra[name] = var
+        return SensorJudgement(findings, out, extra, aside)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"bands": self.bands.to_dict(),
+                "sensitivity": None if self.sensitivity is None else self.sensitivity.to_dict()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> SensorModel:
+        sens = d.get("sensitivity")
+        return cls(SensorBands.from_dict(d["bands"]),
+                   None if sens is None else NoiseSensitivity.from_dict(sens))
+
+
+def fit_sensor_model(healthy: Sequence[FlightFeatures],
+                     pairs: Sequence[tuple[str, str, FlightFeatures, FlightFeatures]],
+                     baseline: Any) -> SensorModel | None:
+    """The sensor model of a design campaign: bands from its healthy flights' figures, the
+    noise sensitivity from its sensor study's ``(sensor, study pattern, study flight, twin
+    flight)`` pairs (none without a study). None when no flight carries signal-quality
+    figures (features stored before they existed)."""
+    qualities = [f.quality for f in healthy if f.quality]
+    if not qualities:
+        return None
+    sensitivity = NoiseSensitivity().fit(pairs, baseline) if pairs else None
+    return SensorModel(SensorBands().fit(qualities), sensitivity)

@@ -1,0 +1,93 @@
+"""Sensor advisories end to end: a flight flown with a noisier LVDT, uploaded and analysed by
+the real worker, gives a sensor finding on that channel in the API (the actuator's findings,
+the fleet grid) and on the actuator's page; a flight of the same aircraft as rigged gives
+none."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from server.config import Settings
+from server.flightlog import write_parquet
+from server.jobs.worker import Worker
+from server.services import models as model_service
+from sim_worker.campaign import fleet_for
+from sim_worker.faults import healthy
+from sim_worker.flight import simulate_flight
+from tests.api.conftest import auth
+from tests.flightlog_factory import serials_for
+from tests.web.test_pages import sign_in
+
+pytestmark = pytest.mark.slow
+
+PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
+
+
+def _flight(tail: str, code: str, index: int, sensor_faults: tuple[str, ...]) -> bytes:
+    """A 60 s flight of the verification fleet's first aircraft, as downloaded by ``tail``."""
+    aircraft = fleet_for("verification", 2, sensor_faults=sensor_faults)[0]
+    log, _ = simulate_flight(aircraft, healthy(), index, np.random.default_rng(index),
+                             duration_s=60.0)
+    meta = replace(log.metadata, aircraft=tail, flight=code,
+                   actuator_serials=serials_for(tail))
+    return write_parquet(replace(log, metadata=meta))
+
+
+def _analyse(client: TestClient, keys: dict[str, str], settings: Settings, data: bytes) -> int:
+    r = client.post("/api/v1/flights", content=data,
+                    headers={**PARQUET, **auth(keys["uploader"])})
+    assert r.status_code == 202, r.text
+    worker = Worker(settings)
+    try:
+        assert worker.run_once()
+    finally:
+        worker.engine.dispose()
+    flight_id = int(r.json()["id"])
+    status = client.get(f"/api/v1/flights/{flight_id}", headers=auth(keys["viewer"])).json()
+    assert status["status"] == "analyzed", status
+    return flight_id
+
+
+def test_a_noisier_lvdt_is_a_sensor_finding_not_an_alarm(
+        app, client: TestClient, keys: dict[str, str], aircraft: str, settings: Settings,
+        trained_model) -> None:  # type: ignore[no-untyped-def]
+    with app.state.session_factory() as session:
+        model_service.store_trained(session=session, name="t", payload=trained_model[0],
+                                    report=trained_model[1], make_active=True)
+        session.commit()
+    viewer = auth(keys["viewer"])
+    cells = {c["position"]: c for c in client.get("/api/v1/fleet/health", headers=viewer).json()}
+
+    _analyse(client, keys, settings, _flight(aircraft, "F1", 1, ()))
+    wt = cells["WT"]["actuator_id"]
+    assert client.get(f"/api/v1/actuators/{wt}/sensor-findings", headers=viewer).json() == []
+
+    noisy_id = _analyse(client, keys, settings, _flight(aircraft, "F2", 2, ("WT.lvdt:noise=3",)))
+    found = client.get(f"/api/v1/actuators/{wt}/sensor-findings", headers=viewer).json()
+    assert [f["flight_id"] for f in found] == [noisy_id]
+    [finding] = found[0]["findings"]
+    assert (finding["channel"], finding["sensor"], finding["metric"]) == ("WT.x", "lvdt", "noise")
+    assert finding["value"] > 2 * finding["high"] / 1.3  # about 3x the healthy floor
+    # the features that read the LVDT are judged with a widened scatter, none set aside
+    assert found[0]["set_aside"] == [] and set(found[0]["widened"]) <= {
+        "WT.F_MTEL", "WT.F_MTWEAR"}
+    for p in ("WL1", "WL2"):
+        other = cells[p]["actuator_id"]
+        assert client.get(f"/api/v1/actuators/{other}/sensor-findings",
+                          headers=viewer).json() == []
+
+    grid = {c["position"]: c for c in client.get("/api/v1/fleet/health", headers=viewer).json()}
+    assert [f["channel"] for f in grid["WT"]["sensor_findings"]] == ["WT.x"]
+    assert grid["WL1"]["sensor_findings"] == [] and grid["WT"]["open_alarm_id"] is None
+    assert client.get("/api/v1/alarms", headers=viewer).json()["total"] == 0
+
+    sign_in(client, keys["viewer"])
+    page = client.get(f"/actuators/{wt}").text
+    assert "LVDT (rod position)" in page and "<code>WT.x</code>" in page
+    assert "noise floor (rms)" in page and "µm" in page
+    fleet = client.get("/fleet").text
+    assert "sensor finding on WT.x" in fleet

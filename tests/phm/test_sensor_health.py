@@ -1,0 +1,164 @@
+"""Healthy bands of the signal-quality figures, the sensor findings they give, and how the
+chain judges the features of a flight with a finding."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from server.phm.detection import FaultDetector
+from server.phm.features import FEATURE_SENSORS
+from server.phm.sensor_health import (
+    NoiseSensitivity,
+    SensorBands,
+    SensorModel,
+    channel_sensor,
+)
+from server.vocabulary import POSITIONS, SIGNALS
+
+FLOOR = {"ia": 0.057, "ib": 0.057, "ic": 0.057, "va": 1.4, "vb": 1.4, "vc": 1.4,
+         "theta": 2.0e-4, "x": 2.1e-6, "i_sum": 0.041, "v_sum": 0.8}
+LSB = {"ia": 2.0**-5, "ib": 2.0**-5, "ic": 2.0**-5, "va": 2.0**-3, "vb": 2.0**-3,
+       "vc": 2.0**-3, "theta": 9.6e-5, "x": 2.0**-19}
+
+
+def _quality(rng: np.random.Generator, *, scale: dict[str, float] | None = None,
+             offset_m: float = -10e-6) -> dict[str, dict[str, float]]:
+    """One healthy flight's figures: floors scattered 4 % from flight to flight."""
+    scale = scale or {}
+    out = {}
+    for p in POSITIONS:
+        for s in SIGNALS:
+            ch = f"{p}.{s}"
+            out[ch] = {"noise": FLOOR[s] * scale.get(ch, 1.0) * math.exp(rng.normal(0, 0.04)),
+                       "lsb": LSB[s], "stuck": 0.0, "saturated": 0.0}
+        for s in ("i_sum", "v_sum"):
+            ch = f"{p}.{s}"
+            out[ch] = {"noise": FLOOR[s] * scale.get(ch, 1.0) * math.exp(rng.normal(0, 0.04))}
+        out[f"{p}.x"]["offset"] = offset_m + rng.normal(0.0, 6e-6)
+    return out
+
+
+@pytest.fixture(scope="module")
+def bands() -> SensorBands:
+    rng = np.random.default_rng(0)
+    return SensorBands().fit([_quality(rng) for _ in range(300)])
+
+
+def test_healthy_flights_give_no_finding(bands: SensorBands) -> None:
+    rng = np.random.default_rng(1)
+    assert sum(len(bands.assess(_quality(rng))) for _ in range(300)) == 0
+
+
+def test_a_noisier_channel_is_named_with_its_floor_and_band(bands: SensorBands) -> None:
+    rng = np.random.default_rng(2)
+    found = bands.assess(_quality(rng, scale={"WT.x": 1.5}))
+    assert [(f.channel, f.sensor, f.metric) for f in found] == [("WT.x", "lvdt", "noise")]
+    f = found[0]
+    assert f.value > f.high and f.low == 0.0
+    assert f.to_dict()["sensor"] == "lvdt"
+
+
+def test_a_quieter_channel_is_no_finding(bands: SensorBands) -> None:
+    assert bands.assess(_quality(np.random.default_rng(3), scale={"WT.i_sum": 0.5})) == []
+
+
+def test_a_phase_floor_alone_is_no_finding(bands: SensorBands) -> None:
+    """A phase channel's floor carries the drive's own ripple (an inverter fault): the sensor
+    is judged on the currents' sum."""
+    assert bands.assess(_quality(np.random.default_rng(3), scale={"WT.ia": 50.0})) == []
+
+
+def test_offset_step_stuck_and_rail_findings(bands: SensorBands) -> None:
+    q = _quality(np.random.default_rng(4))
+    q["WL1.x"]["offset"] = 120e-6
+    q["WT.va"]["stuck"] = 0.2
+    q["WT.theta"]["saturated"] = 0.05
+    q["WL2.ib"]["lsb"] = 4 * LSB["ib"]
+    found = {(f.channel, f.metric) for f in bands.assess(q)}
+    assert found == {("WL1.x", "offset"), ("WT.va", "stuck"), ("WT.theta", "saturated"),
+                     ("WL2.ib", "lsb")}
+
+
+def test_bands_round_trip_through_json(bands: SensorBands) -> None:
+    again = SensorBands.from_dict(bands.to_dict())
+    assert again.bands_ == bands.bands_
+    q = _quality(np.random.default_rng(5), scale={"WL2.v_sum": 2.0})
+    assert [f.to_dict() for f in again.assess(q)] == [f.to_dict() for f in bands.assess(q)]
+
+
+def _sensitivity() -> NoiseSensitivity:
+    s = NoiseSensitivity()
+    s.bias_ = {g: dict.fromkeys(sensors, 0.0) for g, sensors in FEATURE_SENSORS.items()}
+    s.variance_ = {g: dict.fromkeys(sensors, 0.0) for g, sensors in FEATURE_SENSORS.items()}
+    s.bias_["F_TTS"]["current"] = 0.5
+    s.variance_["F_TTS"]["current"] = 1.0
+    s.variance_["F_REWEAR"]["lvdt"] = 0.2
+    return s
+
+
+Z = {f"{p}.{g}": 0.1 for p in POSITIONS for g in FEATURE_SENSORS if g != "F_REWEAR"}
+Z["WL.F_REWEAR"] = 0.1
+
+
+def test_no_finding_changes_nothing(bands: SensorBands) -> None:
+    judged = SensorModel(bands, _sensitivity()).judge(_quality(np.random.default_rng(6)), Z)
+    assert judged.findings == [] and judged.z == Z and judged.extra_variance == {}
+
+
+def test_a_noisier_current_sensor_widens_and_shifts_its_own_features(
+        bands: SensorBands) -> None:
+    q = _quality(np.random.default_rng(7), scale={"WT.i_sum": 2.0})
+    judged = SensorModel(bands, _sensitivity()).judge(q, Z)
+    e = judged.extra_variance["WT.F_TTS"]  # r^2 - 1 with r about 2: about 3
+    assert 2.4 < e < 3.6
+    assert judged.z["WT.F_TTS"] == pytest.approx(0.1 - 0.5 * e)
+    # nothing of the other actuators moves; no feature is set aside
+    assert all(judged.z[n] == Z[n] for n in Z if not n.startswith("WT."))
+    assert set(judged.extra_variance) <= {n for n in Z if n.startswith("WT.")}
+    assert judged.set_aside == []
+    assert [f.channel for f in judged.for_position("WT")] == ["WT.i_sum"]
+
+
+def test_one_noisier_winglet_lvdt_widens_the_pair_feature_by_half(bands: SensorBands) -> None:
+    q = _quality(np.random.default_rng(8), scale={"WL1.x": 2.0})
+    judged = SensorModel(bands, _sensitivity()).judge(q, Z)
+    r2 = (q["WL1.x"]["noise"] / bands.bands_["WL1.x"]["noise_median"][0]) ** 2
+    assert judged.extra_variance["WL.F_REWEAR"] == pytest.approx(0.2 * (r2 - 1.0) / 2.0)
+
+
+def test_a_stuck_channel_sets_aside_the_features_that_read_it(bands: SensorBands) -> None:
+    q = _quality(np.random.default_rng(9))
+    q["WT.x"]["stuck"] = 0.5
+    judged = SensorModel(bands, _sensitivity()).judge(q, Z)
+    readers = {f"WT.{g}" for g, sensors in FEATURE_SENSORS.items()
+               if "lvdt" in sensors and g != "F_REWEAR"}
+    assert set(judged.set_aside) == readers
+    assert all(math.isnan(judged.z[n]) for n in readers)
+
+
+def test_without_a_learned_sensitivity_a_noisier_sensor_sets_its_features_aside(
+        bands: SensorBands) -> None:
+    q = _quality(np.random.default_rng(10), scale={"WT.theta": 3.0})
+    judged = SensorModel(bands, None).judge(q, Z)
+    assert set(judged.set_aside) == {f"WT.{g}" for g in FEATURE_SENSORS if g != "F_REWEAR"}
+
+
+def test_channel_sensor() -> None:
+    assert channel_sensor("WL2.vb") == ("WL2", "voltage")
+    assert channel_sensor("WT.i_sum") == ("WT", "current")
+
+
+def test_extra_variance_widens_the_detector_flight_scatter() -> None:
+    det = FaultDetector(windows=(1,))
+    det.feature_names_ = ["WT.F_TTS"]
+    det.within_std_ = np.array([1.0])
+    det.between_std_ = np.array([0.0])
+    det.band_ = np.array([[3.0]])
+    plain, widened = det.new_state("WT"), det.new_state("WT")
+    det.update(plain, {"WT.F_TTS": 6.0})
+    det.update(widened, {"WT.F_TTS": 6.0}, {"WT.F_TTS": 3.0})
+    assert plain.history["WT.F_TTS"][-1] == pytest.approx(6.0)
+    assert widened.history["WT.F_TTS"][-1] == pytest.approx(3.0)  # 6 / sqrt(1 + 3)
