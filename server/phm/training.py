@@ -447,8 +447,9 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
     climate = fit_climate(campaign)
     specs, meas_report = fit_measurement_models(
         campaign, bare, PrognoserConfig(), climate)
+    study = sensor_study_pairs(campaign)
     sensors = fit_sensor_model([f for _, seq in healthy_flights(campaign) for f in seq],
-                               sensor_study_pairs(campaign), detection.baseline)
+                               study, detection.baseline)
     model = PhmModel(detection.baseline, detection.detector, classifier, specs,
                      PrognoserConfig(), climate, sensors)
     t_end = time.perf_counter()
@@ -461,6 +462,8 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
         "seed": seed,
         "classifier": clf_report,
         "measurement": meas_report,
+        "sensors": {"fitted": sensors is not None, "study_pairs": len(study),
+                    "sensitivity": sensors is not None and sensors.sensitivity is not None},
         "detector": {"windows": list(detection.detector.windows),
                      "alarm_confidence": detection.detector.alarm_confidence},
         "timings_s": {"detection": t_det - t_feat, "classifier": t_clf - t_det,

@@ -83,7 +83,8 @@ def test_a_noisier_lvdt_is_a_sensor_finding_not_an_alarm(
     grid = {c["position"]: c for c in client.get("/api/v1/fleet/health", headers=viewer).json()}
     assert [f["channel"] for f in grid["WT"]["sensor_findings"]] == ["WT.x"]
     assert grid["WL1"]["sensor_findings"] == [] and grid["WT"]["open_alarm_id"] is None
-    assert client.get("/api/v1/alarms", headers=viewer).json()["total"] == 0
+    alarms = client.get("/api/v1/alarms", headers=viewer).json()["items"]
+    assert "WT" not in {a["position"] for a in alarms}
 
     sign_in(client, keys["viewer"])
     page = client.get(f"/actuators/{wt}").text

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from server.flightlog import FlightLog
-from server.vocabulary import POSITIONS
+from server.vocabulary import POSITIONS, SENSORS
 from sim_worker.campaign import (
     SCALES,
+    SENSOR_STUDY_NOISE,
     ParquetSink,
     SensorFault,
     _at_flight,
@@ -20,6 +21,7 @@ from sim_worker.campaign import (
     _render,
     _sensor_faults,
     _settings,
+    _with_sensor_noise,
     fleet_for,
     plan_campaign,
     run_campaign,
@@ -218,3 +220,43 @@ def test_cli_collects_sensor_faults() -> None:
     assert [f.spec for f in args.sensor_fault] == ["WT.lvdt:noise=2", "WT.lvdt:drift=1e-06"]
     assert build_parser().parse_args(["campaign", "--kind", "design", "--out", "x"]
                                      ).sensor_fault == []
+
+
+def test_the_design_sensor_study_repeats_healthy_patterns_with_one_sensor_noisier() -> None:
+    plan = plan_campaign("design", 1, "ci")
+    by_id = {s.id: s for s in plan}
+    study = [s for s in plan if s.sensor_study]
+    assert [s.sensor_study for s in study] == [s for s in SENSORS for _ in range(2)]
+    for s in study:
+        twin = by_id[s.twin]
+        assert twin.mode == "healthy" and twin.sensor_study is None
+        assert (s.seed, s.aircraft_index, s.n_flights, s.day_offset) == (
+            twin.seed, twin.aircraft_index, twin.n_flights, twin.day_offset)
+    assert [s.number for s in plan] == list(range(len(plan)))
+    assert not any(s.sensor_study for s in plan_campaign("verification", 1, "ci"))
+
+
+def test_a_study_flight_is_its_twin_with_one_sensor_noisier(tmp_path) -> None:
+    """The same flight, seeds and noise draws: the resolver study's flight 0 has the twin's
+    LVDT, current and voltage floors and twice its resolver floor."""
+    from server.phm.features import MotorConstants
+    from server.phm.signal_quality import flight_quality
+
+    plan = plan_campaign("design", 1, "ci")
+    study = next(s for s in plan if s.sensor_study == "resolver")
+    twin = next(s for s in plan if s.id == study.twin)
+    aircraft = fleet_for("design", 1)[study.aircraft_index]
+    noisier = _with_sensor_noise(aircraft, [SensorFault(p, "resolver", "noise",
+                                                        SENSOR_STUDY_NOISE) for p in POSITIONS])
+    mc = MotorConstants()
+    floors = {}
+    for name, spec, ac in (("twin", twin, aircraft), ("study", study, noisier)):
+        sink = _Keep()
+        _render(tmp_path, ac, spec, healthy(), 0, 10.0, sink)
+        ch = {k: np.asarray(v, dtype=float) for k, v in sink.logs[0].channels.items()}
+        floors[name] = flight_quality(ch, screw_radius_m=mc.screw_radius_m,
+                                      pole_pairs=mc.pole_pairs)
+    ratio = {c: floors["study"][f"WT.{c}"]["noise"] / floors["twin"][f"WT.{c}"]["noise"]
+             for c in ("theta", "x", "i_sum", "v_sum")}
+    assert ratio["theta"] == pytest.approx(SENSOR_STUDY_NOISE, rel=0.05)
+    assert all(abs(ratio[c] - 1.0) < 0.05 for c in ("x", "i_sum", "v_sum"))
