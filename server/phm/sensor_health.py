@@ -44,7 +44,8 @@ from .features import FEATURE_SENSORS, FlightFeatures
 from .signal_quality import FLOOR_CHANNELS
 
 __all__ = ["SENSOR_HEALTH_FORMAT", "SensorFinding", "SensorBands", "NoiseSensitivity",
-           "SensorJudgement", "SensorModel", "channel_sensor", "fit_sensor_model"]
+           "SensorJudgement", "SensorModel", "channel_sensor", "evidence_weights",
+           "fit_sensor_model"]
 
 SENSOR_HEALTH_FORMAT = "ema-sensor-bands/1"
 _METRICS = ("noise", "offset", "lsb", "stuck", "saturated")  # "noise_median": no test
@@ -202,34 +203,53 @@ def _floor_ratio(study: Mapping[str, Mapping[str, float]],
         return math.nan
 
 
+def evidence_weights(baseline: Any, features: FlightFeatures) -> dict[str, float]:
+    """Per feature of a flight, the healthy design flights' median number of valid windows
+    over this flight's (at least one): how much more a noise-driven error weighs on it."""
+    out = {}
+    for name, s in features.summaries.items():
+        need = baseline.min_valid_.get(name, 0.0)
+        typical = need / baseline.min_evidence if baseline.min_evidence > 0 else 0.0
+        out[name] = typical / max(s.n_valid, 1) if typical > 0 else 1.0
+    return out
+
+
+@dataclass
+class _Pair:
+    """One feature on one study flight and its twin: residuals, excess noise variance ``e``
+    and evidence weight ``w``."""
+
+    z_study: float
+    z_twin: float
+    e: float
+    w: float
+
+
 @dataclass
 class NoiseSensitivity:
     """How a sensor's noise moves each generic feature's standardised residual.
 
     Learned on the design campaign's sensor study: healthy patterns flown twice, once as
     rigged and once with one sensor's noise raised (same flights, seeds and noise draws), so
-    that each pair of flights differs by that sensor's noise alone, loops included. Per unit
-    of excess noise variance ``e = r^2 - 1`` (``r``: the measured floor ratio of the pair) a
-    feature's residual moves by ``bias_[g][s] e`` and its flight scatter gains
-    ``variance_[g][s] e``: to first order a feature's noise-driven error scales with the
-    sensor's noise variance (a bias such as a noisy magnitude's, a variance such as a noisy
-    slope's). The bias is the mean paired difference (none unless beyond three standard
-    errors); the added variance is ``var(z_study) - var(z_twin)`` (not the paired
-    difference's variance: with the same draws scaled, a pair's noise errors are correlated)
-    within each study pattern and position, averaged over them, never below zero.
+    that each pair of flights differs by that sensor's noise alone, loops included. A feature
+    averages its flight's valid windows, so to first order its noise-driven error scales with
+    the sensor's noise variance over the number of windows (the bias of a noisy magnitude such
+    as F_SE's, the variance of a noisy slope such as F_TTS's): per unit of
+    ``e w``, ``e = r^2 - 1`` the excess noise variance (``r``: the measured floor ratio of the
+    pair) and ``w`` the evidence weight (:func:`evidence_weights`), the residual moves by
+    ``bias_[g][s]`` and its flight scatter gains ``variance_[g][s]``.
 
-    White noise added to logged channels instead of flown in the loops gave TTS's bias and
-    variance two to three times too large and SE's too small (docs/RESULTS.md, Sensor health):
-    a noisier sensor also makes its loops move more, and only a flown study shows that.
+    The bias is the mean paired difference per unit ``e w`` (none unless beyond three
+    standard errors). The added variance comes from the pairs' spread: with the same noise
+    draws scaled ``r`` times, a feature's noise error ``n`` becomes ``r n``, a pair differs by
+    ``(r - 1) n`` and the scatter grows by ``(r^2 - 1) var(n)``; ``var(n)`` is the squared
+    robust scale (1.4826 MAD) of ``d / ((r - 1) sqrt(w))`` within each study pattern and
+    position (one actuator's flights), averaged over them. Robust, because a few flights with
+    few windows carry most of a noisier sensor's large differences; the evidence weight
+    carries them instead (docs/TUNING.md, Sensor health).
     """
 
-    #: "scaled_pair" (robust: the pairs' spread, as the scaled noise draws give it) or
-    #: "difference" (the variances' difference, moved by a few heavy-tailed flights)
-    estimator: str = "scaled_pair"
-
     def __post_init__(self) -> None:
-        if self.estimator not in ("scaled_pair", "difference"):
-            raise ValueError("estimator must be scaled_pair or difference")
         self.bias_: dict[str, dict[str, float]] = {}
         self.variance_: dict[str, dict[str, float]] = {}
 
@@ -237,73 +257,73 @@ class NoiseSensitivity:
             baseline: Any) -> NoiseSensitivity:
         """``pairs``: ``(sensor, study pattern, study flight, twin flight)`` with their
         :class:`~server.phm.features.FlightFeatures`; ``baseline``: the fitted
-        :class:`server.phm.baselines.FleetBaseline`. Variances are taken within each study
-        pattern and position (one actuator's flights), so that the actuators' own offsets
-        do not enter them."""
-        groups: dict[tuple[str, str, str], list[tuple[float, float, float]]] = {}
+        :class:`server.phm.baselines.FleetBaseline`."""
+        groups: dict[tuple[str, str, str], list[_Pair]] = {}
         for sensor, pattern, study, twin in pairs:
             z_s, z_t = baseline.zscores(study), baseline.zscores(twin)
+            weights = evidence_weights(baseline, twin)
             for name, zt in z_t.items():
                 _, positions = _feature_positions(name)
                 e = float(np.mean([_floor_ratio(study.quality, twin.quality, p, sensor) ** 2
                                    - 1.0 for p in positions]))
                 zs = z_s.get(name, math.nan)
                 if math.isfinite(zs) and math.isfinite(zt) and e > 0.05:
-                    groups.setdefault((name, sensor, pattern), []).append((zs, zt, e))
-        per_generic: dict[tuple[str, str], list[tuple[float, float, float, int]]] = {}
-        for (name, sensor, _), rows in groups.items():
-            a = np.asarray(rows)
-            if a.shape[0] < 3:
-                continue
-            d = (a[:, 0] - a[:, 1]) / a[:, 2]
-            added = self._added_variance(a[:, 0], a[:, 1], float(a[:, 2].mean()))
-            per_generic.setdefault((name.split(".", 1)[1], sensor), []).append(
-                (float(d.sum()), float(np.sum(d * d)), float(added), d.size))
+                    groups.setdefault((name, sensor, pattern), []).append(
+                        _Pair(zs, zt, e, weights.get(name, 1.0)))
         self.bias_ = {g: {} for g in FEATURE_SENSORS}
         self.variance_ = {g: {} for g in FEATURE_SENSORS}
-        for (g, sensor), stats in per_generic.items():
-            if g not in FEATURE_SENSORS or sensor not in FEATURE_SENSORS[g]:
-                continue
-            n = sum(st[3] for st in stats)
-            mean = sum(st[0] for st in stats) / n
-            var = max(sum(st[1] for st in stats) / n - mean * mean, 0.0) * n / max(n - 1, 1)
-            se = math.sqrt(var / n)
-            self.bias_[g][sensor] = mean if abs(mean) > 3.0 * se else 0.0
-            weighted = sum(st[2] * st[3] for st in stats) / n
-            self.variance_[g][sensor] = max(weighted, 0.0)
+        by_generic: dict[tuple[str, str], list[list[_Pair]]] = {}
+        for (name, sensor, _), rows in groups.items():
+            if len(rows) >= 3:
+                by_generic.setdefault((name.split(".", 1)[1], sensor), []).append(rows)
+        for (g, sensor), sets in by_generic.items():
+            if g in FEATURE_SENSORS and sensor in FEATURE_SENSORS[g]:
+                self.bias_[g][sensor] = _bias(sets)
+                self.variance_[g][sensor] = _added_variance(sets)
         return self
-
-    def _added_variance(self, z_study: np.ndarray, z_twin: np.ndarray, e: float) -> float:
-        """Added flight scatter per unit excess noise variance, from one group's pairs."""
-        if self.estimator == "difference":
-            return float(np.var(z_study, ddof=1) - np.var(z_twin, ddof=1)) / e
-        # the same noise draws scaled r times: a linear feature's noise error n becomes r n,
-        # the pair differs by (r - 1) n, and the scatter grows by (r^2 - 1) var(n)
-        r = math.sqrt(1.0 + e)
-        d = z_study - z_twin
-        mad = 1.4826 * float(np.median(np.abs(d - np.median(d))))
-        return (mad / (r - 1.0)) ** 2
 
     def fitted(self) -> bool:
         return bool(self.variance_)
 
-    def effect(self, generic: str, excess: Mapping[str, float]) -> tuple[float, float]:
-        """``(bias, added variance)`` of feature ``generic`` for the sensors' excess noise
-        variances ``excess`` (sensor -> r^2 - 1)."""
+    def effect(self, generic: str, excess: Mapping[str, float],
+               weight: float = 1.0) -> tuple[float, float]:
+        """``(bias, added variance)`` of feature ``generic`` on a flight of evidence weight
+        ``weight`` for the sensors' excess noise variances ``excess`` (sensor -> r^2 - 1)."""
         bias = sum(self.bias_.get(generic, {}).get(s, 0.0) * e for s, e in excess.items())
         var = sum(self.variance_.get(generic, {}).get(s, 0.0) * e for s, e in excess.items())
-        return bias, var
+        return bias * weight, var * weight
 
     def to_dict(self) -> dict[str, Any]:
-        return {"estimator": self.estimator, "bias": self.bias_, "variance": self.variance_}
+        return {"bias": self.bias_, "variance": self.variance_}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> NoiseSensitivity:
-        obj = cls(str(d.get("estimator", "scaled_pair")))
+        obj = cls()
         obj.bias_ = {g: {s: float(v) for s, v in m.items()} for g, m in d["bias"].items()}
         obj.variance_ = {g: {s: float(v) for s, v in m.items()}
                          for g, m in d["variance"].items()}
         return obj
+
+
+def _bias(sets: Sequence[Sequence[_Pair]]) -> float:
+    """Mean paired difference per unit ``e w``; 0 unless beyond three standard errors."""
+    d = np.array([(p.z_study - p.z_twin) / (p.e * p.w) for rows in sets for p in rows])
+    if d.size < 3:
+        return 0.0
+    mean, se = float(d.mean()), float(d.std(ddof=1) / math.sqrt(d.size))
+    return mean if abs(mean) > 3.0 * se else 0.0
+
+
+def _added_variance(sets: Sequence[Sequence[_Pair]]) -> float:
+    """Added flight scatter per unit ``e w``, from each group's robust pair spread."""
+    out, n = 0.0, 0
+    for rows in sets:
+        r = np.sqrt(1.0 + np.array([p.e for p in rows]))
+        d = np.array([(p.z_study - p.z_twin) / math.sqrt(p.w) for p in rows]) / (r - 1.0)
+        mad = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+        out += mad * mad * len(rows)
+        n += len(rows)
+    return out / n if n else 0.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -359,13 +379,14 @@ class SensorModel:
                 out.setdefault(p, {})[sensor] = max(float(np.median(ratios)) ** 2 - 1.0, 0.0)
         return out
 
-    def judge(self, quality: Mapping[str, Mapping[str, float]],
-              z: Mapping[str, float]) -> SensorJudgement:
+    def judge(self, quality: Mapping[str, Mapping[str, float]], z: Mapping[str, float],
+              evidence: Mapping[str, float] | None = None) -> SensorJudgement:
         """Findings of the flight's signal-quality figures, and the residuals ``z``
         (feature -> value) judged with them: a feature reading an unusable channel (coarser
         step, stuck or clipped) is set aside; one reading a noisier sensor is compensated
         for its bias and gets the added scatter (without a learned sensitivity it is set
-        aside). No finding, no change."""
+        aside). ``evidence``: each feature's evidence weight (:func:`evidence_weights`;
+        1 where not given). No finding, no change."""
         findings = self.bands.assess(quality)
         if not findings:
             return SensorJudgement([], dict(z), {}, [])
@@ -385,7 +406,8 @@ class SensorModel:
             e = {s: sum(excess.get(p, {}).get(s, 0.0) for p in positions) / len(positions)
                  for s in FEATURE_SENSORS.get(generic, ())}
             if compensate and any(v > 0 for v in e.values()):
-                bias, var = self.sensitivity.effect(generic, e)  # type: ignore[union-attr]
+                bias, var = self.sensitivity.effect(  # type: ignore[union-attr]
+                    generic, e, (evidence or {}).get(name, 1.0))
                 out[name] = z[name] - bias
                 extra[name] = var
         return SensorJudgement(findings, out, extra, aside)

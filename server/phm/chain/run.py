@@ -15,7 +15,7 @@ from ..detection import DetectionResult
 from ..features import FlightFeatures
 from ..prognosis import RulDistribution
 from ..season import next_flights_per_day
-from ..sensor_health import SensorJudgement
+from ..sensor_health import SensorJudgement, evidence_weights
 from .config import CHAIN
 from .inputs import actuator_feature_names, classifier_vector, measurement_values, self_residuals
 from .model import PhmModel
@@ -104,7 +104,7 @@ def _judge_sensors(model: PhmModel, features: FlightFeatures,
     features stored without their signal-quality figures)."""
     if model.sensors is None or not features.quality:
         return None
-    return model.sensors.judge(features.quality, z)
+    return model.sensors.judge(features.quality, z, evidence_weights(model.baseline, features))
 
 
 def _note_sensors(out: ActuatorOutcome, judged: SensorJudgement, position: str) -> None:
