@@ -243,10 +243,10 @@ class NoiseSensitivity:
     standard errors). The added variance comes from the pairs' spread: with the same noise
     draws scaled ``r`` times, a feature's noise error ``n`` becomes ``r n``, a pair differs by
     ``(r - 1) n`` and the scatter grows by ``(r^2 - 1) var(n)``; ``var(n)`` is the squared
-    robust scale (1.4826 MAD) of ``d / ((r - 1) sqrt(w))`` within each study pattern and
-    position (one actuator's flights), averaged over them. Robust, because a few flights with
-    few windows carry most of a noisier sensor's large differences; the evidence weight
-    carries them instead (docs/TUNING.md, Sensor health).
+    robust scale (1.4826 MAD) of ``(d - bias e w) / ((r - 1) sqrt(w))`` within each study
+    pattern and position (one actuator's flights), averaged over them. Robust, because a few
+    flights with few windows carry most of a noisier sensor's large differences; the evidence
+    weight carries them instead (docs/TUNING.md, Sensor health).
     """
 
     def __post_init__(self) -> None:
@@ -279,7 +279,7 @@ class NoiseSensitivity:
         for (g, sensor), sets in by_generic.items():
             if g in FEATURE_SENSORS and sensor in FEATURE_SENSORS[g]:
                 self.bias_[g][sensor] = _bias(sets)
-                self.variance_[g][sensor] = _added_variance(sets)
+                self.variance_[g][sensor] = _added_variance(sets, self.bias_[g][sensor])
         return self
 
     def fitted(self) -> bool:
@@ -314,12 +314,14 @@ def _bias(sets: Sequence[Sequence[_Pair]]) -> float:
     return mean if abs(mean) > 3.0 * se else 0.0
 
 
-def _added_variance(sets: Sequence[Sequence[_Pair]]) -> float:
-    """Added flight scatter per unit ``e w``, from each group's robust pair spread."""
+def _added_variance(sets: Sequence[Sequence[_Pair]], bias: float) -> float:
+    """Added flight scatter per unit ``e w``, from each group's robust pair spread once the
+    bias is taken off."""
     out, n = 0.0, 0
     for rows in sets:
         r = np.sqrt(1.0 + np.array([p.e for p in rows]))
-        d = np.array([(p.z_study - p.z_twin) / math.sqrt(p.w) for p in rows]) / (r - 1.0)
+        d = np.array([(p.z_study - p.z_twin - bias * p.e * p.w) / math.sqrt(p.w)
+                      for p in rows]) / (r - 1.0)
         mad = 1.4826 * float(np.median(np.abs(d - np.median(d))))
         out += mad * mad * len(rows)
         n += len(rows)

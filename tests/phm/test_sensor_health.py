@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 from server.phm.detection import FaultDetector
-from server.phm.features import FEATURE_SENSORS
+from server.phm.features import FEATURE_SENSORS, FeatureSummary, FlightFeatures
 from server.phm.sensor_health import (
     NoiseSensitivity,
     SensorBands,
     SensorModel,
     channel_sensor,
+    evidence_weights,
 )
 from server.vocabulary import POSITIONS, SIGNALS
 
@@ -162,3 +163,58 @@ def test_extra_variance_widens_the_detector_flight_scatter() -> None:
     det.update(widened, {"WT.F_TTS": 6.0}, {"WT.F_TTS": 3.0})
     assert plain.history["WT.F_TTS"][-1] == pytest.approx(6.0)
     assert widened.history["WT.F_TTS"][-1] == pytest.approx(3.0)  # 6 / sqrt(1 + 3)
+
+
+def test_the_effect_scales_with_the_flights_evidence(bands: SensorBands) -> None:
+    q = _quality(np.random.default_rng(11), scale={"WT.i_sum": 2.0})
+    model = SensorModel(bands, _sensitivity())
+    full = model.judge(q, Z, {"WT.F_TTS": 1.0})
+    thin = model.judge(q, Z, {"WT.F_TTS": 4.0})  # a quarter of the usual valid windows
+    assert thin.extra_variance["WT.F_TTS"] == pytest.approx(4 * full.extra_variance["WT.F_TTS"])
+    assert 0.1 - thin.z["WT.F_TTS"] == pytest.approx(4 * (0.1 - full.z["WT.F_TTS"]))
+
+
+class _Baseline:
+    """Residuals are the stored values; the healthy median is 100 valid windows."""
+
+    min_evidence = 0.25
+
+    def __init__(self, names: list[str]) -> None:
+        self.min_valid_ = dict.fromkeys(names, 25.0)
+
+    def zscores(self, flight: FlightFeatures) -> dict[str, float]:
+        return {n: s.value for n, s in flight.summaries.items()}
+
+
+def test_noise_sensitivity_recovers_a_known_bias_and_scatter() -> None:
+    """Twin and study flights whose F_TTS residuals differ by (r - 1) n + bias e w, n the
+    twin's noise error (sd 0.5), r = 2 on the WT current sensor: per unit e w the fit gives
+    the bias and var(n)."""
+    rng = np.random.default_rng(12)
+    names = ["WT.F_TTS"]
+    pairs = []
+    for k in range(120):
+        n_valid = int(rng.choice([50, 100, 200]))
+        w = 100 / n_valid
+        noise = rng.normal(0.0, 0.5) * math.sqrt(w)
+        base = rng.normal(0.0, 1.0)
+        q_twin = _quality(rng)
+        q_study = {ch: dict(v) for ch, v in q_twin.items()}
+        q_study["WT.i_sum"]["noise"] *= 2.0
+        twin = FlightFeatures({"WT.F_TTS": FeatureSummary(base + noise, 0.0, n_valid)}, {},
+                              quality=q_twin)
+        study = FlightFeatures({"WT.F_TTS": FeatureSummary(base + 2 * noise + 0.4 * 3 * w, 0.0,
+                                                           n_valid)}, {}, quality=q_study)
+        pairs.append(("current", f"P{k % 4}", study, twin))
+    s = NoiseSensitivity().fit(pairs, _Baseline(names))
+    assert s.bias_["F_TTS"]["current"] == pytest.approx(0.4, abs=0.02)
+    assert s.variance_["F_TTS"]["current"] == pytest.approx(0.25, rel=0.3)
+    again = NoiseSensitivity.from_dict(s.to_dict())
+    assert again.effect("F_TTS", {"current": 3.0}, 2.0) == s.effect("F_TTS", {"current": 3.0}, 2.0)
+
+
+def test_evidence_weights_against_the_healthy_median() -> None:
+    flight = FlightFeatures({"WT.F_SE": FeatureSummary(0.0, 0.0, 50),
+                             "WT.F_TTS": FeatureSummary(0.0, 0.0, 0)}, {})
+    w = evidence_weights(_Baseline(["WT.F_SE", "WT.F_TTS"]), flight)
+    assert w == {"WT.F_SE": 2.0, "WT.F_TTS": 100.0}
