@@ -82,10 +82,11 @@ class QualityConfig:
     stuck_min_s: float = 0.1
     #: least still samples for a noise floor (1 s of holds)
     min_still: int = 800
-    #: least still samples on each flank for an LVDT offset (0.25 s)
-    min_flank: int = 200
-    #: A, |i_q| that puts the screw on a flank: the feature code's least current
-    min_flank_current_a: float = 0.3
+    #: least still samples on each flank for an LVDT offset (0.1 s)
+    min_flank: int = 80
+    #: A, |i_q| that puts the screw on a flank (a median over many samples: the current
+    #: sensors' 0.04 A of noise per sample does not move it)
+    min_flank_current_a: float = 0.1
 
 
 def _run_lengths(mask: np.ndarray) -> np.ndarray:

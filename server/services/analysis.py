@@ -148,7 +148,9 @@ def store_analysis(*, session: Session, flight_id: int, features: FlightFeatures
                               base=None if aircraft is None else aircraft.base)
     for act in todo:
         out = outcomes[act.position]
-        _store_record(session, flight, act, out, model_id)
+        quality = {ch: q for ch, q in features.quality.items()
+                   if ch.startswith(f"{act.position}.")}
+        _store_record(session, flight, act, out, model_id, quality)
         _store_state(session, flight, act, out, health[act.position], states[act.id])
         rul = _store_prognosis(session, flight, act, out)
         _store_alarm(session, flight, act, out, rul)
@@ -186,7 +188,8 @@ def json_safe(value: Any) -> Any:
 
 
 def _store_record(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome,
-                  model_id: int) -> None:
+                  model_id: int, quality: dict[str, dict[str, float]]) -> None:
+    """The flight's health record of one actuator, with its channels' signal quality."""
     session.add(HealthRecord(
         actuator_id=act.id, flight_id=flight.id, model_version_id=model_id,
         flight_index=out.flight_index, started_at=flight.started_at,
@@ -194,7 +197,8 @@ def _store_record(session: Session, flight: Flight, act: Actuator, out: Actuator
         scores=json_safe({"z": out.z, "confidence": out.confidence,
                           "alarm_features": out.alarm_features,
                           "sensor_findings": out.sensor_findings,
-                          "set_aside": out.set_aside, "widened": out.widened}),
+                          "set_aside": out.set_aside, "widened": out.widened,
+                          "quality": quality}),
         confidence=out.max_confidence, alarm=out.alarm,
         class_probabilities=json_safe(out.class_probabilities)))
 

@@ -80,6 +80,12 @@ def test_a_noisier_lvdt_is_a_sensor_finding_not_an_alarm(
         assert client.get(f"/api/v1/actuators/{other}/sensor-findings",
                           headers=viewer).json() == []
 
+    # every analysed flight keeps its channels' figures beside its features
+    health = client.get(f"/api/v1/actuators/{wt}/health", headers=viewer).json()
+    floors = [h["scores"]["quality"]["WT.x"]["noise"] for h in health]
+    assert floors[1] > 2.5 * floors[0] and set(health[0]["scores"]["quality"]) == {
+        f"WT.{c}" for c in ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x", "i_sum", "v_sum")}
+
     grid = {c["position"]: c for c in client.get("/api/v1/fleet/health", headers=viewer).json()}
     assert [f["channel"] for f in grid["WT"]["sensor_findings"]] == ["WT.x"]
     assert grid["WL1"]["sensor_findings"] == [] and grid["WT"]["open_alarm_id"] is None
