@@ -84,9 +84,9 @@ class QualityConfig:
     min_still: int = 800
     #: least still samples on each flank for an LVDT offset (0.1 s)
     min_flank: int = 80
-    #: A, |i_q| that puts the screw on a flank (a median over many samples: the current
-    #: sensors' 0.04 A of noise per sample does not move it)
-    min_flank_current_a: float = 0.1
+    #: A, |i_q| that puts the screw's nut on a flank: below it a worn screw's nut may sit
+    #: anywhere in its gap (the feature code's least current)
+    min_flank_current_a: float = 0.3
 
 
 def _run_lengths(mask: np.ndarray) -> np.ndarray:
