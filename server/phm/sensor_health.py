@@ -48,7 +48,7 @@ __all__ = ["SENSOR_HEALTH_FORMAT", "SensorFinding", "SensorBands", "NoiseSensiti
            "fit_sensor_model"]
 
 SENSOR_HEALTH_FORMAT = "ema-sensor-bands/1"
-_METRICS = ("noise", "offset", "lsb", "stuck", "saturated")  # "noise_median": no test
+_METRICS = ("noise", "offset", "lsb", "stuck", "saturated")
 
 
 def channel_sensor(channel: str) -> tuple[str, str]:
@@ -102,6 +102,7 @@ class SensorBands:
 
     def __post_init__(self) -> None:
         self.bands_: dict[str, dict[str, tuple[float, float]]] = {}
+        self.floor_medians_: dict[str, float] = {}  # healthy median noise floor per channel
 
     @property
     def k(self) -> float:
@@ -116,8 +117,9 @@ class SensorBands:
             raise ValueError("no healthy flights with signal-quality figures to learn from")
         channels = [f"{p}.{s}" for p in POSITIONS
                     for s in dict.fromkeys(SIGNALS + tuple(FLOOR_CHANNELS))]
-        self.bands_ = {ch: self._channel_bands(ch, [q[ch] for q in qualities if ch in q])
-                       for ch in channels}
+        self.bands_, self.floor_medians_ = {}, {}
+        for ch in channels:
+            self.bands_[ch] = self._channel_bands(ch, [q[ch] for q in qualities if ch in q])
         return self
 
     def _channel_bands(self, channel: str, figs: Sequence[Mapping[str, float]]
@@ -133,7 +135,7 @@ class SensorBands:
             # one-sided: a floor below the healthy one harms no feature (the loops' share of
             # the floor falls with light loads); a channel gone dead is "stuck"
             out["noise"] = (0.0, math.exp(m + max(self.k * s, math.log1p(self.min_rise))))
-            out["noise_median"] = (math.exp(m), math.exp(m))
+            self.floor_medians_[channel] = math.exp(m)
         offset = col("offset")
         if offset.size:
             lo, hi = np.quantile(offset, [self.offset_quantile, 1.0 - self.offset_quantile])
@@ -175,7 +177,8 @@ class SensorBands:
                 "min_offset_m": self.min_offset_m,
                 "max_share": self.max_share,
                 "bands": {ch: {m: list(b) for m, b in bands.items()}
-                          for ch, bands in self.bands_.items()}}
+                          for ch, bands in self.bands_.items()},
+                "floor_medians": self.floor_medians_}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> SensorBands:
@@ -185,6 +188,7 @@ class SensorBands:
                   float(d["offset_quantile"]), float(d["min_offset_m"]), float(d["max_share"]))
         obj.bands_ = {str(ch): {str(m): (float(b[0]), float(b[1])) for m, b in bands.items()}
                       for ch, bands in d["bands"].items()}
+        obj.floor_medians_ = {str(ch): float(v) for ch, v in d["floor_medians"].items()}
         return obj
 
 
@@ -373,9 +377,9 @@ class SensorModel:
                  if f.metric == "noise" and f.value > f.high}
         out: dict[str, dict[str, float]] = {}
         for p, sensor in noisy:
-            ratios = [quality[ch]["noise"] / b["noise_median"][0]
-                      for ch, b in self.bands.bands_.items()
-                      if channel_sensor(ch) == (p, sensor) and "noise_median" in b
+            ratios = [quality[ch]["noise"] / median
+                      for ch, median in self.bands.floor_medians_.items()
+                      if channel_sensor(ch) == (p, sensor)
                       and math.isfinite(quality.get(ch, {}).get("noise", math.nan))]
             if ratios:
                 out.setdefault(p, {})[sensor] = max(float(np.median(ratios)) ** 2 - 1.0, 0.0)

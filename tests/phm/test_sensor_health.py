@@ -85,7 +85,7 @@ def test_offset_step_stuck_and_rail_findings(bands: SensorBands) -> None:
 
 def test_bands_round_trip_through_json(bands: SensorBands) -> None:
     again = SensorBands.from_dict(bands.to_dict())
-    assert again.bands_ == bands.bands_
+    assert again.bands_ == bands.bands_ and again.floor_medians_ == bands.floor_medians_
     q = _quality(np.random.default_rng(5), scale={"WL2.v_sum": 2.0})
     assert [f.to_dict() for f in again.assess(q)] == [f.to_dict() for f in bands.assess(q)]
 
@@ -126,7 +126,7 @@ def test_a_noisier_current_sensor_widens_and_shifts_its_own_features(
 def test_one_noisier_winglet_lvdt_widens_the_pair_feature_by_half(bands: SensorBands) -> None:
     q = _quality(np.random.default_rng(8), scale={"WL1.x": 2.0})
     judged = SensorModel(bands, _sensitivity()).judge(q, Z)
-    r2 = (q["WL1.x"]["noise"] / bands.bands_["WL1.x"]["noise_median"][0]) ** 2
+    r2 = (q["WL1.x"]["noise"] / bands.floor_medians_["WL1.x"]) ** 2
     assert judged.extra_variance["WL.F_REWEAR"] == pytest.approx(0.2 * (r2 - 1.0) / 2.0)
 
 
