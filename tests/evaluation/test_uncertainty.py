@@ -16,6 +16,7 @@ from server.evaluation.core import (
     pattern_prognosis,
     summarise_detection,
     summarise_prognosis,
+    summarise_sensors,
     summary_document,
 )
 from server.phm import metrics
@@ -248,6 +249,7 @@ def test_summary_json_has_the_figures_but_no_per_flight_data(tmp_path: Path) -> 
         "detection": summarise_detection(traces),
         "classification": classification_summary(traces, ["MTEL", "MTWEAR"]),
         "prognosis": summarise_prognosis(traces),
+        "sensors": summarise_sensors(traces),
         "timing": {"pf_update_ms": 0.1, "paper": {}},
         "patterns": traces,
     }
@@ -259,8 +261,8 @@ def test_summary_json_has_the_figures_but_no_per_flight_data(tmp_path: Path) -> 
     assert len(text) < (tmp_path / "out" / "evaluation.json").stat().st_size / 20
     doc = json.loads(text)
     assert list(doc) == ["format", "evaluation_format", "created_at", "campaign", "model",
-                         "settings", "detection", "classification", "prognosis", "timing",
-                         "wall_s"]
+                         "settings", "detection", "classification", "prognosis", "sensors",
+                         "timing", "wall_s"]
     # no trace (per-flight keys), no prediction list, no pattern list (counts only)
     assert not _keys(doc) & {"predictions", "instants", "rul", "true_rul", "severity_norm",
                              "new_alarms", "probs", "q05", "measurement"}
