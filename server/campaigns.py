@@ -45,6 +45,7 @@ from server.phm.features import (
     FlightFeatures,
     flight_features,
 )
+from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
 
 __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "read_manifest",
@@ -89,8 +90,9 @@ def decode_channels(data: bytes, name: str) -> dict[str, np.ndarray]:
 
 
 def feature_config_key(cfg: FeatureConfig) -> str:
-    """What stored features are valid for: the feature code's version and its configuration."""
-    return f"{FEATURE_VERSION} {cfg!r}"
+    """What stored features are valid for: the feature code's version and its configuration,
+    and the signal-quality figures' configuration."""
+    return f"{FEATURE_VERSION} {cfg!r} {QualityConfig()!r}"
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
