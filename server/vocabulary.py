@@ -23,6 +23,8 @@ __all__ = [
     "REWEAR_FEATURE",
     "REWEAR_NAME",
     "OWN_FEATURE",
+    "MODE_NAMES",
+    "FEATURE_LABELS",
     "PAPER_TABLE2",
     "is_winglet",
     "alarming_positions",
@@ -63,6 +65,28 @@ REWEAR_NAME = f"{WINGLET_UNIT}.{REWEAR_FEATURE}"
 GENERIC_FEATURES: tuple[str, ...] = ACTUATOR_FEATURES + (REWEAR_FEATURE,)
 #: the paper's Table 1: one preferential feature per fault mode (tracked by the filter)
 OWN_FEATURE: dict[str, str] = dict(zip(FAULT_MODES, GENERIC_FEATURES, strict=True))
+
+#: plain names of the fault modes (the paper's Table 1), shown beside their codes
+MODE_NAMES: dict[str, str] = {
+    "TTS": "turn-to-turn short in the motor windings",
+    "DMD": "magnet degradation",
+    "SE": "static eccentricity of the rotor",
+    "BDO": "open MOSFET base drive (inverter leg)",
+    "MTEL": "screw efficiency loss, lubricant ageing",
+    "MTWEAR": "wear-induced backlash of the ball screw",
+    "REWEAR": "wear-induced backlash of the rod-end joints",
+}
+
+#: plain names of the generic health features (what each measures), shown beside their codes
+FEATURE_LABELS: dict[str, str] = {
+    "F_TTS": "winding-to-frame leakage",
+    "F_DMD": "magnet flux deficit",
+    "F_SE": "once-per-turn flux modulation",
+    "F_BDO": "phase-voltage imbalance",
+    "F_MTEL": "screw friction ratio",
+    "F_MTWEAR": "screw gap, LVDT against motor shaft",
+    "F_REWEAR": "winglet pair's lost motion, LVDT difference",
+}
 
 #: the paper's Table 2: prognostic horizon [-] and relative accuracy [%] per progressive mode
 PAPER_TABLE2: dict[str, tuple[float, float]] = {

@@ -370,9 +370,8 @@ class SensorModel:
 
     def _excess(self, quality: Mapping[str, Mapping[str, float]],
                 findings: Sequence[SensorFinding]) -> dict[str, dict[str, float]]:
-        """position -> sensor -> excess noise variance ``r^2 - 1`` of the sensors with a
-        noise floor above its band (``r``: median over the sensor's channels of the floor
-        over its healthy median)."""
+        """position -> sensor -> excess noise variance ``r^2 - 1`` of the sensors whose
+        noise floor is above its band (``r``: the floor over its healthy median)."""
         noisy = {(f.position, f.sensor) for f in findings
                  if f.metric == "noise" and f.value > f.high}
         out: dict[str, dict[str, float]] = {}

@@ -20,6 +20,7 @@ from typing import Any
 import plotly.graph_objects as go
 
 from server.phm.prognosis.document import rul_quantile
+from server.vocabulary import FEATURE_LABELS
 
 __all__ = [
     "figure_json",
@@ -52,12 +53,35 @@ def _finite(v: Any) -> float | None:
     return f if math.isfinite(f) else None
 
 
+def _has_data(fig: go.Figure) -> bool:
+    """Whether any trace has a finite value to show (a band alone is no data)."""
+    for trace in fig.data:
+        values = getattr(trace, "z", None) if trace.type == "heatmap" else trace.y
+        if values is not None and any(
+                v is not None and isinstance(v, int | float) and math.isfinite(v)
+                for row in values for v in (row if isinstance(row, list | tuple) else [row])):
+            return True
+    return False
+
+
 def _layout(fig: go.Figure, title: str, x: str, y: str, **extra: Any) -> go.Figure:
     settings: dict[str, Any] = {"hovermode": "x unified",
                                 "legend": {"orientation": "h", "y": -0.22}, **extra}
     fig.update_layout(title={"text": title, "x": 0.01}, template=_TEMPLATE, margin=_MARGIN,
                       xaxis_title=x, yaxis_title=y, **settings)
+    if not _has_data(fig):
+        # an empty plot says so, instead of bare default axes (-1 to 6: a negative probability)
+        fig.update_layout(xaxis={"visible": False}, yaxis={"visible": False},
+                          annotations=[{"text": "no data yet", "showarrow": False,
+                                        "xref": "paper", "yref": "paper", "x": 0.5, "y": 0.5,
+                                        "font": {"size": 16, "color": "#555"}}])
     return fig
+
+
+def feature_label(name: str) -> str:
+    """``"WT.F_DMD"`` -> ``"WT.F_DMD magnet flux deficit"``: the code and what it measures."""
+    label = FEATURE_LABELS.get(name.split(".", 1)[-1])
+    return f"{name} {label}" if label else name
 
 
 def feature_trends(records: Sequence[Mapping[str, Any]], *, band: float, threshold: float
@@ -83,7 +107,7 @@ def feature_trends(records: Sequence[Mapping[str, Any]], *, band: float, thresho
                                      showlegend=sign == 1, hoverinfo="skip"))
     for i, name in enumerate(names):
         ys = [_finite((r.get("scores") or {}).get("z", {}).get(name)) for r in records]
-        fig.add_trace(go.Scatter(x=xs, y=ys, mode="lines+markers", name=name,
+        fig.add_trace(go.Scatter(x=xs, y=ys, mode="lines+markers", name=feature_label(name),
                                  marker={"size": 4}, line={"color": _PALETTE[i % len(_PALETTE)]},
                                  connectgaps=False))
     return _layout(fig, "Feature trends (standardised residual z)", "flight index", "z")

@@ -43,6 +43,7 @@ from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
 from server.services import test_station as station_service
+from server.vocabulary import FEATURE_LABELS, MODE_NAMES
 from server.web import data, figures
 
 __all__ = ["router", "COOKIE", "STATIC_DIR", "TEMPLATE_DIR", "csrf_token"]
@@ -64,6 +65,8 @@ def templates() -> Jinja2Templates:
     t.env.globals["figure_json"] = figures.figure_json
     t.env.globals["rul_quantile"] = rul_quantile
     t.env.globals["work_order_pattern"] = WORK_ORDER_FORM_PATTERN
+    t.env.globals["mode_names"] = MODE_NAMES
+    t.env.globals["feature_labels"] = FEATURE_LABELS
     return t
 
 

@@ -69,7 +69,9 @@ def test_feature_trends_band_threshold_and_one_trace_per_feature() -> None:
                 "confidence": 0.1, "alarm": False} for i in range(1, 6)]
     fig = figures.feature_trends(records, band=3.0, threshold=5.05)
     names = _names(fig)
-    assert "WL1.F_DMD" in names and "WL1.F_TTS" in names
+    # each feature by its code and what it measures
+    assert "WL1.F_DMD magnet flux deficit" in names
+    assert "WL1.F_TTS winding-to-frame leakage" in names
     band = fig.data[0]
     assert max(band.y) == 3.0 and min(band.y) == -3.0
     thr = [t for t in fig.data if (t.name or "").startswith("alarm threshold")]
@@ -102,3 +104,12 @@ def test_figure_json_is_safe_inside_a_script_element() -> None:
     text = figures.figure_json(fig)
     assert "</" not in text and "<" not in text and "&" not in text
     assert json.loads(text)["layout"]["title"]["text"] == "</script><b>x</b> & y"
+
+
+def test_an_empty_plot_says_no_data_yet_instead_of_bare_axes() -> None:
+    for fig in (figures.rul_cone([], None), figures.feature_trends([], band=3.0, threshold=5.05),
+                figures.detection_confidence([])):
+        assert [a.text for a in fig.layout.annotations] == ["no data yet"]
+        assert fig.layout.xaxis.visible is False and fig.layout.yaxis.visible is False
+    full = figures.detection_confidence([{"flight_index": 1, "confidence": 0.2, "alarm": False}])
+    assert not full.layout.annotations and full.layout.xaxis.visible is not False

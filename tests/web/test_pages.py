@@ -81,6 +81,21 @@ def test_every_page_renders_for_a_viewer_without_admin_controls(client, keys, se
     assert 'id="inject-form"' not in station and 'id="no-inject"' in station
 
 
+def test_modes_and_features_carry_their_plain_names(client, keys, seeded) -> None:
+    sign_in(client, keys["viewer"])
+    dmd = '<abbr title="magnet degradation">DMD</abbr> <span class="mode-name">magnet degradation'
+    assert dmd in client.get("/alarms").text
+    page = client.get(f"/actuators/{seeded.actuator_id}").text
+    assert page.count(dmd) >= 2  # the header's fault mode and the alarm list
+    assert "magnet flux deficit" in page  # the feature-trend legend
+    fleet = client.get("/fleet").text
+    assert '<abbr title="magnet degradation">DMD</abbr>' in fleet
+    assert "DMD (magnet degradation)" in fleet  # the cell's accessible label
+    assert '<abbr title="magnet degradation">DMD</abbr>' in client.get("/test-station").text
+    sign_in(client, keys["operator"])  # the injection form
+    assert "TTS: turn-to-turn short in the motor windings" in client.get("/test-station").text
+
+
 def test_actuator_page_embeds_figures_with_data(client, keys, seeded) -> None:
     sign_in(client, keys["viewer"])
     html = client.get(f"/actuators/{seeded.actuator_id}").text
