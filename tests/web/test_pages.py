@@ -96,6 +96,21 @@ def test_modes_and_features_carry_their_plain_names(client, keys, seeded) -> Non
     assert "TTS: turn-to-turn short in the motor windings" in client.get("/test-station").text
 
 
+def test_the_header_names_the_open_alarms_mode_even_without_a_prognosis(
+        app, client, keys, seeded, aircraft) -> None:  # type: ignore[no-untyped-def]
+    """An abrupt fault (BDO) gets no prognosis: the header follows the alarm, as the fleet
+    grid does."""
+    add_alarm(app.state.session_factory, tail=aircraft, position="WT", fault_mode="BDO")
+    sign_in(client, keys["viewer"])
+    wt = next(c for c in client.get("/api/v1/fleet/health",
+                                    headers={"Authorization": f"Bearer {keys['viewer']}"}
+                                    ).json() if c["position"] == "WT")
+    assert wt["fault_mode"] == "BDO"
+    page = client.get(f"/actuators/{wt['actuator_id']}").text
+    header = page[page.index('id="fault-mode"'):page.index("</dd>", page.index('id="fault-mode"'))]
+    assert ">BDO</abbr>" in header
+
+
 def test_actuator_page_embeds_figures_with_data(client, keys, seeded) -> None:
     sign_in(client, keys["viewer"])
     html = client.get(f"/actuators/{seeded.actuator_id}").text
