@@ -99,11 +99,11 @@ def feature_trends(records: Sequence[Mapping[str, Any]], *, band: float, thresho
         fig.add_trace(go.Scatter(x=[x0, x1, x1, x0, x0], y=[-band, -band, band, band, -band],
                                  fill="toself", fillcolor="rgba(44,160,44,0.12)",
                                  mode="lines", line={"width": 0},
-                                 name=f"healthy band (+-{band:.2f})", hoverinfo="skip"))
+                                 name=f"healthy band (±{band:.2f})", hoverinfo="skip"))
         for sign in (1, -1):
             fig.add_trace(go.Scatter(x=[x0, x1], y=[sign * threshold] * 2, mode="lines",
                                      line={"color": "#d62728", "dash": "dash", "width": 1.5},
-                                     name=f"alarm threshold (+-{threshold:.2f})",
+                                     name=f"alarm threshold (±{threshold:.2f})",
                                      showlegend=sign == 1, hoverinfo="skip"))
     for i, name in enumerate(names):
         ys = [_finite((r.get("scores") or {}).get("z", {}).get(name)) for r in records]
@@ -159,7 +159,7 @@ def severity_band(prognoses: Sequence[Mapping[str, Any]]) -> go.Figure:
     if xs:
         fig.add_trace(go.Scatter(x=xs + xs[::-1], y=hi + lo[::-1], fill="toself",
                                  fillcolor="rgba(148,103,189,0.2)", line={"width": 0},
-                                 mode="lines", name="mean +- 2 std", hoverinfo="skip"))
+                                 mode="lines", name="mean ± 2 std", hoverinfo="skip"))
         fig.add_trace(go.Scatter(x=[min(xs), max(xs)], y=[1.0, 1.0], mode="lines",
                                  name="failure threshold",
                                  line={"color": "#d62728", "dash": "dash"}))
@@ -199,7 +199,7 @@ def rul_cone(prognoses: Sequence[Mapping[str, Any]],
                                                                     for v in ty[::-1]],
                                  fill="toself", fillcolor="rgba(44,160,44,0.15)", mode="lines",
                                  line={"color": "rgba(44,160,44,0.6)", "dash": "dot"},
-                                 name=f"true RUL +-{100 * alpha:g} %", hoverinfo="skip"))
+                                 name=f"true RUL ±{100 * alpha:g} %", hoverinfo="skip"))
         fig.add_trace(go.Scatter(x=tx, y=ty, mode="lines", name="true RUL",
                                  line={"color": "#2ca02c", "dash": "dash"}))
     fig.add_trace(go.Scatter(x=xs, y=q50, mode="lines+markers", name="median RUL",

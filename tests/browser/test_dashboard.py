@@ -143,7 +143,7 @@ def test_admin_flow_live_alarm_acknowledge_figures_inject(live: Live, browser) -
     points = _plot_points(page, "fig-cone")
     assert len(points) == 4 and min(points) > 5, points
     names = page.evaluate("document.getElementById('fig-cone').data.map(t => t.name)")
-    assert "median RUL" in names and "true RUL +-20 %" in names
+    assert "median RUL" in names and "true RUL ±20 %" in names
     for fig in ("fig-hist", "fig-trends", "fig-confidence", "fig-classes", "fig-severity"):
         assert max(_plot_points(page, fig)) > 0, fig
     _shot(page, "actuator-1280")

@@ -30,14 +30,14 @@ def test_rul_cone_has_median_band_and_truth_cone() -> None:
     fig = figures.rul_cone(progs, truth, alpha=0.2)
     names = _names(fig)
     assert "median RUL" in names and "5-95 % band" in names
-    assert "true RUL" in names and "true RUL +-20 %" in names
+    assert "true RUL" in names and "true RUL ±20 %" in names
     median = fig.data[names.index("median RUL")]
     assert list(median.x) == list(range(1, 11))
     assert median.y[0] == 48.0
     band = fig.data[names.index("5-95 % band")]
     assert len(band.x) == 20 and band.fill == "toself"
     assert max(band.y) == 48.0 * 1.4 and min(band.y) == 30.0 * 0.6
-    cone = fig.data[names.index("true RUL +-20 %")]
+    cone = fig.data[names.index("true RUL ±20 %")]
     assert cone.y[0] == 43.0 * 1.2 and cone.y[-1] == 43.0 * 0.8
 
 

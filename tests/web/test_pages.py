@@ -109,6 +109,7 @@ def test_the_header_names_the_open_alarms_mode_even_without_a_prognosis(
     page = client.get(f"/actuators/{wt['actuator_id']}").text
     header = page[page.index('id="fault-mode"'):page.index("</dd>", page.index('id="fault-mode"'))]
     assert ">BDO</abbr>" in header
+    assert 'id="median-rul">–</dd>' in page  # no RUL: a dash, not "- flights"
 
 
 def test_actuator_page_embeds_figures_with_data(client, keys, seeded) -> None:
@@ -120,7 +121,7 @@ def test_actuator_page_embeds_figures_with_data(client, keys, seeded) -> None:
     start = html.index('data-target="fig-cone">') + len('data-target="fig-cone">')
     cone = json.loads(html[start:html.index("</script>", start)])
     names = [t.get("name") for t in cone["data"]]
-    assert {"median RUL", "5-95 % band", "true RUL", "true RUL +-20 %"} <= set(names)
+    assert {"median RUL", "5-95 % band", "true RUL", "true RUL ±20 %"} <= set(names)
     assert "/static/vendor/plotly.min.js" in html
     models = client.get("/models").text
     assert 'data-target="fig-confusion"' in models and "per-class" in models
