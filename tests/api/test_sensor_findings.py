@@ -69,8 +69,10 @@ def test_a_noisier_lvdt_is_a_sensor_finding_not_an_alarm(
     noisy_id = _analyse(client, keys, settings, _flight(aircraft, "F2", 2, ("WT.lvdt:noise=3",)))
     found = client.get(f"/api/v1/actuators/{wt}/sensor-findings", headers=viewer).json()
     assert [f["flight_id"] for f in found] == [noisy_id]
-    [finding] = found[0]["findings"]
-    assert (finding["channel"], finding["sensor"], finding["metric"]) == ("WT.x", "lvdt", "noise")
+    findings = found[0]["findings"]
+    # the noisy LVDT alone is named (its offset figure, noisier too, may leave its band)
+    assert {(f["channel"], f["sensor"]) for f in findings} == {("WT.x", "lvdt")}
+    [finding] = [f for f in findings if f["metric"] == "noise"]
     assert finding["value"] > 2 * finding["high"] / 1.3  # about 3x the healthy floor
     # the features that read the LVDT are judged with a widened scatter, none set aside
     assert found[0]["set_aside"] == [] and set(found[0]["widened"]) <= {
@@ -87,7 +89,7 @@ def test_a_noisier_lvdt_is_a_sensor_finding_not_an_alarm(
         f"WT.{c}" for c in ("ia", "ib", "ic", "va", "vb", "vc", "theta", "x", "i_sum", "v_sum")}
 
     grid = {c["position"]: c for c in client.get("/api/v1/fleet/health", headers=viewer).json()}
-    assert [f["channel"] for f in grid["WT"]["sensor_findings"]] == ["WT.x"]
+    assert {f["channel"] for f in grid["WT"]["sensor_findings"]} == {"WT.x"}
     assert grid["WL1"]["sensor_findings"] == [] and grid["WT"]["open_alarm_id"] is None
     alarms = client.get("/api/v1/alarms", headers=viewer).json()["items"]
     assert "WT" not in {a["position"] for a in alarms}

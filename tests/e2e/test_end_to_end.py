@@ -12,7 +12,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 import httpx
@@ -122,6 +122,19 @@ def test_injected_faults_raise_classified_alarms_and_prognoses(system) -> None: 
         assert {f["status"] for f in flights["items"]} == {"analyzed"}
 
 
+def _kill_mid_job(pid: int, running: Callable[[], bool]) -> None:
+    """SIGKILL the worker while a job of its is running: frozen first (SIGSTOP), so that the
+    job it was seen running cannot finish between the look and the kill."""
+    for _ in range(100):
+        wait_until(running, 60, "a running job")
+        os.kill(pid, signal.SIGSTOP)
+        if running():
+            os.kill(pid, signal.SIGKILL)
+            return
+        os.kill(pid, signal.SIGCONT)  # it finished that job in between: catch the next
+    raise AssertionError("never caught the worker mid-job")
+
+
 def test_worker_killed_mid_job_loses_and_duplicates_nothing(system) -> None:  # type: ignore[no-untyped-def]
     settings, engine, keys = system
     with running_server(_env(settings)) as url:
@@ -134,8 +147,7 @@ def test_worker_killed_mid_job_loses_and_duplicates_nothing(system) -> None:  # 
                 with Session(engine) as s:
                     return s.scalar(select(Job.id).where(Job.status == "running")) is not None
 
-            wait_until(running, 60, "a running job")
-            os.kill(doomed.pid, signal.SIGKILL)
+            _kill_mid_job(doomed.pid, running)
             doomed.wait(timeout=10)
         with Session(engine) as s:
             stranded = s.scalars(select(Job).where(Job.status == "running")).all()
