@@ -287,7 +287,8 @@ class NoiseSensitivity:
         return self
 
     def fitted(self) -> bool:
-        return bool(self.variance_)
+        """Whether the study gave any coefficient (pairs too few or too alike give none)."""
+        return any(self.variance_.values())
 
     def effect(self, generic: str, excess: Mapping[str, float],
                weight: float = 1.0) -> tuple[float, float]:

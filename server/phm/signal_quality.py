@@ -11,6 +11,8 @@ Every recorded channel (:data:`server.vocabulary.SIGNALS`) gets:
 ``saturated``  share of the samples at the flight's extreme values in runs of more than one
                sample [-]: a channel clipped on a rail sits at it; a live one touches its
                extreme once.
+The resolver and LVDT channels also get
+
 ``noise``      noise floor [channel unit, rms]: on *still* samples (the drive holding, motor
                speed below ``still_speed_rad_s`` for at least ``still_min_s``, read from the
                resolver) the second difference of a channel is its white noise (variance 6
@@ -18,16 +20,17 @@ Every recorded channel (:data:`server.vocabulary.SIGNALS`) gets:
                The rms of the second difference, winsorised at ``winsor_k`` robust scales
                against spikes, over sqrt(6).
 
-A phase channel's own floor also holds the loops' reaction to the noise they are fed and any
-ripple of the drive itself (an open inverter leg multiplies it fifty-fold). The sensors' own
-noise is read where the physics cancels the drive: the three phase currents of a star winding
-sum to zero, and the three pole voltages' common mode is smooth on a hold, so
+A phase channel's own floor would also hold the loops' reaction to the noise they are fed and
+any ripple of the drive itself (an open inverter leg multiplies it fifty-fold), so it is not
+computed. The current and voltage sensors' noise is read where the physics cancels the drive:
+the three phase currents of a star winding sum to zero, and the three pole voltages' common
+mode is smooth on a hold, so
 
 ``i_sum``      ``noise`` of ``ia + ib + ic`` over sqrt(3) [A]: the current sensors' noise alone
                (a winding-to-frame leakage adds a little);
 ``v_sum``      ``noise`` of ``va + vb + vc`` over sqrt(3) [V]: the voltage sensors' noise.
 
-The resolver (``theta``) and the LVDT (``x``) floors are their own. The LVDT also gets
+The LVDT also gets
 
 ``offset``     [m]: the rod position read against the motor shaft, ``x - r theta``, on still
                samples, midway between its medians with the motor torque one way and the
@@ -127,11 +130,10 @@ def _noise_floor(v: np.ndarray, still: np.ndarray, cfg: QualityConfig) -> float:
     return float(np.sqrt(np.mean(clipped * clipped) / 6.0))
 
 
-def _lsb(v: np.ndarray) -> float:
+def _lsb(steps: np.ndarray) -> float:
     # a noisy channel steps by one LSB between neighbouring samples many times a flight
-    steps = np.abs(np.diff(v))
-    steps = steps[steps > 0.0]
-    return float(steps.min()) if steps.size else float("nan")
+    moved = np.abs(steps[steps != 0.0])
+    return float(moved.min()) if moved.size else float("nan")
 
 
 def _samples_in_runs(mask: np.ndarray, min_len: int) -> int:
@@ -141,29 +143,30 @@ def _samples_in_runs(mask: np.ndarray, min_len: int) -> int:
     return int(lengths[lengths >= min_len].sum())
 
 
-def _stuck_share(v: np.ndarray, cfg: QualityConfig) -> float:
-    if v.size < 2:
-        return 0.0
-    # a run of n equal samples is a run of n - 1 "same as the one before" flags
-    same = v[1:] == v[:-1]
+def _stuck_share(steps: np.ndarray, n: int, cfg: QualityConfig) -> float:
+    # a run of n equal samples is a run of n - 1 zero steps
     min_len = int(round(cfg.stuck_min_s * cfg.sample_rate_hz))
-    return _samples_in_runs(same, min_len) / v.size
+    return _samples_in_runs(steps == 0.0, min_len) / n
 
 
 def _saturated_share(v: np.ndarray) -> float:
-    if v.size < 2:
-        return 0.0
     return _samples_in_runs((v == v.max()) | (v == v.min()), 2) / v.size
 
 
-def channel_quality(v: np.ndarray, still: np.ndarray,
+def channel_quality(v: np.ndarray, still: np.ndarray | None = None,
                     config: QualityConfig | None = None) -> dict[str, float]:
-    """``noise``, ``lsb``, ``stuck`` and ``saturated`` of one channel (``still``: its 800 Hz
-    hold mask, the same length)."""
+    """``lsb``, ``stuck`` and ``saturated`` of one channel, and its ``noise`` floor when
+    ``still`` (its 800 Hz hold mask, the same length) is given."""
     cfg = config or QualityConfig()
     v = np.asarray(v, dtype=np.float64)
-    return {"noise": _noise_floor(v, still, cfg), "lsb": _lsb(v),
-            "stuck": _stuck_share(v, cfg), "saturated": _saturated_share(v)}
+    if v.size < 2:
+        return {"lsb": float("nan"), "stuck": 0.0, "saturated": 0.0}
+    steps = np.diff(v)  # one pass shared by the step and the stuck share
+    out = {"lsb": _lsb(steps), "stuck": _stuck_share(steps, v.size, cfg),
+           "saturated": _saturated_share(v)}
+    if still is not None:
+        out["noise"] = _noise_floor(v, still, cfg)
+    return out
 
 
 def _q_current(ia: np.ndarray, ib: np.ndarray, ic: np.ndarray, theta: np.ndarray,
@@ -176,10 +179,13 @@ def _q_current(ia: np.ndarray, ib: np.ndarray, ic: np.ndarray, theta: np.ndarray
 
 
 def _lvdt_offset(sig: Mapping[str, np.ndarray], still: np.ndarray, radius_m: float,
-                 i_q: np.ndarray, cfg: QualityConfig) -> float:
-    rel = sig["x"] - radius_m * sig["theta"]
-    up = still & (i_q > cfg.min_flank_current_a)
-    down = still & (i_q < -cfg.min_flank_current_a)
+                 pole_pairs: int, electrical_offset_rad: float, cfg: QualityConfig) -> float:
+    hold = np.flatnonzero(still)  # only holds count: i_q and x - r theta there alone
+    at = {k: sig[k][hold] for k in ("ia", "ib", "ic", "theta", "x")}
+    i_q = _q_current(at["ia"], at["ib"], at["ic"], at["theta"], pole_pairs,
+                     electrical_offset_rad)
+    rel = at["x"] - radius_m * at["theta"]
+    up, down = i_q > cfg.min_flank_current_a, i_q < -cfg.min_flank_current_a
     if min(np.count_nonzero(up), np.count_nonzero(down)) < cfg.min_flank:
         return float("nan")
     return 0.5 * float(np.median(rel[up]) + np.median(rel[down]))
@@ -200,13 +206,13 @@ def flight_quality(channels: Mapping[str, np.ndarray], *, screw_radius_m: float,
         sig = {s: a[:n] for s, a in sig.items()}
         still = still_samples(sig["theta"], cfg)
         for s, v in sig.items():
-            out[f"{p}.{s}"] = channel_quality(v, still, cfg)
+            # a phase channel's own floor carries the drive: its sensor is read on the sum
+            out[f"{p}.{s}"] = channel_quality(v, still if s in FLOOR_CHANNELS else None, cfg)
         root3 = math.sqrt(3.0)
         out[f"{p}.i_sum"] = {"noise": _noise_floor(sig["ia"] + sig["ib"] + sig["ic"], still,
                                                    cfg) / root3}
         out[f"{p}.v_sum"] = {"noise": _noise_floor(sig["va"] + sig["vb"] + sig["vc"], still,
                                                    cfg) / root3}
-        i_q = _q_current(sig["ia"], sig["ib"], sig["ic"], sig["theta"], pole_pairs,
-                         electrical_offset_rad)
-        out[f"{p}.x"]["offset"] = _lvdt_offset(sig, still, screw_radius_m, i_q, cfg)
+        out[f"{p}.x"]["offset"] = _lvdt_offset(sig, still, screw_radius_m, pole_pairs,
+                                               electrical_offset_rad, cfg)
     return out

@@ -15,7 +15,6 @@ from server.config import Settings
 from server.jobs import queue
 from server.jobs.worker import Worker
 from server.models import Job, utcnow
-from server.services import models as model_service
 from tests.api.conftest import auth
 from tests.flightlog_factory import make_parquet
 
@@ -93,11 +92,7 @@ def test_analysis_abandoned_on_its_last_attempt_fails_and_an_admin_retries_it(
 @pytest.mark.slow
 def test_analysis_failing_on_every_attempt_fails_then_analyses_once_retried(
         app, client: TestClient, keys: dict[str, str], aircraft: str, settings: Settings,
-        trained_model) -> None:  # type: ignore[no-untyped-def]
-    with app.state.session_factory() as session:
-        model_service.store_trained(session=session, name="t", payload=trained_model[0],
-                                    report=trained_model[1], make_active=True)
-        session.commit()
+        active_model: None) -> None:  # type: ignore[no-untyped-def]
     flight_id = _upload(client, keys, aircraft, "F1")
 
     # a worker whose decode limits are below this flight's size fails it on every attempt

@@ -71,10 +71,15 @@ SIGMA = {"ia": 0.04, "ib": 0.04, "ic": 0.04, "va": 0.8, "vb": 0.8, "vc": 0.8,
 
 def test_the_noise_floor_is_the_white_noise_on_holds() -> None:
     rng = np.random.default_rng(1)
-    q = _quality(_channels(48_000, rng, sigma=SIGMA))
+    ch = _channels(48_000, rng, sigma=SIGMA)
+    q = _quality(ch)
+    still = still_samples(ch["WT.theta"])
     for s in SIGNALS:
         # winsorised at 4 sigma: the estimate is within 2 % of the noise it was given
-        assert q[f"WT.{s}"]["noise"] == pytest.approx(SIGMA[s], rel=0.02)
+        assert channel_quality(ch[f"WT.{s}"], still)["noise"] == pytest.approx(SIGMA[s], rel=0.02)
+    # the flight's figures: the resolver's and LVDT's own floors, the phases' on their sums
+    assert [s for s in SIGNALS if "noise" in q[f"WT.{s}"]] == ["theta", "x"]
+    assert q["WT.x"]["noise"] == pytest.approx(SIGMA["x"], rel=0.02)
     assert q["WT.i_sum"]["noise"] == pytest.approx(SIGMA["ia"], rel=0.02)
     assert q["WT.v_sum"]["noise"] == pytest.approx(SIGMA["va"], rel=0.02)
 
@@ -91,9 +96,14 @@ def test_a_doubled_noise_doubles_the_floor_of_that_channel_only() -> None:
 def test_a_drive_ripple_leaves_the_current_sensor_floor_alone() -> None:
     """Ripple of the drive itself (an open inverter leg, a shorted turn) is in the true
     currents, whose sum is zero: the phase floors rise, the sensors' floor does not."""
-    rippled = _quality(_channels(48_000, np.random.default_rng(2), sigma=SIGMA, ripple_a=0.5))
-    base = _quality(_channels(48_000, np.random.default_rng(3), sigma=SIGMA))
-    assert rippled["WT.ia"]["noise"] > 3 * base["WT.ia"]["noise"]
+    rippled_ch = _channels(48_000, np.random.default_rng(2), sigma=SIGMA, ripple_a=0.5)
+    base_ch = _channels(48_000, np.random.default_rng(3), sigma=SIGMA)
+    rippled, base = _quality(rippled_ch), _quality(base_ch)
+
+    def phase_floor(ch: dict[str, np.ndarray]) -> float:
+        return channel_quality(ch["WT.ia"], still_samples(ch["WT.theta"]))["noise"]
+
+    assert phase_floor(rippled_ch) > 3 * phase_floor(base_ch)
     assert rippled["WT.i_sum"]["noise"] == pytest.approx(base["WT.i_sum"]["noise"], rel=0.03)
 
 
