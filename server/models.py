@@ -414,6 +414,8 @@ class Injection(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     cancelled_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     failure_flight: Mapped[int | None] = mapped_column(Integer)
+    #: progressive faults: the flight the sim worker steers the fault to fail at
+    planned_failure_flight: Mapped[int | None] = mapped_column(Integer)
 
 
 class GroundTruth(Base):

@@ -4,6 +4,8 @@
 writes a campaign of flight logs and its manifest (see :mod:`sim_worker.campaign`);
 ``hmsm campaign`` takes the same options and streams it (features kept, logs sampled).
 ``sim-worker load-share --out FILE`` measures a worn drive's load share (:mod:`.calibration`).
+``sim-worker span-check --out FILE`` measures how well the test station honours a requested
+time to failure (:mod:`.span_check`).
 """
 
 from __future__ import annotations
@@ -35,6 +37,20 @@ def build_parser() -> argparse.ArgumentParser:
     share.add_argument("--duration", type=float, default=60.0, help="seconds per flight")
     share.add_argument("--workers", type=int, default=None)
     share.set_defaults(func=_cmd_load_share)
+
+    check = sub.add_parser("span-check", help="fly test-station injections to failure and "
+                           "measure how well the requested time to failure is honoured")
+    check.add_argument("--out", required=True, help="JSON report to write")
+    check.add_argument("--per-mode", type=int, default=20, help="injections per progressive mode")
+    check.add_argument("--span-range", default="40,200", metavar="LOW,HIGH",
+                       help="requested times to failure, drawn uniformly [flights]")
+    check.add_argument("--duration", type=float, default=60.0,
+                       help="seconds recorded per flight (the demo's sim worker: 60)")
+    check.add_argument("--seed", type=int, default=0)
+    check.add_argument("--workers", type=int, default=1)
+    check.add_argument("--fixed-rate", action="store_true",
+                       help="no steering: the rate fixed at onset, for comparison")
+    check.set_defaults(func=_cmd_span_check)
 
     run = sub.add_parser("run", help="fly the simulated fleet against a running HMSM")
     run.add_argument("--api", required=True, help="HMSM base URL, e.g. http://127.0.0.1:8000")
@@ -201,6 +217,30 @@ def _cmd_load_share(args: argparse.Namespace) -> int:
         for pos, curve in curves.items():
             print(f"{mode:7s} {pos:4s} " + " ".join(f"{v:.3f}" for v in curve))
     print(f"load share written to {args.out} in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def _cmd_span_check(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .span_check import check_spans, span_cases, summarise, write_report
+
+    lo, hi = parse_span_range(args.span_range) or (40.0, 200.0)
+    if args.per_mode < 1 or lo < 10:
+        raise ValueError("need --per-mode >= 1 and spans of at least 10 flights")
+    cases = span_cases(args.per_mode, args.seed, (int(lo), int(hi)))
+    t0 = time.perf_counter()
+    records = list(tqdm(check_spans(cases, seed=args.seed, duration_s=args.duration,
+                                    steered=not args.fixed_rate, workers=args.workers),
+                        total=len(cases), desc="injections", unit="inj"))
+    settings = {"per_mode": args.per_mode, "span_range": [int(lo), int(hi)],
+                "duration_s": args.duration, "seed": args.seed,
+                "steered": not args.fixed_rate, "elapsed_s": round(time.perf_counter() - t0)}
+    write_report(args.out, records, settings)
+    for mode, row in summarise(records).items():
+        print(f"{mode:7s} {row['injections']:3d} injections: {100 * row['within_10pct']:5.1f} % "
+              f"within 10 %, mean error {100 * (row['mean_error'] or 0):+6.1f} %, largest "
+              f"{100 * (row['max_abs_error'] or 0):5.1f} %, {row['not_failed']} not failed")
     return 0
 
 

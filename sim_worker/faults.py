@@ -55,6 +55,8 @@ __all__ = [
     "advance_fault",
     "fault_entries",
     "driver",
+    "reference_driver",
+    "life_to_go",
 ]
 
 MODES: tuple[str, ...] = FAULT_MODES
@@ -138,6 +140,21 @@ def driver(mode: str, s: ActuatorSummary, block_hours: float) -> float:
     return 0.0
 
 
+def reference_driver(mode: str, reference: ActuatorSummary) -> float:
+    """The driver of the reference flight (the base's expected conditions) at the reference
+    block hours: what a progressive fault's rate is calibrated against."""
+    return max(driver(mode, reference, _BLOCK_HOURS_REF), 1e-9)
+
+
+def life_to_go(state: FaultState) -> float:
+    """``int_s^1 ds / (g(s) (s + c))`` from the fault's severity now: flights to failure times
+    rate times the mean driver (:func:`~sim_worker.load_share.life_integral`)."""
+    if state.mode not in PROGRESSIVE or state.position is None:
+        raise ValueError(f"{state.mode} has no progression")
+    return life_integral(state.mode, state.position, min(state.severity_norm, 1.0),
+                         _GROWTH_C[state.mode])
+
+
 def new_fault(mode: str, position: str, rng: np.random.Generator, *,
               reference: ActuatorSummary | None = None, span_flights: float | None = None,
               span_range: tuple[float, float] = SPAN_FLIGHTS,
@@ -161,8 +178,8 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
     if reference is None:
         raise ValueError("progressive modes need a reference flight summary to set the rate")
     span = float(rng.uniform(*span_range)) if span_flights is None else float(span_flights)
-    d_ref = max(driver(mode, reference, _BLOCK_HOURS_REF), 1e-9)
-    rate = life_integral(mode, position, _ONSET_NORM, _GROWTH_C[mode]) / (span * d_ref)
+    rate = life_integral(mode, position, _ONSET_NORM, _GROWTH_C[mode]) / (
+        span * reference_driver(mode, reference))
     return FaultState(mode, position, _ONSET_NORM * thr, thr, rate=rate)
 
 

@@ -8,9 +8,11 @@ Per aircraft and flight number ``n`` (flight id ``<tail>-F<n:05d>``), in this or
 2. report the ground truth of flight ``n`` (true severity during the flight) -- idempotent;
 3. simulate flight ``n`` and upload it -- idempotent: the same seed gives the same bytes, and
    the service answers 200 for bytes it already has;
-4. advance the fault by its law from what the flight did; at the failure threshold mark the
-   injection failed and back-fill the true RUL of every reported flight (the true RUL is only
-   known in hindsight).
+4. advance the fault by its law from what the flight did, steered to fail at the planned
+   flight (:mod:`.steering`: the operator's time to failure, or one drawn by the campaigns'
+   law, counted from the flight the fault started on; the plan is reported to the service when
+   the injection goes active); at the failure threshold mark the injection failed and
+   back-fill the true RUL of every reported flight (the true RUL is only known in hindsight).
 
 **A failed drive grounds its aircraft.** A flight-control actuator at failure is a no-go item:
 from the flight after the failure the aircraft does not fly (``fly`` returns ``"grounded"``,
@@ -40,9 +42,10 @@ import numpy as np
 
 from server.flightlog import write_parquet
 
-from .faults import FaultState, advance_fault, healthy, new_fault
+from .faults import FaultState, advance_fault, healthy
 from .fleet import FLEET_BASES, Aircraft, build_aircraft
 from .flight import flight_start, reference_summary, simulate_flight
+from .steering import SteeredFault, plan_fault, steer_and_advance
 
 __all__ = ["Api", "ApiError", "SimFleetRunner", "fleet_plan"]
 
@@ -122,6 +125,8 @@ class AircraftRun:
     fault: FaultState
     injection_id: int | None = None
     failed_at: int | None = None
+    #: a progressive injection's plan (None for abrupt faults and healthy flight)
+    plan: SteeredFault | None = None
 
 
 class SimFleetRunner:
@@ -163,7 +168,7 @@ class SimFleetRunner:
             if run.fault.position in changed:
                 log.info("%s: actuator %s replaced; its fault is gone", run.aircraft.tail,
                          run.fault.position)
-                run.fault, run.injection_id, run.failed_at = healthy(), None, None
+                self._clear(run)
             run.aircraft = replace(run.aircraft, serials=installed)
 
     def _resume(self, run: AircraftRun) -> None:
@@ -188,9 +193,11 @@ class SimFleetRunner:
             if truth:
                 latest = truth[-1]
                 reported = int(latest["flight_number"])
-                run.fault = replace(self._fault_for(run, live),
-                                    severity=float(latest["severity"]))
-                run.injection_id = live["id"]
+                # the driver history is not stored: the plan restarts from its prior
+                self._start(run, live, int(truth[0]["flight_number"]))
+                run.fault = replace(run.fault, severity=float(latest["severity"]))
+                if run.plan is not None:
+                    run.plan = replace(run.plan, state=run.fault)
                 if live.get("failure_flight") is not None:
                     run.failed_at = int(live["failure_flight"])
         run.next_flight = max(1, last + 1, reported)
@@ -203,17 +210,26 @@ class SimFleetRunner:
         live = [i for i in items if i["status"] in ("pending", "active")]
         return live[0] if live else None
 
-    def _fault_for(self, run: AircraftRun, injection: dict[str, Any]) -> FaultState:
-        """The injection's fault at onset; the same on every restart (seeded by its id)."""
+    def _start(self, run: AircraftRun, injection: dict[str, Any], start_flight: int) -> None:
+        """Take up the injection's fault, started at ``start_flight``; the same on every
+        restart (seeded by its id). A progressive fault is planned to fail ``span`` flights
+        after its start: the operator's time to failure, or drawn as campaigns draw it."""
         rng = np.random.default_rng([self.seed, 11, run.index, int(injection["id"])])
         # the aircraft's average flight at this runner's recording length, as campaigns do:
         # one drawn flight could be a short, calm one and make the fault fail far too soon
         reference = reference_summary(run.aircraft, injection["position"],
                                       duration_s=self.duration_s,
                                       seed=(self.seed, 12, run.index))
-        return new_fault(injection["fault_mode"], injection["position"], rng,
-                         reference=reference, span_flights=injection["time_to_failure_flights"],
-                         severity_norm=injection.get("severity"))
+        run.fault, run.plan = plan_fault(
+            injection["fault_mode"], injection["position"], rng, reference=reference,
+            start_flight=start_flight, span_flights=injection["time_to_failure_flights"],
+            severity_norm=injection.get("severity"))
+        run.injection_id = int(injection["id"])
+        run.failed_at = None
+
+    @staticmethod
+    def _clear(run: AircraftRun) -> None:
+        run.fault, run.injection_id, run.failed_at, run.plan = healthy(), None, None, None
 
     def _sync_injection(self, run: AircraftRun, n: int) -> None:
         if run.failed_at is not None:
@@ -222,17 +238,17 @@ class SimFleetRunner:
         if run.injection_id is not None and (live is None or live["id"] != run.injection_id):
             log.info("%s: injection %s ended; flying healthy", run.aircraft.tail,
                      run.injection_id)
-            run.fault, run.injection_id, run.failed_at = healthy(), None, None
+            self._clear(run)
         if live is None or live["id"] == run.injection_id:
             return
         if live["status"] == "pending" and live["onset_flight"] > n:
             return
-        run.fault = self._fault_for(run, live)
-        run.injection_id = live["id"]
-        run.failed_at = None
+        self._start(run, live, n)
         if live["status"] == "pending":
+            planned = None if run.plan is None else run.plan.target_flight
             self.api.request("POST", f"/test-station/injections/{live['id']}/status",
-                             operator=True, json={"status": "active"})
+                             operator=True, json={"status": "active",
+                                                  "planned_failure_flight": planned})
         log.info("%s: %s on %s from flight %d", run.aircraft.tail, run.fault.mode,
                  run.fault.position, n)
 
@@ -273,8 +289,12 @@ class SimFleetRunner:
         if outcome in ("conflict", "rejected"):
             log.error("%s: upload %s: %s", flight_id, outcome, _body(response))
         if run.injection_id is not None and run.failed_at is None:
-            run.fault = advance_fault(run.fault, summary, np.random.default_rng(
-                [self.seed, 14, run.index, n]))
+            rng = np.random.default_rng([self.seed, 14, run.index, n])
+            if run.plan is not None:
+                run.plan = steer_and_advance(run.plan, summary, n, rng)
+                run.fault = run.plan.state
+            else:
+                run.fault = advance_fault(run.fault, summary, rng)
             if run.fault.failed:
                 run.failed_at = n + 1
                 self._mark_failed(run, n + 1)

@@ -29,12 +29,19 @@ class InjectionRead(BaseModel):
     created_at: datetime
     cancelled_at: datetime | None
     failure_flight: int | None
+    planned_failure_flight: int | None = Field(
+        None, description="Progressive faults: the flight the simulator steers the fault to "
+        "fail at (its start plus the requested or drawn time to failure).")
+    warnings: list[str] = Field(default_factory=list, description=(
+        "What the operator should know, e.g. a time to failure outside the spans the active "
+        "model was trained on."))
 
 
 class InjectionStatus(BaseModel):
     model_config = ConfigDict(extra="forbid")
     status: Annotated[str, Field(pattern="^(active|failed)$")]
     failure_flight: int | None = Field(None, ge=0, strict=True)
+    planned_failure_flight: int | None = Field(None, ge=0, strict=True)
 
 
 class GroundTruthIn(BaseModel):
@@ -51,13 +58,15 @@ class GroundTruthRead(GroundTruthIn):
     injection_id: int
 
 
-def _read(row: Injection, tail: str) -> InjectionRead:
+def _read(row: Injection, tail: str, warnings: list[str] | None = None) -> InjectionRead:
     return InjectionRead(id=row.id, aircraft=tail, position=row.position,
                          fault_mode=row.fault_mode, onset_flight=row.onset_flight,
                          time_to_failure_flights=row.time_to_failure_flights,
                          severity=row.severity, status=row.status, created_by=row.created_by,
                          created_at=row.created_at, cancelled_at=row.cancelled_at,
-                         failure_flight=row.failure_flight)
+                         failure_flight=row.failure_flight,
+                         planned_failure_flight=row.planned_failure_flight,
+                         warnings=warnings or [])
 
 
 def _truth_read(row: GroundTruth) -> GroundTruthRead:
@@ -80,8 +89,10 @@ def create(body: InjectionCreate, session: SessionDep, key: Operator) -> Injecti
                                    fault_mode=body.fault_mode, onset_flight=body.onset_flight,
                                    time_to_failure_flights=body.time_to_failure_flights,
                                    severity=body.severity, created_by=key.name)
+    warning = service.span_warning(session=session, fault_mode=body.fault_mode,
+                                   time_to_failure_flights=body.time_to_failure_flights)
     session.commit()
-    return _read(row, body.aircraft)
+    return _read(row, body.aircraft, [warning] if warning else [])
 
 
 @router.get("/injections", response_model=Page[InjectionRead], summary="List injections")
@@ -117,7 +128,8 @@ def cancel(injection_id: int, session: SessionDep, _: Operator) -> InjectionRead
 def set_status(injection_id: int, body: InjectionStatus, session: SessionDep, _: Operator
                ) -> InjectionRead:
     row = service.update_injection_status(session=session, injection_id=injection_id,
-                                          status=body.status, failure_flight=body.failure_flight)
+                                          status=body.status, failure_flight=body.failure_flight,
+                                          planned_failure_flight=body.planned_failure_flight)
     session.commit()
     return _read(row, _tail(session, row))
 

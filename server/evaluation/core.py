@@ -360,7 +360,30 @@ def classification_summary(traces: Sequence[Mapping[str, Any]], classes: Sequenc
     return {"classes": list(classes),
             "at_first_alarm": confusion(true, [_argmax(d["first_probs"]) for d in dets],
                                         classes),
-            "at_last_flight": confusion(true, [_argmax(d["last_probs"]) for d in dets], classes)}
+            "at_last_flight": confusion(true, [_argmax(d["last_probs"]) for d in dets], classes),
+            "probability_calibration": {
+                "at_first_alarm": probability_calibration(
+                    true, [d["first_probs"] for d in dets]),
+                "at_last_flight": probability_calibration(
+                    true, [d["last_probs"] for d in dets])}}
+
+
+def probability_calibration(true: Sequence[str], probs: Sequence[Mapping[str, float] | None]
+                            ) -> dict[str, Any]:
+    """How far the shown class probabilities can be taken at their word: the mean probability
+    of the leading class against the share of leading classes that are right, the mean
+    log-loss of the true class, and how many leading probabilities read 99 % or more."""
+    rows = [(t, p) for t, p in zip(true, probs, strict=True) if p]
+    if not rows:
+        return {"n": 0, "mean_confidence": None, "accuracy": None, "log_loss": None,
+                "at_least_99pct": 0}
+    top = np.array([max(p.values()) for _, p in rows])
+    right = np.array([_argmax(p) == t for t, p in rows], dtype=float)
+    truth = np.array([p.get(t, 0.0) for t, p in rows])
+    return {"n": len(rows), "mean_confidence": float(top.mean()),
+            "accuracy": float(right.mean()),
+            "log_loss": float(-np.mean(np.log(np.clip(truth, 1e-12, None)))),
+            "at_least_99pct": int(np.sum(top >= 0.99))}
 
 
 # ----------------------------------------------------------------------------------------------

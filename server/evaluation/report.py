@@ -217,6 +217,12 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
             pc = c["per_class"][row]
             t.append(f"| {row} | " + " | ".join(str(v) for v in vals) +
                      f" | {_ci(pc['recall'], pc.get('recall_ci'), '.0f', 100.0)} |")
+        cal = (result["classification"].get("probability_calibration") or {}).get(key)
+        if cal and cal["n"]:
+            t += ["", f"Shown probability of the leading class: mean "
+                      f"{100 * cal['mean_confidence']:.1f} % against {100 * cal['accuracy']:.1f} "
+                      f"% right; log-loss of the true class {cal['log_loss']:.2f}; "
+                      f"{cal['at_least_99pct']} of {cal['n']} at 99 % or more."]
         out[key] = "\n".join(t)
     p = ["Prognosis, RUL median as point estimate; mean [90 % bootstrap interval over "
          "patterns]. PH: Saxena's (every later estimate within true RUL +- 0.2 x life), PH "

@@ -423,6 +423,16 @@ def sensor_study_pairs(campaign: Campaign
     return pairs
 
 
+def fault_spans(campaign: Campaign) -> dict[str, list[int]]:
+    """Per progressive mode, the shortest and longest onset-to-failure span of the campaign's
+    runs [flights]: the range of lives the prognosis was fitted on."""
+    spans: dict[str, list[int]] = {}
+    for p in campaign.patterns:
+        if p.mode in PROGRESSIVE and p.onset_flight is not None and p.failure_flight is not None:
+            spans.setdefault(p.mode, []).append(p.failure_flight - p.onset_flight)
+    return {m: [min(v), max(v)] for m, v in sorted(spans.items())}
+
+
 def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | None = None
                     ) -> tuple[PhmModel, dict[str, Any]]:
     """Fit the whole chain on a design campaign whose features are computed; return the
@@ -458,7 +468,8 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
     report = {
         "campaign": {"kind": campaign.kind, "seed": campaign.seed,
                      "patterns": len(campaign.patterns), "flights": n_flights,
-                     "aircraft": sorted({p.aircraft for p in campaign.patterns})},
+                     "aircraft": sorted({p.aircraft for p in campaign.patterns}),
+                     "spans_flights": fault_spans(campaign)},
         "seed": seed,
         "classifier": clf_report,
         "measurement": meas_report,

@@ -16,10 +16,11 @@ from sqlalchemy.orm import Session
 from server.errors import Conflict, NotFound
 from server.models import Actuator, ActuatorState, Aircraft, Alarm, HealthRecord, Prognosis, utcnow
 from server.services.urgency import Urgency, deferral_active, sort_key, urgency
+from server.vocabulary import WINGLET_PAIR
 
 __all__ = ["alarm_urgency", "list_alarms", "acknowledge_alarm", "close_alarm",
            "health_records", "prognoses", "fleet_grid", "GridCell", "close_alarms_of",
-           "AlarmRow", "actuator_urgency"]
+           "AlarmRow", "actuator_urgency", "pair_winglet_alarms", "winglet_partner_alarm"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,49 @@ def list_alarms(*, session: Session, status: str | None, tail: str | None, limit
                                                                     r.alarm.confidence),
                              -r.alarm.id))
     return rows[offset:offset + limit], total
+
+
+def _pair_key(row: AlarmRow) -> tuple[str, str | None] | None:
+    a = row.alarm
+    if a.status == "closed" or row.actuator.position not in WINGLET_PAIR or not a.fault_mode:
+        return None
+    return row.tail, a.fault_mode
+
+
+def pair_winglet_alarms(rows: list[AlarmRow]) -> list[tuple[AlarmRow, AlarmRow | None]]:
+    """The inbox's rows with the two drives of a winglet pair merged into one: open alarms of
+    WL1 and WL2 of one aircraft in the same mode are one fault of the pair whose evidence does
+    not tell the drives apart (the rod-end feature is their LVDT difference; both drives move
+    one tab). The more urgent row leads (the order of ``rows`` is kept)."""
+    first: dict[tuple[str, str | None], int] = {}
+    out: list[tuple[AlarmRow, AlarmRow | None]] = []
+    for row in rows:
+        key = _pair_key(row)
+        if key is not None and key in first and out[first[key]][1] is None \
+                and out[first[key]][0].actuator.position != row.actuator.position:
+            out[first[key]] = (out[first[key]][0], row)
+            continue
+        if key is not None:
+            first.setdefault(key, len(out))
+        out.append((row, None))
+    return out
+
+
+def winglet_partner_alarm(*, session: Session, alarm_id: int) -> tuple[Alarm, Actuator] | None:
+    """The not-closed alarm in the same mode on the other drive of the winglet pair, if any."""
+    alarm = _alarm(session, alarm_id)
+    actuator = session.get(Actuator, alarm.actuator_id)
+    if (actuator is None or actuator.position not in WINGLET_PAIR or alarm.status == "closed"
+            or not alarm.fault_mode):
+        return None
+    other = next(p for p in WINGLET_PAIR if p != actuator.position)
+    found = session.execute(
+        select(Alarm, Actuator).join(Actuator, Alarm.actuator_id == Actuator.id)
+        .where(Actuator.aircraft_id == actuator.aircraft_id, Actuator.position == other,
+               Actuator.removed_at.is_(None), Alarm.status != "closed",
+               Alarm.fault_mode == alarm.fault_mode)
+        .order_by(Alarm.id.desc()).limit(1)).first()
+    return None if found is None else (found[0], found[1])
 
 
 def _alarm(session: Session, alarm_id: int) -> Alarm:

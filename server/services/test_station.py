@@ -17,7 +17,7 @@ from server.errors import Conflict, NotFound, Unprocessable
 from server.models import Actuator, Aircraft, GroundTruth, Injection, utcnow
 from server.vocabulary import FAULT_MODES, PROGRESSIVE
 
-__all__ = ["PROGRESSIVE", "create_injection", "list_injections", "get_injection",
+__all__ = ["PROGRESSIVE", "create_injection", "span_warning", "list_injections", "get_injection",
            "cancel_injection", "update_injection_status", "report_ground_truth",
            "list_ground_truth", "end_injections_at"]
 
@@ -52,6 +52,25 @@ def create_injection(*, session: Session, tail: str, position: str, fault_mode: 
     return row
 
 
+def span_warning(*, session: Session, fault_mode: str,
+                 time_to_failure_flights: int | None) -> str | None:
+    """A warning when the requested time to failure lies outside the spans the active model's
+    prognosis was trained on (its RUL for such a fault is an extrapolation); None otherwise."""
+    if time_to_failure_flights is None:
+        return None
+    from server.services.models import active_version
+
+    version = active_version(session=session)
+    spans = ((version.training or {}).get("campaign") or {}).get("spans_flights") or {} \
+        if version is not None else {}
+    span = spans.get(fault_mode)
+    if not span or span[0] <= time_to_failure_flights <= span[1]:
+        return None
+    return (f"The active model was trained on {fault_mode} faults that took {span[0]}-{span[1]} "
+            f"flights from onset to failure; its RUL for a {time_to_failure_flights}-flight "
+            "fault is an extrapolation and may be far off.")
+
+
 def get_injection(*, session: Session, injection_id: int) -> Injection:
     row = session.get(Injection, injection_id)
     if row is None:
@@ -82,9 +101,13 @@ def cancel_injection(*, session: Session, injection_id: int) -> Injection:
 
 
 def update_injection_status(*, session: Session, injection_id: int, status: str,
-                            failure_flight: int | None = None) -> Injection:
-    """Sim worker: pending -> active at onset, active -> failed at the threshold."""
+                            failure_flight: int | None = None,
+                            planned_failure_flight: int | None = None) -> Injection:
+    """Sim worker: pending -> active at onset (with the flight a progressive fault is planned
+    to fail at), active -> failed at the threshold."""
     row = get_injection(session=session, injection_id=injection_id)
+    if planned_failure_flight is not None and row.status in LIVE:
+        row.planned_failure_flight = planned_failure_flight
     allowed = {"pending": {"active", "failed"}, "active": {"failed"}}
     if status == row.status:
         return row

@@ -81,10 +81,16 @@ def _failure_reason(reasons: list[dict[str, Any]]) -> str:
 def alarms_view(*, session: Session, status: str | None, limit: int = 200) -> dict[str, Any]:
     rows, total = health_service.list_alarms(session=session, status=status, tail=None,
                                              limit=limit, offset=0)
-    items = [{"alarm": r.alarm, "actuator": r.actuator, "tail": r.tail, "urgency": r.urgency,
-              "deferral_expired": r.deferral_expired} for r in rows]
+    items = [{**_alarm_item(r), "partner": None if p is None else _alarm_item(p)}
+             for r, p in health_service.pair_winglet_alarms(rows)]
     return {"items": items, "total": total, "status": status or "",
+            "shown": sum(1 + (it["partner"] is not None) for it in items),
             "rule": urgency_rule_view()}
+
+
+def _alarm_item(r: Any) -> dict[str, Any]:
+    return {"alarm": r.alarm, "actuator": r.actuator, "tail": r.tail, "urgency": r.urgency,
+            "deferral_expired": r.deferral_expired}
 
 
 def urgency_rule_view() -> dict[str, Any]:
@@ -157,6 +163,11 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     own_alarms = [r for r in alarms if r.actuator.id == actuator.id]
     state_urgency, open_alarm, deferral_expired = health_service.actuator_urgency(
         session=session, actuator=actuator)
+    pair = None if open_alarm is None or actuator.removed_at is not None else \
+        health_service.winglet_partner_alarm(session=session, alarm_id=open_alarm.id)
+    pair_alarm = None if pair is None else {
+        "alarm_id": pair[0].id, "fault_mode": pair[0].fault_mode,
+        "actuator_id": pair[1].id, "position": pair[1].position}
     trail = maintenance_service.position_trail(
         session=session, actuator_ids=[a.id for a in history])
 
@@ -164,13 +175,20 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     # prognoses through the flight codes of the flights those prognoses were made on.
     injections, _ = station_service.list_injections(session=session, tail=tail, status=None,
                                                     limit=100, offset=0)
+    # While a steered injection is live its true RUL is the test station's plan (the flights
+    # to its planned failure); at failure the sim worker back-fills the true one.
     truth_by_code: dict[str, float] = {}
+    planned = False
     for inj, _t in injections:
         if inj.position != actuator.position:
             continue
+        live_plan = inj.planned_failure_flight if inj.status in station_service.LIVE else None
         for gt in station_service.list_ground_truth(session=session, injection_id=inj.id):
             if gt.true_rul_flights is not None:
                 truth_by_code[gt.flight_code] = float(gt.true_rul_flights)
+            elif live_plan is not None:
+                truth_by_code[gt.flight_code] = float(max(live_plan - gt.flight_number, 0))
+                planned = True
     truth: dict[int, float] = {}
     if truth_by_code and progs:
         codes = flight_service.flight_codes(session=session,
@@ -191,10 +209,11 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
                                                     features=z_names)
     latest = records[-1] if records else None
     return {"actuator": actuator, "tail": tail, "records": records, "prognoses": progs,
-            "truth": truth, "previous": previous, "alarms": own_alarms, "band": band,
+            "truth": truth, "truth_planned": planned, "previous": previous,
+            "alarms": own_alarms, "band": band,
             "threshold": threshold, "latest": latest, "latest_prognosis":
             progs[-1] if progs else None, "urgency": state_urgency, "open_alarm": open_alarm,
-            "deferral_expired": deferral_expired, "trail": trail,
+            "deferral_expired": deferral_expired, "trail": trail, "pair_alarm": pair_alarm,
             "rule": urgency_rule_view(),
             "sensor_flights": sensor_view(session=session, actuator_id=actuator_id,
                                           limit=limit)}
@@ -230,8 +249,13 @@ def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
     items = []
     for inj, tail in rows:
         truth = station_service.list_ground_truth(session=session, injection_id=inj.id)
+        warning = station_service.span_warning(
+            session=session, fault_mode=inj.fault_mode,
+            time_to_failure_flights=inj.time_to_failure_flights) \
+            if inj.status in station_service.LIVE else None
         items.append({"injection": inj, "tail": tail, "truth_count": len(truth),
-                      "truth_latest": truth[-1] if truth else None})
+                      "truth_latest": truth[-1] if truth else None, "warning": warning,
+                      "live": inj.status in station_service.LIVE})
     aircraft, _ = fleet_service.list_aircraft(session=session, base=None, limit=1000, offset=0)
     return {"items": items, "total": total, "tails": [a.tail for a in aircraft],
             "positions": POSITIONS, "modes": FAULT_MODES,

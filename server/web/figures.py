@@ -169,12 +169,15 @@ def severity_band(prognoses: Sequence[Mapping[str, Any]]) -> go.Figure:
 
 
 def rul_cone(prognoses: Sequence[Mapping[str, Any]],
-             truth: Mapping[int, float] | None = None, *, alpha: float = 0.2) -> go.Figure:
+             truth: Mapping[int, float] | None = None, *, alpha: float = 0.2,
+             planned: bool = False) -> go.Figure:
     """The RUL cone: median and 5-95 % band of every prediction against flight index.
 
-    ``truth`` maps flight index -> true RUL [flights] where the test station knows it; the
-    ``+-alpha`` cone around it (Saxena's alpha-lambda accuracy zone) is drawn as well.
+    ``truth`` maps flight index -> true RUL [flights] where the test station knows it (with
+    ``planned``, the flights to the failure a live injection is steered to); the ``+-alpha``
+    cone around it (Saxena's alpha-lambda accuracy zone) is drawn as well.
     """
+    truth_name = "planned RUL (test station)" if planned else "true RUL"
     xs = [int(p["flight_index"]) for p in prognoses]
 
     def q(level: float) -> list[float | None]:
@@ -199,8 +202,8 @@ def rul_cone(prognoses: Sequence[Mapping[str, Any]],
                                                                     for v in ty[::-1]],
                                  fill="toself", fillcolor="rgba(44,160,44,0.15)", mode="lines",
                                  line={"color": "rgba(44,160,44,0.6)", "dash": "dot"},
-                                 name=f"true RUL ±{100 * alpha:g} %", hoverinfo="skip"))
-        fig.add_trace(go.Scatter(x=tx, y=ty, mode="lines", name="true RUL",
+                                 name=f"{truth_name} ±{100 * alpha:g} %", hoverinfo="skip"))
+        fig.add_trace(go.Scatter(x=tx, y=ty, mode="lines", name=truth_name,
                                  line={"color": "#2ca02c", "dash": "dash"}))
     fig.add_trace(go.Scatter(x=xs, y=q50, mode="lines+markers", name="median RUL",
                              marker={"size": 5}, line={"color": "#1f77b4"}))

@@ -196,15 +196,25 @@ def alarms_page(request: Request, session: SessionDep, status: str | None = None
 
 
 def _alarm_action(request: Request, session: SessionDep, alarm_id: int, note: str, csrf: str,
-                  back: str, action: str) -> Response:
+                  back: str, action: str, partner: str = "") -> Response:
+    """Acknowledge or close an alarm; with ``partner``, the winglet-pair alarm shown with it
+    too (when it is still that alarm's pair partner)."""
     key = _check_post(request, session, csrf, "admin")
     if not isinstance(key, ApiKey):
         return key
     fn = (health_service.acknowledge_alarm if action == "acknowledge"
           else health_service.close_alarm)
     try:
-        fn(session=session, alarm_id=alarm_id, by=key.name, note=note.strip()[:2000] or None)
+        ids = [alarm_id]
+        if partner.strip():
+            pair = health_service.winglet_partner_alarm(session=session, alarm_id=alarm_id)
+            if pair is not None and str(pair[0].id) == partner.strip() and (
+                    action == "close" or pair[0].status == "open"):
+                ids.append(pair[0].id)
+        for i in ids:
+            fn(session=session, alarm_id=i, by=key.name, note=note.strip()[:2000] or None)
     except DomainError as exc:
+        session.rollback()
         return _problem(request, key, exc.status_code, exc.message)
     session.commit()
     return RedirectResponse(_safe_next(back or "/alarms"), status_code=303)
@@ -212,14 +222,16 @@ def _alarm_action(request: Request, session: SessionDep, alarm_id: int, note: st
 
 @router.post("/alarms/{alarm_id}/acknowledge")
 def acknowledge(request: Request, session: SessionDep, alarm_id: int, note: str = Form(""),
-                csrf: str = Form(""), back: str = Form("/alarms")) -> Response:
-    return _alarm_action(request, session, alarm_id, note, csrf, back, "acknowledge")
+                csrf: str = Form(""), back: str = Form("/alarms"), partner: str = Form("")
+                ) -> Response:
+    return _alarm_action(request, session, alarm_id, note, csrf, back, "acknowledge", partner)
 
 
 @router.post("/alarms/{alarm_id}/close")
 def close(request: Request, session: SessionDep, alarm_id: int, note: str = Form(""),
-          csrf: str = Form(""), back: str = Form("/alarms")) -> Response:
-    return _alarm_action(request, session, alarm_id, note, csrf, back, "close")
+          csrf: str = Form(""), back: str = Form("/alarms"), partner: str = Form("")
+          ) -> Response:
+    return _alarm_action(request, session, alarm_id, note, csrf, back, "close", partner)
 
 
 @router.get("/actuators/{actuator_id}", response_class=HTMLResponse)
@@ -237,7 +249,8 @@ def actuator_page(request: Request, session: SessionDep, actuator_id: int) -> Re
         "confidence": figures.detection_confidence(view["records"]),
         "classes": figures.class_probabilities(view["records"]),
         "severity": figures.severity_band(view["prognoses"]),
-        "cone": figures.rul_cone(view["prognoses"], view["truth"]),
+        "cone": figures.rul_cone(view["prognoses"], view["truth"],
+                                 planned=view["truth_planned"]),
         "histogram": figures.rul_histogram(view["latest_prognosis"]),
     }
     return _render(request, "actuator.html", key, figs=figs, **view)
@@ -376,6 +389,22 @@ def inject(request: Request, session: SessionDep, csrf: str = Form(""),
         session.rollback()
         return _render(request, "test_station.html", key, status_code=exc.status_code,
                        error=exc.message, form=form, **data.station_view(session=session))
+    session.commit()
+    return RedirectResponse("/test-station", status_code=303)
+
+
+@router.post("/test-station/injections/{injection_id}/cancel")
+def cancel_injection(request: Request, session: SessionDep, injection_id: int,
+                     csrf: str = Form("")) -> Response:
+    key = _check_post(request, session, csrf, "operate")
+    if not isinstance(key, ApiKey):
+        return key
+    try:
+        station_service.cancel_injection(session=session, injection_id=injection_id)
+    except DomainError as exc:
+        session.rollback()
+        return _render(request, "test_station.html", key, status_code=exc.status_code,
+                       error=exc.message, form={}, **data.station_view(session=session))
     session.commit()
     return RedirectResponse("/test-station", status_code=303)
 

@@ -28,8 +28,10 @@ def test_injection_lifecycle_and_roles(client: TestClient, keys: dict[str, str],
     assert again.status_code == 409 and again.json()["error"]["code"] == "injection_exists"
 
     path = f"/api/v1/test-station/injections/{inj['id']}"
-    assert client.post(path + "/status", json={"status": "active"}, headers=op).json()[
-        "status"] == "active"
+    active = client.post(path + "/status", json={"status": "active",
+                                                 "planned_failure_flight": 203}, headers=op)
+    assert active.json()["status"] == "active"
+    assert active.json()["planned_failure_flight"] == 203
     gt = {"flight": "F00005", "flight_number": 5, "severity": 3e-5, "severity_norm": 0.1,
           "true_rul_flights": 180}
     assert client.put(path + "/ground-truth", json=gt, headers=op).status_code == 200
@@ -47,6 +49,23 @@ def test_injection_lifecycle_and_roles(client: TestClient, keys: dict[str, str],
     cancelled = client.post(path + "/cancel", headers=op)
     assert cancelled.json()["status"] == "cancelled" and cancelled.json()["cancelled_at"]
     assert client.post(path + "/cancel", headers=op).status_code == 409
+
+
+def test_a_time_to_failure_outside_the_models_training_spans_is_accepted_with_a_warning(
+        client: TestClient, keys: dict[str, str], aircraft: str, active_model: None,
+        trained_model) -> None:  # type: ignore[no-untyped-def]
+    low, high = trained_model[1]["campaign"]["spans_flights"]["MTEL"]
+    op = auth(keys["operator"])
+    body = {"aircraft": aircraft, "position": "WT", "fault_mode": "MTEL"}
+    inside = client.post("/api/v1/test-station/injections", headers=op,
+                         json={**body, "time_to_failure_flights": (low + high) // 2})
+    assert inside.status_code == 201 and inside.json()["warnings"] == []
+    client.post(f"/api/v1/test-station/injections/{inside.json()['id']}/cancel", headers=op)
+    short = client.post("/api/v1/test-station/injections", headers=op,
+                        json={**body, "time_to_failure_flights": max(10, low // 3)})
+    assert short.status_code == 201, short.text
+    (warning,) = short.json()["warnings"]
+    assert f"{low}-{high} flights" in warning and "extrapolation" in warning
 
 
 def test_injection_validation(client: TestClient, keys: dict[str, str], aircraft: str) -> None:

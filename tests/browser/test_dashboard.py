@@ -250,3 +250,41 @@ def test_replacement_with_a_work_order_from_the_actuator_page(live: Live, browse
     assert "green" in (cell.get_attribute("class") or "")
     assert console.errors == [], console.errors
     context.close()
+
+
+PHONE = {"width": 390, "height": 844}
+
+
+def test_every_page_fits_a_phone_screen(live: Live, browser) -> None:  # type: ignore[no-untyped-def]
+    """At 390 px no page is wider than the screen: the fleet grid and the alarm inbox become
+    one card per row with every column labelled (WT and Min RUL included, the inbox's action
+    in reach); other tables scroll inside their own box."""
+    context = browser.new_context(viewport=PHONE)
+    page = context.new_page()
+    console = Console(page)
+    url = live.url
+    _sign_in(page, url, live.keys["admin"])
+    pages = {"fleet": "/fleet", "alarms": "/alarms",
+             "actuator": f"/actuators/{live.seed.actuator_id}", "models": "/models",
+             "test-station": "/test-station", "evaluation": "/evaluation"}
+    for name, path in pages.items():
+        page.goto(url + path)
+        if name == "actuator":
+            page.wait_for_selector("#fig-cone .main-svg", timeout=15_000)
+        width = page.evaluate("document.documentElement.scrollWidth")
+        assert width <= PHONE["width"], f"{path}: {width} px wide at 390 px"
+        _shot(page, f"{name}-390")
+
+    page.goto(f"{url}/fleet")
+    assert page.locator("#fleet-cards-hint").is_visible()
+    card = page.locator("#fleet-grid tbody tr").first
+    for label in ("WL1", "WL2", "WT", "Min RUL"):
+        cell = card.locator(f'td[data-label="{label}"]')
+        box = cell.bounding_box()
+        assert cell.is_visible() and box is not None and box["x"] + box["width"] <= 390, label
+    page.goto(f"{url}/alarms")
+    button = page.get_by_role("button", name="Acknowledge").first
+    box = button.bounding_box()
+    assert box is not None and box["x"] >= 0 and box["x"] + box["width"] <= 390, box
+    assert console.errors == [], console.errors
+    context.close()

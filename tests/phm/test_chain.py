@@ -98,3 +98,23 @@ def test_model_document_reader_unwraps_a_version_record(trained_model) -> None: 
         read_model_document(doc).to_dict()
     with pytest.raises(ValueError, match="older chain"):
         read_model_document({**doc, "format": "ema-phm-model/4"})
+
+
+def test_repeated_evidence_is_pooled_not_multiplied(model, verification_campaign) -> None:  # type: ignore[no-untyped-def]
+    """Flights since an alarm are not independent views of the fault: the same flight's
+    evidence seen again and again leaves the class probabilities at that flight's own
+    (calibrated) ones instead of driving them to certainty."""
+    from server.phm.chain.inputs import classifier_vector
+    from server.phm.chain.run import _classify
+
+    p = _pattern(verification_campaign, "MTEL")
+    outcomes, health = _run(model, p, round_trip=False)
+    h = health[p.position]
+    single = model.classifier.predict_proba(
+        classifier_vector(h.detection, p.position)[None, :])[0]
+    classes = [str(c) for c in model.classifier.classes_.tolist()]
+    h.class_log_prob, h.class_weight = None, None
+    for _ in range(25):
+        probs = _classify(model, h, p.position)
+    for c, v in zip(classes, single, strict=True):
+        assert probs[c] == pytest.approx(float(v), abs=1e-9)

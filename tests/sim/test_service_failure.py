@@ -41,6 +41,9 @@ def test_a_failed_drive_grounds_the_aircraft_and_never_heals(client: TestClient,
                            ).json()
     assert injection["status"] == "failed"
     failure_flight = injection["failure_flight"]
+    # steered to the operator's time to failure, counted from the flight it started on
+    assert injection["planned_failure_flight"] == 1 + 10
+    assert abs(failure_flight - injection["planned_failure_flight"]) <= 1, injection
     unit = client.get(f"/api/v1/aircraft/{tail}", headers=viewer).json()["actuators"]["WT"]
     assert unit["failed_at_flight"] == failure_flight
     cell = next(c for c in client.get("/api/v1/fleet/health", headers=viewer).json()

@@ -2,4 +2,4 @@
 
 from __future__ import annotations
 
-from tests.api.conftest import aircraft, app, client, keys  # noqa: F401  (re-exported fixtures)
+from tests.api.conftest import active_model, aircraft, app, client, keys  # noqa: F401  (re-exported fixtures)

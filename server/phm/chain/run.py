@@ -139,7 +139,14 @@ def _track_calendar(h: ActuatorHealth, index: int, started_at: datetime | None) 
 
 def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, float] | None:
     """Class probabilities from the class evidence accumulated since the alarm (older flights
-    decayed); a change of the leading mode restarts the prognosis on the new mode's feature."""
+    decayed); a change of the leading mode restarts the prognosis on the new mode's feature.
+
+    The flights since the alarm are not independent views of the fault: their features are
+    windowed over several flights and one fault drives them all. Multiplying their calibrated
+    probabilities would claim certainty after a handful of flights (100.0 %, on a false alarm
+    too), so the evidence is pooled as the weighted mean of the flights' log-probabilities, a
+    weighted geometric mean of calibrated single-flight probabilities. The decision (the
+    leading mode) is that of the summed evidence either way."""
     if model.classifier is None:
         return None
     logp = model.classifier.predict_log_proba(
@@ -148,9 +155,14 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     acc = h.class_log_prob or dict.fromkeys(classes, 0.0)
     acc = {c: CHAIN.class_evidence_decay * acc.get(c, 0.0) + float(lp)
            for c, lp in zip(classes, logp, strict=True)}
+    if h.class_weight is None:  # a state stored before the weight was kept: saturated
+        h.class_weight = 0.0 if h.class_log_prob is None else 1.0 / (
+            1.0 - CHAIN.class_evidence_decay)
     h.class_log_prob = acc
-    top = max(acc.values())
-    weights = {c: math.exp(v - top) for c, v in acc.items()}
+    h.class_weight = CHAIN.class_evidence_decay * h.class_weight + 1.0
+    pooled = {c: v / h.class_weight for c, v in acc.items()}
+    top = max(pooled.values())
+    weights = {c: math.exp(v - top) for c, v in pooled.items()}
     total = sum(weights.values())
     probs = {c: w / total for c, w in weights.items()}
     mode = max(probs, key=lambda c: probs[c])

@@ -24,6 +24,9 @@ class ActuatorHealth:
     #: before; replaying the healthy flights since installation drags the tuned law down)
     alarm_index: int | None = None
     class_log_prob: dict[str, float] | None = None
+    #: sum of the (decayed) weights of the flights in ``class_log_prob``: the evidence is
+    #: pooled as their weighted mean (chain.run._classify); None with no evidence yet
+    class_weight: float | None = None
     fault_mode: str | None = None
     prognosis: dict[str, Any] | None = None
     history: list[tuple[int, dict[str, float]]] = field(default_factory=list)
@@ -41,6 +44,7 @@ class ActuatorHealth:
         self.detection.alarm_features = []
         self.alarm_index = None
         self.class_log_prob = None
+        self.class_weight = None
         self.fault_mode = None
         self.prognosis = None
 
@@ -48,7 +52,8 @@ class ActuatorHealth:
         return {"format": HEALTH_FORMAT, "position": self.position,
                 "detection": self.detection.to_dict(), "flights_seen": self.flights_seen,
                 "alarm_index": self.alarm_index,
-                "class_log_prob": self.class_log_prob, "fault_mode": self.fault_mode,
+                "class_log_prob": self.class_log_prob, "class_weight": self.class_weight,
+                "fault_mode": self.fault_mode,
                 "prognosis": self.prognosis,
                 "history": [[i, z] for i, z in self.history],
                 "last_started_at": self.last_started_at,
@@ -65,7 +70,8 @@ class ActuatorHealth:
                    detection=DetectionState.from_dict(d["detection"]),
                    flights_seen=int(d["flights_seen"]),
                    alarm_index=None if d.get("alarm_index") is None else int(d["alarm_index"]),
-                   class_log_prob=d.get("class_log_prob"), fault_mode=d.get("fault_mode"),
+                   class_log_prob=d.get("class_log_prob"), class_weight=d.get("class_weight"),
+                   fault_mode=d.get("fault_mode"),
                    prognosis=d.get("prognosis"),
                    history=[(int(i), {k: float(v) for k, v in z.items()})
                             for i, z in d.get("history", [])] if keep_history else [],

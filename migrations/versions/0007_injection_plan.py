@@ -1,0 +1,29 @@
+"""test-station injections: the planned failure flight
+
+Revision ID: 0007
+Revises: 0006
+Create Date: 2026-12-02 07:00:00
+
+``injections.planned_failure_flight`` is the flight a progressive injection is steered to fail
+at (its start plus the requested or drawn time to failure), reported by the sim worker when the
+injection goes active. Nullable: abrupt faults and older rows have none.
+"""
+
+from alembic import op
+import sqlalchemy as sa
+
+
+revision = '0007'
+down_revision = '0006'
+branch_labels = None
+depends_on = None
+
+
+def upgrade() -> None:
+    with op.batch_alter_table('injections', schema=None) as batch_op:
+        batch_op.add_column(sa.Column('planned_failure_flight', sa.Integer(), nullable=True))
+
+
+def downgrade() -> None:
+    with op.batch_alter_table('injections', schema=None) as batch_op:
+        batch_op.drop_column('planned_failure_flight')
