@@ -111,6 +111,13 @@ class BlobStore:
             os.close(dir_fd)
         return rel
 
+    def delete(self, rel_path: str) -> None:
+        """Remove a stored blob (retention); a missing one is already gone."""
+        path = (self.root / rel_path).resolve()
+        if self.root.resolve() not in path.parents:
+            raise ValueError("blob path outside the store")
+        path.unlink(missing_ok=True)
+
     def read(self, rel_path: str) -> bytes:
         path = (self.root / rel_path).resolve()
         if self.root.resolve() not in path.parents:

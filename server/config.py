@@ -62,6 +62,10 @@ class Settings(BaseSettings):
         "what slow clients can hold (uvicorn has no header timeout)."))
     body_idle_timeout_s: float = Field(30.0, gt=0, le=3600, description=(
         "A request body that sends nothing for this long is cut with 408 [s]."))
+    raw_retention_healthy: int | None = Field(None, ge=0, description=(
+        "Keep the raw logs of only this many most recent healthy flights per aircraft (analysed, "
+        "no actuator in alarm); older ones are removed after each analysis, their features and "
+        "results kept. Unset: every raw log is kept (the default)."))
 
     @field_validator("data_dir")
     @classmethod

@@ -1,8 +1,17 @@
 """``hmsm demo``: the whole system on one machine with the embedded database.
 
-Upgrades the database, trains a quick model if none is active (simulating a quick design
-campaign first), registers the simulated fleet with a few faults already injected, then runs
-the API, one analysis worker and the sim worker together, and prints the URL and the keys.
+Upgrades the database, activates the shipped demo model if no usable model is active
+(:mod:`server.demo_model`; ``--train`` simulates a quick design campaign and trains one
+instead), registers the simulated fleet with a few faults already injected, then runs the API,
+one analysis worker and the sim worker together and prints the URL and the keys. In the
+background, at low priority, it simulates a small verification campaign and evaluates the
+active model on it (:mod:`server.demo_evaluation`), which fills the evaluation page.
+
+The sim worker gets the uploader and operator keys in its environment, never on its command
+line (where ``ps`` shows them); the fleet is registered here, so it needs no admin key.
+Disk: the demo keeps the raw logs of its last ``DEMO_RAW_KEEP_HEALTHY`` healthy flights per
+aircraft and of every flight with an alarm (``HMSM_RAW_RETENTION_HEALTHY``), so its data
+directory stops growing by the flight logs of a healthy fleet.
 """
 
 from __future__ import annotations
@@ -18,7 +27,10 @@ from sqlalchemy import select
 
 from server.config import Settings
 
-__all__ = ["DEMO_INJECTIONS", "prepare_demo", "run_demo"]
+__all__ = ["DEMO_INJECTIONS", "DEMO_RAW_KEEP_HEALTHY", "prepare_demo", "run_demo"]
+
+#: raw logs of healthy flights the demo keeps per aircraft (the rest are pruned after analysis)
+DEMO_RAW_KEEP_HEALTHY = 20
 
 # (tail, position, mode, onset flight, flights to failure). Lives at the short end of the
 # design campaign's 170-360 flights (the range the model's degradation priors were fitted on):
@@ -35,13 +47,11 @@ DEMO_INJECTIONS = [
 ]
 
 
-def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str, str]:
+def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int, train: bool = False
+                 ) -> dict[str, str]:
     """Model, fleet, injections and keys; return the keys by role."""
-    from tqdm import tqdm
-
     from server.auth import create_key
     from server.db import make_engine, make_session_factory, session_scope
-    from server.jobs.training_job import train_into_version
     from server.migrate import ensure_schema
     from server.models import ROLES, Aircraft
     from server.services import fleet, test_station
@@ -58,30 +68,16 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
             usable = model_service.active_model(session=session) is not None
         except ValueError:
             usable = False
-    if not usable:
-        design = model_service.campaign_dir(settings.data_dir, "demo-design")
-        manifest = design / "manifest.json"
-        # campaigns of older simulators lack the healthy lead flights the detector needs
-        if not manifest.exists() or "lead_flights" not in json.loads(manifest.read_text()):
-            print("simulating a quick design campaign (about two and a half minutes on 2 cores)...",
-                  flush=True)
-            from sim_worker import run_campaign
+    if not usable and train:
+        _train_demo_model(settings, factory, seed)
+    elif not usable:
+        from server.demo_model import DESIGN_SEED, load_demo_model
 
-            run_campaign("design", design, seed=seed, scale="quick", progress=True)
+        doc = load_demo_model()
         with session_scope(factory) as session:
-            version = model_service.create_version(session=session, name="demo-quick",
-                                                   training={"campaign": str(design)})
-            version_id = version.id
-        bar = tqdm(total=100, desc="training the demo model", unit="%")
-
-        def progress(stage: str, fraction: float) -> None:
-            bar.set_postfix_str(stage)
-            bar.update(max(0, int(round(100 * fraction)) - bar.n))
-
-        train_into_version(factory, version_id, design, seed=seed, activate=True,
-                           progress=progress)
-        bar.close()
-
+            model_service.store_trained(
+                session=session, name=f"demo (shipped: quick design seed {DESIGN_SEED})",
+                payload=doc["payload"], report=doc["training"], make_active=True)
     with session_scope(factory) as session:
         for aircraft in fleet_plan(n_aircraft, seed):
             if session.scalar(select(Aircraft.id).where(Aircraft.tail == aircraft.tail)) is None:
@@ -107,13 +103,47 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int) -> dict[str,
     return keys
 
 
+def _train_demo_model(settings: Settings, factory: object, seed: int) -> None:
+    """``--train``: simulate a quick design campaign (reused when present) and train on it."""
+    from tqdm import tqdm
+
+    from server.db import session_scope
+    from server.jobs.training_job import train_into_version
+    from server.services import models as model_service
+
+    design = model_service.campaign_dir(settings.data_dir, "demo-design")
+    manifest = design / "manifest.json"
+    # campaigns of older simulators lack the healthy lead flights the detector needs
+    if not manifest.exists() or "lead_flights" not in json.loads(manifest.read_text()):
+        print("simulating a quick design campaign (about 3 minutes on 2 cores)...", flush=True)
+        from sim_worker import run_campaign
+
+        run_campaign("design", design, seed=seed, scale="quick", progress=True)
+    with session_scope(factory) as session:  # type: ignore[arg-type]
+        version = model_service.create_version(session=session, name="demo-quick",
+                                               training={"campaign": str(design)})
+        version_id = version.id
+    bar = tqdm(total=100, desc="training the demo model (about 1 minute)", unit="%")
+
+    def progress(stage: str, fraction: float) -> None:
+        bar.set_postfix_str(stage)
+        bar.update(max(0, int(round(100 * fraction)) - bar.n))
+
+    train_into_version(factory, version_id, design, seed=seed, activate=True,  # type: ignore[arg-type]
+                       progress=progress)
+    bar.close()
+
+
 def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate: float,
-             seed: int, log_level: str) -> int:
+             seed: int, log_level: str, train: bool = False) -> int:
     import uvicorn
 
     from server.app import create_app
 
-    keys = prepare_demo(settings, n_aircraft=n_aircraft, seed=seed)
+    keys = prepare_demo(settings, n_aircraft=n_aircraft, seed=seed, train=train)
+    os.environ.setdefault("HMSM_RAW_RETENTION_HEALTHY", str(DEMO_RAW_KEEP_HEALTHY))
+    settings = settings.model_copy(update={"raw_retention_healthy": int(
+        os.environ["HMSM_RAW_RETENTION_HEALTHY"])})
     app = create_app(settings)
     url = f"http://{host}:{port}"
     env = {**os.environ, "HMSM_DATA_DIR": str(settings.data_dir)}
@@ -123,9 +153,12 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
     logs.mkdir(parents=True, exist_ok=True)
     children: list[subprocess.Popen[bytes]] = []
 
-    def start(name: str, argv: list[str]) -> None:
+    def start(name: str, argv: list[str], extra_env: dict[str, str] | None = None,
+              nice: bool = False) -> None:
         out = open(logs / f"{name}.log", "ab")  # the child keeps it open for its lifetime
-        children.append(subprocess.Popen(argv, env=env, stdout=out, stderr=subprocess.STDOUT))
+        children.append(subprocess.Popen(argv, env={**env, **(extra_env or {})}, stdout=out,
+                                         stderr=subprocess.STDOUT,
+                                         preexec_fn=(lambda: os.nice(15)) if nice else None))
 
     def stop_children(*_: object) -> None:
         for child in children:
@@ -138,9 +171,11 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
                 child.kill()
 
     start("worker", [sys.executable, "-m", "server.cli", "worker"])
-    start("sim-worker", [sys.executable, "-m", "sim_worker.cli", "run", "--api", url, "--key",
-                         keys["admin"], "--aircraft", str(n_aircraft), "--rate", str(rate),
-                         "--seed", str(seed), "--duration", "60"])
+    start("sim-worker", [sys.executable, "-m", "sim_worker.cli", "run", "--api", url,
+                         "--aircraft", str(n_aircraft), "--rate", str(rate),
+                         "--seed", str(seed), "--duration", "60"],
+          {"HMSM_SIM_KEY": keys["uploader"], "HMSM_SIM_OPERATOR_KEY": keys["operator"]})
+    start("evaluation", [sys.executable, "-m", "server.demo_evaluation"], nice=True)
     print("\nHMSM demo is running")
     print(f"  dashboard: {url}/            API: {url}/api/v1   OpenAPI: {url}/docs")
     print(f"  data dir:  {settings.data_dir}   logs: {logs}")
@@ -149,6 +184,10 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
     print(f"  {n_aircraft} simulated aircraft fly {rate:g} flights a minute; faults injected: "
           + ", ".join(f"{t}/{p} {m}" for t, p, m, _, _ in DEMO_INJECTIONS
                       if int(t[3:]) <= n_aircraft))
+    print("  the evaluation page fills in about 15 minutes (a small verification campaign is "
+          "simulated and evaluated in the background; logs/evaluation.log)")
+    print(f"  raw logs: the last {settings.raw_retention_healthy} healthy flights per aircraft "
+          "and every flight with an alarm are kept")
     print("  Ctrl-C stops everything.\n", flush=True)
     def _terminate(*_: object) -> None:
         raise KeyboardInterrupt  # uvicorn stops, then the finally block stops the children

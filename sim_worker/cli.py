@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -54,10 +55,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="fly the simulated fleet against a running HMSM")
     run.add_argument("--api", required=True, help="HMSM base URL, e.g. http://127.0.0.1:8000")
-    run.add_argument("--key", required=True, help="API key that may upload (and register "
-                     "aircraft: admin)")
-    run.add_argument("--operator-key", default=None,
-                     help="key for test-station reports (default: --key)")
+    run.add_argument("--key", default=os.environ.get("HMSM_SIM_KEY"),
+                     required="HMSM_SIM_KEY" not in os.environ,
+                     help="API key that may upload (and register missing aircraft: admin); "
+                     "default $HMSM_SIM_KEY, which keeps it off the process list")
+    run.add_argument("--operator-key", default=os.environ.get("HMSM_SIM_OPERATOR_KEY"),
+                     help="key for test-station reports (default $HMSM_SIM_OPERATOR_KEY, "
+                     "else --key)")
     run.add_argument("--aircraft", type=int, default=10, help="number of simulated aircraft")
     run.add_argument("--rate", type=float, default=20.0, help="flights per minute, whole fleet")
     run.add_argument("--seed", type=int, default=0)

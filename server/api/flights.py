@@ -181,7 +181,7 @@ def get(flight_id: int, session: SessionDep, _: Reader) -> FlightRead:
     return flight_read(row, _uploaders(session, {row.uploader_key_id}).get(row.uploader_key_id))
 
 
-@router.get("/{flight_id}/signals", response_model=SignalsRead,
+@router.get("/{flight_id}/signals", response_model=SignalsRead, responses=errors(410),
             summary="Signals of a flight, decimated for plotting")
 def signals(flight_id: int, session: SessionDep, blobs: BlobsDep, settings: SettingsDep,
             _: Reader,

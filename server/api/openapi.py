@@ -26,6 +26,8 @@ DESCRIPTIONS = {
     404: "No such resource.",
     408: "The request body stalled (nothing arrived for the body idle timeout).",
     409: "The request conflicts with the current state.",
+    410: "The flight's raw log was removed by the retention of healthy flights (its results "
+         "are kept).",
     413: "The request body exceeds the size limit.",
     422: "The request is not valid.",
 }

@@ -18,7 +18,7 @@ from server.flightlog import FlightLogError, bounded_reasons, read_flightlog
 from server.jobs.context import Deferred, JobContext
 from server.jobs.queue import ClaimedJob
 from server.phm.features import flight_features
-from server.services import analysis
+from server.services import analysis, retention
 from server.services import models as model_service
 
 __all__ = ["analyze_flight_job", "analysis_given_up"]
@@ -62,6 +62,11 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
         analysis.store_analysis(session=session, flight_id=todo.flight_id, features=features,
                                 model_id=model_id, model=model)
         session.commit()
+    keep = ctx.settings.raw_retention_healthy
+    if keep is not None and todo.aircraft_id is not None:
+        with ctx.factory() as session:
+            retention.prune_healthy_raw(session=session, blobs=ctx.blobs,
+                                        aircraft_id=todo.aircraft_id, keep=keep)
 
 
 def _reject(ctx: JobContext, flight_id: int, reasons: list[dict]) -> None:

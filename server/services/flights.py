@@ -23,7 +23,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from server.blobstore import BlobStore, SpooledUpload
-from server.errors import Conflict, NotFound, PayloadTooLarge, Unprocessable
+from server.errors import Conflict, Gone, NotFound, PayloadTooLarge, Unprocessable
 from server.flightlog import (
     DEFAULT_DECODE_LIMITS,
     OPTIONAL_CHANNELS,
@@ -207,8 +207,16 @@ def list_flights(*, session: Session, tail: str | None, status: str | None, limi
     return list(rows), total
 
 
+def _raw_kept(flight: Flight) -> None:
+    if flight.raw_pruned_at is not None:
+        raise Gone(f"The raw log of flight {flight.id} was removed by the retention of healthy "
+                   f"flights on {flight.raw_pruned_at.isoformat()}; its features and results "
+                   "are kept.", code="raw_pruned")
+
+
 def decode_flight(*, blobs: BlobStore, flight: Flight,
                   limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightLog:
+    _raw_kept(flight)
     try:
         return read_flightlog(blobs.read(flight.blob_path), kind=flight.content_kind,
                               metadata=flight.flight_metadata, limits=limits)
@@ -228,6 +236,7 @@ def flight_signals(*, blobs: BlobStore, flight: Flight, channels: list[str] | No
     """``(step, arrays)`` of :func:`decimated_signals` for a stored flight. Parquet (the
     canonical encoding) is decimated while it is read, so a request holds a batch and the
     result, not the flight; CSV and MAT are decoded whole, within ``limits``."""
+    _raw_kept(flight)
     if flight.content_kind != "parquet":
         log = decode_flight(blobs=blobs, flight=flight, limits=limits)
         return decimated_signals(log, channels, max_points)

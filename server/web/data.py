@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,7 @@ from server.services import maintenance as maintenance_service
 from server.services import models as model_service
 from server.services import test_station as station_service
 from server.services import urgency as urgency_rule
+from server.services.evaluation_status import read_progress
 from server.vocabulary import FAULT_MODES, PAPER_TABLE2, POSITIONS, PROGRESSIVE
 
 __all__ = ["STATUS_RANK", "fleet_view", "failed_flights", "alarms_view", "actuator_view",
@@ -281,8 +283,13 @@ def evaluation_view(*, data_dir: Path) -> dict[str, Any]:
         saxena, cone = _horizons(mine)
         rows.append({"mode": mode, "paper_ph": ph, "paper_ra": ra,
                      "ph": saxena, "ph_cone": cone, "ra": _percent(mine.get("ra"))})
+    running = None if ours is not None else read_progress(data_dir / "evaluation")
+    if running is not None:
+        since = running.get("since")
+        running["minutes"] = (None if not isinstance(since, (int, float))
+                              else max(0, round((time.time() - since) / 60)))
     return {"rows": rows, "has_ours": ours is not None, "error": error,
-            "path": "evaluation/latest.json", "campaign": campaign}
+            "path": "evaluation/latest.json", "campaign": campaign, "running": running}
 
 
 def _horizons(mine: dict[str, Any]) -> tuple[float | None, float | None]:

@@ -1,0 +1,76 @@
+"""``hmsm demo`` starts on the shipped model, which is what ``hmsm demo-model`` produces from
+the quick design campaign of seed 1 (the suite trains the same campaign with the same seed);
+the fleet and the injections are ready without any training, and the sim worker flies on the
+uploader and operator keys given in its environment."""
+
+from __future__ import annotations
+
+import time
+
+from fastapi.testclient import TestClient
+from sqlalchemy import select
+
+from server.app import create_app
+from server.config import Settings
+from server.db import make_engine, make_session_factory
+from server.demo import DEMO_INJECTIONS, prepare_demo
+from server.demo_model import DESIGN_SEED, TRAINING_SEED, load_demo_model, portable_report
+from server.models import Aircraft, Injection, ModelVersion
+from sim_worker.cli import build_parser
+from sim_worker.service import Api, SimFleetRunner
+from tests.conftest import DESIGN_SEED as SUITE_DESIGN_SEED
+
+
+def test_the_shipped_demo_model_is_what_its_command_produces(trained_model) -> None:  # type: ignore[no-untyped-def]
+    """``trained_model`` is the chain trained with seed 0 on the quick design campaign of seed
+    1: what ``hmsm demo-model`` does. A chain or simulator change that moves the model fails
+    here until ``hmsm demo-model --out server/data/demo_model.json`` is run again."""
+    assert (DESIGN_SEED, TRAINING_SEED) == (SUITE_DESIGN_SEED, 0)
+    shipped = load_demo_model()
+    payload, report = trained_model
+    assert shipped["payload"] == payload
+    assert shipped["training"] == portable_report(report)
+
+
+def test_the_demo_starts_on_the_shipped_model_without_training(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    settings = Settings(data_dir=tmp_path / "demo")
+    t0 = time.perf_counter()
+    keys = prepare_demo(settings, n_aircraft=10, seed=1)
+    assert time.perf_counter() - t0 < 60  # no campaign simulated, nothing trained
+    assert set(keys) == {"admin", "maintainer", "operator", "uploader", "viewer"}
+    engine = make_engine(settings.effective_database_url)
+    with make_session_factory(engine)() as session:
+        active = session.scalar(select(ModelVersion).where(ModelVersion.active.is_(True)))
+        assert active.payload == load_demo_model()["payload"]
+        assert active.metrics["accuracy"] is not None  # the models page has its confusion
+        assert len(session.scalars(select(Aircraft)).all()) == 10
+        assert len(session.scalars(select(Injection)).all()) == len(DEMO_INJECTIONS)
+    engine.dispose()
+    assert not (settings.data_dir / "campaigns" / "demo-design").exists()
+
+    # the sim worker flies on the uploader key (the fleet is registered already)
+    app = create_app(settings)
+    with TestClient(app) as client:
+        api = Api("http://testserver", keys["uploader"], operator_key=keys["operator"],
+                  sleep=lambda s: None)
+        api.client = client
+        runner = SimFleetRunner(api, n_aircraft=10, rate_per_min=1e6, seed=1, duration_s=15,
+                                sleep=lambda s: None)
+        runner.register_fleet()
+        assert runner.fly(runner.runs[0]) == "accepted"
+    app.state.engine.dispose()
+
+
+def test_the_sim_worker_reads_its_keys_from_the_environment(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setenv("HMSM_SIM_KEY", "hmsm_uploader")
+    monkeypatch.setenv("HMSM_SIM_OPERATOR_KEY", "hmsm_operator")
+    args = build_parser().parse_args(["run", "--api", "http://127.0.0.1:8000"])
+    assert (args.key, args.operator_key) == ("hmsm_uploader", "hmsm_operator")
+    monkeypatch.delenv("HMSM_SIM_KEY")
+    monkeypatch.delenv("HMSM_SIM_OPERATOR_KEY")
+    try:
+        build_parser().parse_args(["run", "--api", "http://127.0.0.1:8000"])
+    except SystemExit as exc:  # argparse: --key is required without the environment
+        assert exc.code == 2
+    else:
+        raise AssertionError("--key is required when HMSM_SIM_KEY is not set")
