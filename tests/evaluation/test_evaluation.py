@@ -193,3 +193,17 @@ def test_outputs_and_latest_json_match_the_dashboard(tmp_path: Path) -> None:
     assert row["ph_cone"] == pytest.approx(0.8)
     md = (tmp_path / "out" / "summary.md").read_text()
     assert "| MTWEAR | 0.80 [0.80, 0.80] | 0.80 [0.80, 0.80] |" in md
+
+
+def test_probability_calibration_compares_shown_confidence_with_accuracy() -> None:
+    from server.evaluation.core import probability_calibration
+
+    cal = probability_calibration(
+        ["MTEL", "MTEL", "MTWEAR", "TTS"],
+        [{"MTEL": 0.8, "MTWEAR": 0.2}, {"MTEL": 0.995, "MTWEAR": 0.005},
+         {"MTEL": 0.6, "MTWEAR": 0.4}, None])
+    assert cal["n"] == 3 and cal["at_least_99pct"] == 1
+    assert cal["mean_confidence"] == pytest.approx((0.8 + 0.995 + 0.6) / 3)
+    assert cal["accuracy"] == pytest.approx(2 / 3)  # the MTWEAR pattern read MTEL
+    assert cal["log_loss"] == pytest.approx(-(np.log(0.8) + np.log(0.995) + np.log(0.4)) / 3)
+    assert probability_calibration(["MTEL"], [None])["n"] == 0

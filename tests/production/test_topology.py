@@ -72,7 +72,10 @@ def test_compose_file_is_valid_and_has_the_production_topology() -> None:
 
     sim = services["sim"]
     assert sim["profiles"] == ["sim"]
-    assert "sim-worker run --api http://api:8000 --key" in " ".join(sim["command"])
+    command = " ".join(sim["command"])
+    # the key is read from the environment, never on the command line (ps would show it)
+    assert "sim-worker run --api http://api:8000" in command and "--key" not in command
+    assert "HMSM_SIM_KEY:?" in command and "HMSM_SIM_KEY" in sim["environment"]
 
     for name in ("migrate", "api", "worker"):
         env = services[name]["environment"]

@@ -151,11 +151,14 @@ def seed_results(factory: sessionmaker[Session], *, tail: str, position: str = "
                     first_alarm = Alarm(actuator_id=act.id, flight_id=flight.id, status="open",
                                         confidence=conf, fault_mode="DMD",
                                         class_probability=probs["DMD"] if probs else None,
-                                        features=["WL1.F_DMD"], rul_median_flights=med)
+                                        features=["WL1.F_DMD"], rul_median_flights=med,
+                                        rul_low_flights=0.6 * med)
                     session.add(first_alarm)
                 else:
                     first_alarm.confidence = max(first_alarm.confidence, conf)
                     first_alarm.rul_median_flights = med
+                    # the 5 % quantile, as the analysis stores it (rul_document's spread)
+                    first_alarm.rul_low_flights = 0.6 * med
         session.add(ActuatorState(actuator_id=act.id, flights_seen=n_flights,
                                   detection={"confidence": conf}, fault_mode="DMD"))
         session.commit()
