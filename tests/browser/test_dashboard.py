@@ -288,3 +288,38 @@ def test_every_page_fits_a_phone_screen(live: Live, browser) -> None:  # type: i
     assert box is not None and box["x"] >= 0 and box["x"] + box["width"] <= 390, box
     assert console.errors == [], console.errors
     context.close()
+
+
+def test_a_pair_alarm_and_a_cancelled_injection_in_the_browser(live: Live, browser) -> None:  # type: ignore[no-untyped-def]
+    """An admin acknowledges a winglet-pair alarm (one row, both drives) with one click; an
+    operator cancels a live injection from its row; no probability reads as certain."""
+    tail = live.tails[1]
+    wl1 = add_alarm(live.factory, tail=tail, position="WL1", fault_mode="REWEAR",  # type: ignore[arg-type]
+                    confidence=0.999999)
+    wl2 = add_alarm(live.factory, tail=tail, position="WL2", fault_mode="REWEAR")  # type: ignore[arg-type]
+    context = browser.new_context(viewport={"width": 1280, "height": 800})
+    page = context.new_page()
+    console = Console(page)
+    _sign_in(page, live.url, live.keys["admin"])
+    page.goto(f"{live.url}/alarms?status=open")
+    row = page.locator("tr.pair", has_text=tail)
+    assert row.count() == 1 and "WL1 or WL2" in row.inner_text()
+    assert "100.0 %" not in page.locator("#alarm-table").inner_text()
+    row.get_by_role("button", name="Acknowledge").click()
+    page.wait_for_url(f"{live.url}/alarms?status=open")
+    assert page.locator(f"#alarm-{wl1}, #alarm-{wl2}").count() == 0  # both left "open"
+
+    page.goto(f"{live.url}/test-station")
+    page.get_by_label("Aircraft").select_option(live.tails[1])
+    page.get_by_label("Position").select_option("WT")
+    page.get_by_label("Fault mode").select_option("MTEL")
+    page.get_by_label("Time to failure [flights]").fill("60")
+    page.get_by_role("button", name="Inject fault").click()
+    page.wait_for_url(f"{live.url}/test-station")
+    listed = page.locator("#injection-table tbody tr", has_text=live.tails[1]).first
+    listed.get_by_role("button", name=re.compile("^Cancel injection")).click()
+    page.wait_for_url(f"{live.url}/test-station")
+    listed = page.locator("#injection-table tbody tr", has_text=live.tails[1]).first
+    assert "cancelled" in listed.inner_text()
+    assert console.errors == [], console.errors
+    context.close()
