@@ -222,3 +222,22 @@ def test_defaults_come_from_the_config() -> None:
         "C": d.C, "cv": d.cv, "class_weight": d.class_weight, "tol": d.tol,
         "max_iter": d.max_iter, "random_state": d.random_state}
     assert FAULT_MODES is vocabulary.FAULT_MODES
+
+
+def test_a_classifier_right_on_every_held_out_row_does_not_claim_certainty() -> None:
+    """Well separated classes: every out-of-fold prediction right. The probabilities keep
+    Laplace's (0 + 1) / (n + 2) off the leading class, so no row reads 100 %, and the decision
+    is the SVM's."""
+    X, y, g, _ = make_data(5, shift=30.0)
+    model = FaultClassifier().fit(X, y, g)
+    assert model.calibration_["accuracy"] == 1.0
+    n = model.calibration_["n_samples"]
+    assert model.error_floor_ == pytest.approx(1.0 / (n + 2))
+    P = model.predict_proba(X)
+    assert P.max() <= 1.0 - model.error_floor_ + 1e-12 and P.max() > 0.99
+    np.testing.assert_allclose(P.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+    assert np.array_equal(model.classes_[np.argmax(P, axis=1)], model.predict(X))
+    doc = model.to_dict()
+    del doc["error_floor"]  # a document written before the floor: probabilities as they were
+    old = FaultClassifier.from_dict(doc).predict_proba(X)
+    assert old.max() > 1.0 - 1e-6

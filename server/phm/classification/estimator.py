@@ -155,6 +155,12 @@ class FaultClassifier:
     intercept_ : ndarray of shape (n_classes,)
     temperature_ : float
         Softmax temperature ``T`` (multiplies the decision values).
+    error_floor_ : float
+        ``e = (errors + 1) / (n + 2)`` of the out-of-fold predictions (Laplace's rule of
+        succession: the posterior mean error rate under a uniform prior). The probabilities
+        keep that much mass off the leading class, ``P' = (1 - e) P + e (1 - P) / (K - 1)``:
+        a classifier right on all of a few hundred held-out rows has shown an error rate below
+        about 1 %, not zero, so it may not claim 100 %. The order of the classes is unchanged.
     calibration_ : dict
         How ``T`` was fitted: ``source`` ("out-of-fold" or "in-sample"), ``n_splits``,
         ``n_samples`` and the out-of-fold ``log_loss`` and ``accuracy``.
@@ -251,6 +257,8 @@ class FaultClassifier:
             D_cal, y_cal = Z @ coef.T + icpt, yi
             source = "in-sample"
         temperature = _fit_temperature(D_cal, y_cal)
+        errors = int(np.sum(np.argmax(D_cal, axis=1) != y_cal))
+        error_floor = (errors + 1.0) / (y_cal.size + 2.0)
 
         self.classes_ = classes
         self.feature_names_in_ = np.asarray(names, dtype=object)
@@ -260,6 +268,7 @@ class FaultClassifier:
         self.coef_ = coef
         self.intercept_ = icpt
         self.temperature_ = temperature
+        self.error_floor_ = float(error_floor)
         self.n_samples_ = int(X.shape[0])
         oof_pred = np.argmax(D_cal, axis=1)
         self.calibration_ = {
@@ -308,10 +317,14 @@ class FaultClassifier:
 
     def predict_log_proba(self, X: np.ndarray) -> np.ndarray:
         """Log of :meth:`predict_proba`, shape (n_samples, n_classes)."""
-        return _log_softmax(self.temperature_ * self.decision_function(X))
+        P = np.exp(_log_softmax(self.temperature_ * self.decision_function(X)))
+        e, k = self.error_floor_, P.shape[1]
+        with np.errstate(divide="ignore"):
+            return np.log((1.0 - e) * P + e * (1.0 - P) / (k - 1))
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
-        """Calibrated class probabilities ``softmax(temperature_ * d)``.
+        """Calibrated class probabilities: ``softmax(temperature_ * d)``, with ``error_floor_``
+        of their mass kept off the leading class.
 
         Parameters
         ----------
@@ -357,6 +370,7 @@ class FaultClassifier:
             "coef": self.coef_.tolist(),
             "intercept": self.intercept_.tolist(),
             "temperature": float(self.temperature_),
+            "error_floor": float(self.error_floor_),
             "calibration": dict(self.calibration_),
             "n_samples": self.n_samples_,
         }
@@ -376,6 +390,8 @@ class FaultClassifier:
         model.coef_ = np.asarray(d["coef"], dtype=np.float64).reshape(len(classes), -1)
         model.intercept_ = np.asarray(d["intercept"], dtype=np.float64)
         model.temperature_ = float(d["temperature"])
+        # a document written before the floor was kept: none (its probabilities as they were)
+        model.error_floor_ = float(d.get("error_floor", 0.0))
         model.calibration_ = dict(d["calibration"])
         model.n_samples_ = int(d["n_samples"])
         k, n = model.coef_.shape
