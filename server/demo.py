@@ -184,7 +184,7 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
     print(f"  {n_aircraft} simulated aircraft fly {rate:g} flights a minute; faults injected: "
           + ", ".join(f"{t}/{p} {m}" for t, p, m, _, _ in DEMO_INJECTIONS
                       if int(t[3:]) <= n_aircraft))
-    print("  the evaluation page fills in about 15 minutes (a small verification campaign is "
+    print("  the evaluation page fills in about 4 minutes (a small verification campaign is "
           "simulated and evaluated in the background; logs/evaluation.log)")
     print(f"  raw logs: the last {settings.raw_retention_healthy} healthy flights per aircraft "
           "and every flight with an alarm are kept")
