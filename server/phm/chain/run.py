@@ -149,7 +149,7 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     leading mode) is that of the summed evidence either way."""
     if model.classifier is None:
         return None
-    logp = model.classifier.predict_log_proba(
+    logp = model.classifier.raw_log_proba(
         classifier_vector(h.detection, position)[np.newaxis, :])[0]
     classes = [str(c) for c in model.classifier.classes_.tolist()]
     acc = h.class_log_prob or dict.fromkeys(classes, 0.0)
@@ -164,7 +164,9 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     top = max(pooled.values())
     weights = {c: math.exp(v - top) for c, v in pooled.items()}
     total = sum(weights.values())
-    probs = {c: w / total for c, w in weights.items()}
+    # the floor on what is shown, after pooling: the decision stays the summed evidence's
+    floored = model.classifier.apply_error_floor(np.array([weights[c] / total for c in classes]))
+    probs = {c: float(p) for c, p in zip(classes, floored, strict=True)}
     mode = max(probs, key=lambda c: probs[c])
     if mode != h.fault_mode:
         h.fault_mode = mode

@@ -315,12 +315,21 @@ class FaultClassifier:
         D = self.decision_function(X)
         return self.classes_[np.argmax(D, axis=1)]
 
+    def raw_log_proba(self, X: np.ndarray) -> np.ndarray:
+        """``log softmax(temperature_ * d)``: the evidence before the error floor (what the
+        chain sums over flights, so its decision is the SVM's)."""
+        return _log_softmax(self.temperature_ * self.decision_function(X))
+
+    def apply_error_floor(self, P: np.ndarray) -> np.ndarray:
+        """``(1 - e) P + e (1 - P) / (K - 1)``: ``error_floor_`` kept off the leading class."""
+        P = np.asarray(P, dtype=np.float64)
+        e, k = self.error_floor_, P.shape[-1]
+        return (1.0 - e) * P + e * (1.0 - P) / (k - 1)
+
     def predict_log_proba(self, X: np.ndarray) -> np.ndarray:
         """Log of :meth:`predict_proba`, shape (n_samples, n_classes)."""
-        P = np.exp(_log_softmax(self.temperature_ * self.decision_function(X)))
-        e, k = self.error_floor_, P.shape[1]
         with np.errstate(divide="ignore"):
-            return np.log((1.0 - e) * P + e * (1.0 - P) / (k - 1))
+            return np.log(self.apply_error_floor(np.exp(self.raw_log_proba(X))))
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """Calibrated class probabilities: ``softmax(temperature_ * d)``, with ``error_floor_``
