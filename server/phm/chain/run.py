@@ -145,8 +145,9 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     windowed over several flights and one fault drives them all. Multiplying their calibrated
     probabilities would claim certainty after a handful of flights (100.0 %, on a false alarm
     too), so the evidence is pooled as the weighted mean of the flights' log-probabilities, a
-    weighted geometric mean of calibrated single-flight probabilities. The decision (the
-    leading mode) is that of the summed evidence either way."""
+    weighted geometric mean of calibrated single-flight probabilities; the classifier's error
+    floor is then applied to the pooled probabilities (shown, never 100 %). The decision (the
+    leading mode) is that of the summed raw evidence either way."""
     if model.classifier is None:
         return None
     logp = model.classifier.raw_log_proba(
