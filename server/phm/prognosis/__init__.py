@@ -15,6 +15,7 @@ from .filter import (
     effective_sample_size,
     systematic_resample,
 )
+from .forecast import RulForecast, backtest_forecasts, forecast_rul
 from .generic import (
     GENERIC_CONFIG,
     PriorDominatedWarning,
@@ -23,6 +24,7 @@ from .generic import (
     predict_rul,
     track_rul,
 )
+from .law_average import LawAverageConfig
 from .laws import (
     LAWS,
     AffineLaw,
@@ -41,6 +43,7 @@ from .predictor import RulDistribution, propagate_to_threshold, summarise_rul, w
 __all__ = [
     "CONSTANTS",
     "GENERIC_CONFIG",
+    "LawAverageConfig",
     "LAWS",
     "RATE_BASES",
     "AffineLaw",
@@ -58,9 +61,12 @@ __all__ = [
     "RateBasis",
     "RlsMeasurement",
     "RulDistribution",
+    "RulForecast",
+    "backtest_forecasts",
     "backtest_rul",
     "effective_sample_size",
     "estimate_noise_std",
+    "forecast_rul",
     "growth_onset",
     "growth_rate",
     "law_for",

@@ -1,0 +1,109 @@
+"""The law-averaging RUL engine: time in the caller's unit, the law from the evidence,
+intervals that hold the truth on series its laws describe, an interface that cannot mislead."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from server.phm.prognosis import PriorDominatedWarning
+from server.phm.prognosis.forecast import backtest_forecasts, forecast_rul
+from server.phm.prognosis.law_average import LawAverageConfig
+
+
+def _exponential(n: int = 150, life: int = 250, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=float)
+    return t, np.expm1(3.0 * t / life) / np.expm1(3.0) + 0.02 * rng.standard_normal(n)
+
+
+def test_the_rul_is_in_the_unit_of_time_whatever_it_is() -> None:
+    t, x = _exponential()
+    jitter = np.random.default_rng(4).uniform(0.0, 0.4, t.size)  # uneven, non-integer times
+    steps = forecast_rul(x, 1.0, baseline=0.0, time=t + jitter, rng=2)
+    hours = forecast_rul(x, 1.0, baseline=0.0, time=(t + jitter) * 37.5, rng=2)
+    np.testing.assert_allclose(hours.samples, steps.samples * 37.5, rtol=1e-9)
+    assert hours.horizon == pytest.approx(steps.horizon * 37.5)
+
+
+def test_the_law_comes_from_the_evidence() -> None:
+    t, x = _exponential()
+    growth = forecast_rul(x, 1.0, baseline=0.0, time=t, rng=0).law_weights
+    assert growth["affine"] + growth["exponential"] > 0.5
+    rng = np.random.default_rng(3)
+    linear = forecast_rul(t / 250 + 0.02 * rng.standard_normal(t.size), 1.0, baseline=0.0,
+                          time=t, rng=0).law_weights
+    assert linear["constant"] > 0.5
+    assert max(growth, key=growth.get) != "constant"
+
+
+def test_intervals_hold_the_truth_as_often_as_they_say_on_a_law_it_knows() -> None:
+    # linear wear, failure at 200, predicted at 100 from 40 noise draws: the 90 % interval
+    # must hold the true RUL (100) in 80-100 % of them and the 50 % one in 30-70 %
+    t = np.arange(101.0)
+    in90 = in50 = 0
+    for seed in range(40):
+        x = t / 200 + 0.03 * np.random.default_rng(seed).standard_normal(t.size)
+        f = forecast_rul(x, 1.0, baseline=0.0, time=t, rng=seed)
+        lo90, hi90 = f.interval(0.9)
+        lo50, hi50 = f.interval(0.5)
+        in90 += lo90 <= 100 <= hi90
+        in50 += lo50 <= 100 <= hi50
+    assert 32 <= in90 <= 40 and 12 <= in50 <= 28
+
+
+def test_a_falling_indicator_and_quantiles_by_fraction_or_percent() -> None:
+    rng = np.random.default_rng(8)
+    t = np.arange(120.0)
+    capacity = 1.8 - 0.4 * t / 150 + 0.005 * rng.standard_normal(t.size)
+    f = forecast_rul(capacity, 1.4, time=t, rng=3)  # baseline: median of the first 5
+    assert abs(f.median - 31) <= 0.3 * 31
+    assert f.percentile(5) == f.quantile(0.05) <= f.median <= f.quantile(0.95)
+    assert 0.0 <= f.p_beyond_horizon <= 1.0
+    with pytest.raises(ValueError, match="percentile"):
+        f.quantile(5)
+
+
+def test_few_samples_warn_and_flag_the_prior() -> None:
+    with pytest.warns(PriorDominatedWarning, match="3 samples"):
+        f = forecast_rul([0.0, 0.01, 0.02], 1.0, baseline=0.0)
+    assert f.prior_dominated
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        t, x = _exponential()
+        assert not forecast_rul(x, 1.0, baseline=0.0, time=t).prior_dominated
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"time": np.arange(149.0)}, "149 values for 150 samples"),
+    ({"time": np.r_[np.arange(75.0), np.arange(75.0)]}, "strictly increasing"),
+    ({"time": np.r_[np.arange(149.0), np.nan]}, "finite"),
+    ({"baseline": 1.0}, "differ from baseline"),
+    ({"rng": 2.5}, "integer seed"),
+])
+def test_bad_input_gets_a_specific_message(kwargs: dict, message: str) -> None:
+    _, x = _exponential()
+    with pytest.raises(ValueError, match=message):
+        forecast_rul(x, 1.0, **kwargs)
+
+
+def test_a_backtest_sees_only_the_prefix() -> None:
+    t, x = _exponential()
+    (bt,) = backtest_forecasts(x, 1.0, at=[99.0], baseline=0.0, time=t, rng=2)
+    prefix = forecast_rul(x[:100], 1.0, baseline=0.0, time=t[:100], rng=2)
+    np.testing.assert_array_equal(bt.samples, prefix.samples)
+    (same,) = backtest_forecasts(np.r_[x, np.full(10, 9.9)], 1.0, at=[99.0], baseline=0.0,
+                                 time=np.r_[t, t[-1] + 1 + np.arange(10)], rng=2)
+    np.testing.assert_array_equal(same.samples, bt.samples)
+    with pytest.raises(ValueError, match="no sample at time 1000"):
+        backtest_forecasts(x, 1.0, at=[1000], time=t)
+
+
+def test_config_counts_accept_whole_floats_and_refuse_the_rest() -> None:
+    assert LawAverageConfig(n_samples=2000.0).n_samples == 2000  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="n_samples"):
+        LawAverageConfig(n_samples=2000.5)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="memory_spans"):
+        LawAverageConfig(memory_spans=0.0)
