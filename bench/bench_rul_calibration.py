@@ -1,7 +1,9 @@
 """Calibration of the generic RUL engine (server.phm.prognosis.forecast) on synthetic families.
 
-Run: ``python bench/bench_rul_calibration.py [--units-per-family 40] [--half tuning|held-out]``
-(from the repository root). Writes ``docs/results/rul_calibration_<half>.json``.
+Run: ``python bench/bench_rul_calibration.py [--units-per-family 20] [--half tuning|held-out]
+[--progpy]`` (from the repository root). Writes ``docs/results/rul_calibration_<half>.json``.
+``--progpy`` scores progpy's particle filter with a linear-fade model on the same units beside
+ours (progpy is the ``bench`` extra).
 
 Families (none is the engine's own law by construction except where physics says so): linear,
 exponential, power-law, change point then growth, capacity-like fade with recovery jumps,
@@ -22,7 +24,6 @@ import json
 import math
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -81,9 +82,6 @@ def make_unit(family: str, draw: int) -> dict:
             "threshold": baseline + scale}
 
 
-Predictor = Callable[[np.ndarray, np.ndarray, float, float], np.ndarray]
-
-
 CONFIG: LawAverageConfig | None = None
 
 
@@ -91,13 +89,36 @@ def ours(t: np.ndarray, x: np.ndarray, threshold: float, baseline: float) -> np.
     return forecast_rul(x, threshold, time=t, rng=0, config=CONFIG).samples
 
 
-def score_unit(unit: dict, predict: Predictor) -> list[dict]:
-    t, x, eol = unit["time"], unit["series"], unit["eol"]
+def scored_samples(unit: dict) -> list[int]:
+    """Indices of the 8 scored instants, 40 % to 95 % of life."""
+    return [int(np.searchsorted(unit["time"], f * unit["eol"], side="right")) - 1
+            for f in np.linspace(0.4, 0.95, 8)]
+
+
+def ours_at(unit: dict) -> list[np.ndarray]:
+    t, x = unit["time"], unit["series"]
+    return [ours(t[:i + 1], x[:i + 1], unit["threshold"], unit["baseline"])
+            for i in scored_samples(unit)]
+
+
+def progpy_at(unit: dict) -> list[np.ndarray]:
+    """progpy's particle filter, linear fade (bench/_progpy_linear.py), same instants and
+    the same horizon rule as ours (20 spans of the prefix)."""
+    from _progpy_linear import progpy_forecasts
+
+    t, x = unit["time"], unit["series"]
+    base = float(np.median(x[:5]))
+    at = scored_samples(unit)
+    return progpy_forecasts(t, (x - base) / (unit["threshold"] - base), at,
+                            20.0 * float(t[at[-1]] - t[0]))
+
+
+def score_unit(unit: dict, forecasts: list[np.ndarray]) -> list[dict]:
+    t, eol = unit["time"], unit["eol"]
     rows = []
-    for frac in np.linspace(0.4, 0.95, 8):
-        n = int(np.searchsorted(t, frac * eol, side="right"))
-        samples = predict(t[:n], x[:n], unit["threshold"], unit["baseline"])
-        true_rul = eol - t[n - 1]
+    for frac, i, samples in zip(np.linspace(0.4, 0.95, 8), scored_samples(unit), forecasts,
+                                strict=True):
+        true_rul = eol - t[i]
         q = np.quantile(samples, [0.05, 0.25, 0.5, 0.75, 0.95], method="inverted_cdf")
         rows.append({"frac": float(frac), "true": true_rul,
                      "in50": bool(q[1] <= true_rul <= q[3]),
@@ -133,9 +154,11 @@ def summarise(results: list[dict]) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--units-per-family", type=int, default=40)
+    ap.add_argument("--units-per-family", type=int, default=20)
     ap.add_argument("--half", choices=("tuning", "held-out"), default="tuning")
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--progpy", action="store_true",
+                    help="also score progpy's particle filter (linear fade) on the same units")
     ap.add_argument("--memory-spans", type=float, default=None,
                     help="override the engine's default (choosing it: tuning half only)")
     args = ap.parse_args(argv)
@@ -144,16 +167,24 @@ def main(argv: list[str] | None = None) -> int:
         CONFIG = LawAverageConfig(memory_spans=args.memory_spans)
     parity = 0 if args.half == "tuning" else 1
     start = time.perf_counter()
-    results = []
+    results, theirs = [], []
     for family in FAMILIES:
         for draw in range(parity, 2 * args.units_per_family, 2):
             unit = make_unit(family, draw)
-            results.append({"family": family, "draw": draw, "rows": score_unit(unit, ours)})
+            results.append({"family": family, "draw": draw,
+                            "rows": score_unit(unit, ours_at(unit))})
+            if args.progpy:
+                theirs.append({"family": family, "draw": draw,
+                               "rows": score_unit(unit, progpy_at(unit))})
     summary = {"half": args.half, "engine": "law averaging (server.phm.prognosis.forecast)",
                "seconds": round(time.perf_counter() - start, 1), **summarise(results)}
+    if theirs:
+        summary["progpy_linear_pf"] = summarise(theirs)
     out = args.out or ROOT / "docs" / "results" / f"rul_calibration_{args.half}.json"
     out.write_text(json.dumps(summary, indent=1) + "\n")
     print(json.dumps({k: summary[k] for k in ("all", "pit_histogram", "seconds")}, indent=1))
+    if theirs:
+        print("progpy", json.dumps(summary["progpy_linear_pf"]["all"]))
     for f, v in summary["by_family"].items():
         print(f"{f:15s} c50 {v['coverage50']:.2f} c90 {v['coverage90']:.2f} "
               f"CRA {v['cra']:.2f} al {v['alpha_lambda_pass']:.2f} "
