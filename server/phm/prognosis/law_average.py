@@ -34,6 +34,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import gammaln, logsumexp
 
+from .constants import CONSTANTS
+from .generic import estimate_noise_std
+
 __all__ = ["LAW_NAMES", "LawAverageConfig", "LawMixture", "fit_laws", "rul_samples"]
 
 LAW_NAMES = ("constant", "affine", "exponential", "power", "quadratic", "onset")
@@ -146,13 +149,11 @@ class LawMixture:
 
 
 def robust_noise_std(severity: NDArray[np.float64]) -> float:
-    """White-noise standard deviation from the MAD of second differences (a smooth trend
-    cancels; var(d2 x) = 6 sigma^2 for white noise)."""
+    """The prefix's white-noise estimate (:func:`.generic.estimate_noise_std`), or the
+    short-series default below 4 samples."""
     if severity.size < 4:
-        return 0.05
-    d2 = np.diff(severity, n=2)
-    sigma = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-    return max(sigma, 1e-6 * max(float(np.max(np.abs(severity))), 1e-3))
+        return CONSTANTS.short_series_noise
+    return estimate_noise_std(severity)
 
 
 def _fit_one(law: str, shape: Any, tau: NDArray[np.float64], y: NDArray[np.float64],
