@@ -21,7 +21,7 @@ N(0, sigma^2 V0) with V0 = (``coef_scale`` / sigma_hat)^2 I, so their spread is
 ``coef_scale`` severity units whatever the noise; sigma^2 ~ IG centred on the robust noise
 estimate sigma_hat of the prefix, worth ``noise_prior_weight`` samples.
 
-Numbers here are unit-free (severity and spans); the interface in :mod:`.generic` converts.
+Numbers here are unit-free (severity and spans); :mod:`.forecast` converts to the caller's units.
 """
 
 from __future__ import annotations
