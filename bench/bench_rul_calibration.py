@@ -31,6 +31,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from server.phm.metrics import bootstrap_indices, bootstrap_mean_interval  # noqa: E402
 from server.phm.prognosis.forecast import forecast_rul  # noqa: E402
 from server.phm.prognosis.law_average import LawAverageConfig  # noqa: E402
 
@@ -140,10 +141,17 @@ def summarise(results: list[dict]) -> dict:
         cra = [float(np.mean([r["ra"] for r in u["rows"]])) for u in sel]
         # alpha-lambda: the prediction nearest lambda = 0.5 between 40 % of life and EOL
         al = [min(u["rows"], key=lambda r: abs(r["frac"] - 0.7)) for u in sel]
+        # 90 % bootstrap intervals over units (each unit's 8 predictions are one cluster)
+        in50 = [float(np.mean([r["in50"] for r in u["rows"]])) for u in sel]
+        in90 = [float(np.mean([r["in90"] for r in u["rows"]])) for u in sel]
+        idx = bootstrap_indices(len(sel))
         return {"units": len(sel), "predictions": len(rr),
-                "coverage50": float(np.mean([r["in50"] for r in rr])),
-                "coverage90": float(np.mean([r["in90"] for r in rr])),
+                "coverage50": float(np.mean(in50)),
+                "coverage50_interval": bootstrap_mean_interval(in50, indices=idx),
+                "coverage90": float(np.mean(in90)),
+                "coverage90_interval": bootstrap_mean_interval(in90, indices=idx),
                 "cra": float(np.mean(cra)),
+                "cra_interval": bootstrap_mean_interval(cra, indices=idx),
                 "alpha_lambda_pass": float(np.mean([abs(1.0 - r["ra"]) <= 0.2 for r in al])),
                 "median_width90_rel": float(np.median(
                     [r["width90"] if r["width90"] is not None else np.inf for r in rr]))}

@@ -3,9 +3,9 @@
 ``forecast_rul(series, threshold, time=...)``: time in the caller's unit (any increasing
 real numbers, uneven steps allowed); the RUL comes back in that unit. The degradation law is
 not chosen by the caller: :mod:`.law_average` weighs constant-rate, affine-rate,
-exponential, power-law and quadratic growth by their evidence on the samples given, and the
-answer is their mixture. ``backtest_forecasts`` predicts at chosen times, each from its
-prefix only (baseline and noise included).
+exponential, power-law, quadratic and onset (healthy, then growth) laws by their evidence
+on the samples given, and the answer is their mixture. ``backtest_forecasts`` predicts at
+chosen times, each from its prefix only (baseline and noise included).
 """
 
 from __future__ import annotations

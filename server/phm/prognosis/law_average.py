@@ -137,7 +137,6 @@ class LawMixture:
     components: tuple[_Posterior, ...]
     weights: NDArray[np.float64]  # posterior probability of each component
     noise_std: float  # robust noise estimate of the prefix [severity]
-    n_samples: int
 
     @property
     def law_weights(self) -> dict[str, float]:
@@ -189,7 +188,7 @@ def fit_laws(tau: NDArray[np.float64], severity: NDArray[np.float64],
     per_law = {name: sum(1 for c in comps if c.law == name) for name in LAW_NAMES}
     log_w = np.array([c.log_evidence - math.log(per_law[c.law]) for c in comps])
     weights = np.exp(log_w - logsumexp(log_w))
-    return LawMixture(comps, weights, sigma_hat, cfg.n_samples)
+    return LawMixture(comps, weights, sigma_hat)
 
 
 def _future_grid(cfg: LawAverageConfig) -> NDArray[np.float64]:
