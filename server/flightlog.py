@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from server.vocabulary import POSITIONS, SIGNALS
+from server.vocabulary import POSITIONS, SIGNALS, WINGLET_PAIR
 
 __all__ = [
     "FORMAT",
@@ -85,7 +85,10 @@ _REQUIRED_METADATA = (
     "sample_rate_hz",
     "actuator_serials",
 )
-_OPTIONAL_METADATA = ("source",)
+#: ``active_channels``: the positions whose drives were active on the flight, a JSON list (an
+#: active-standby winglet names one of its pair); absent when every drive was active, so that
+#: logs without it read as they always did
+_OPTIONAL_METADATA = ("source", "active_channels")
 #: every metadata field of the format (Parquet key-value metadata, or upload form fields)
 METADATA_FIELDS: tuple[str, ...] = _REQUIRED_METADATA + _OPTIONAL_METADATA
 MAX_ID_LEN = 64
@@ -255,6 +258,7 @@ class FlightMetadata:
     sample_rate_hz: float
     actuator_serials: dict[str, str]
     source: str | None = None
+    active_channels: tuple[str, ...] | None = None
     format: str = FORMAT
 
     def to_strings(self) -> dict[str, str]:
@@ -269,6 +273,8 @@ class FlightMetadata:
         }
         if self.source is not None:
             out["source"] = self.source
+        if self.active_channels is not None:
+            out["active_channels"] = json.dumps(list(self.active_channels))
         return out
 
 
@@ -357,6 +363,10 @@ def parse_metadata(raw: Mapping[str, Any],
     source = raw.get("source")
     if source is not None and len(str(source)) > 200:
         bad["source"] = "at most 200 characters"
+    active = _active_channels(raw.get("active_channels"), limits)
+    if active == ():
+        bad["active_channels"] = ('a JSON list of distinct positions, each of "WL1", "WL2", '
+                                  '"WT", with at least one drive of each surface')
     if bad:
         raise FlightLogError([Issue("bad_metadata", "Metadata values are malformed: "
                                     + ", ".join(f"{k} must be {v}" for k, v in bad.items()) + ".",
@@ -370,7 +380,24 @@ def parse_metadata(raw: Mapping[str, Any],
         sample_rate_hz=numbers["sample_rate_hz"],
         actuator_serials=serials,
         source=None if source is None else str(source),
+        active_channels=active,
     )
+
+
+def _active_channels(raw: Any, limits: DecodeLimits) -> tuple[str, ...] | None:
+    """The optional ``active_channels`` list: None when absent, ``()`` when malformed."""
+    if raw is None or raw == "":
+        return None
+    try:
+        parsed = _shallow_json(str(raw), limits.max_json_depth) if isinstance(raw, str) else raw
+    except ValueError:
+        return ()
+    if (not isinstance(parsed, list) or not all(isinstance(p, str) for p in parsed)
+            or len(set(parsed)) != len(parsed) or not set(parsed) <= set(POSITIONS)
+            or not set(parsed) & set(WINGLET_PAIR)
+            or not set(POSITIONS) - set(WINGLET_PAIR) <= set(parsed)):
+        return ()
+    return tuple(p for p in POSITIONS if p in parsed)
 
 
 def _check_metadata_lengths(raw: Mapping[str, Any], limits: DecodeLimits) -> None:

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass, field, replace
+from enum import StrEnum
 from importlib import resources
 from typing import Any
 
 import numpy as np
 
-from server.vocabulary import POSITIONS, is_winglet
+from server.vocabulary import POSITIONS, WINGLET_PAIR, is_winglet
 
 from .params import EmaParams, SurfaceParams
 
@@ -26,6 +27,8 @@ __all__ = [
     "WINGLET",
     "WINGTIP",
     "SURFACE_OF",
+    "WingletMode",
+    "active_channels",
     "Aircraft",
     "build_aircraft",
     "monthly_climate",
@@ -49,6 +52,30 @@ WINGTIP = SurfaceParams(name="WT", j_kgm2=0.04, arm_m=0.040, hinge_damping_nms=8
                         nominal_load_n=1500.0)
 #: surface index of each position: 0 the winglet tab (the winglet pair), 1 the wingtip
 SURFACE_OF: dict[str, int] = {pos: 0 if is_winglet(pos) else 1 for pos in POSITIONS}
+
+
+class WingletMode(StrEnum):
+    """How the winglet pair moves its tab."""
+
+    #: one channel drives, the other is in standby, attached and damping (the iron bird, paper
+    #: section 3.3.3 and Figure 9)
+    ACTIVE_STANDBY = "active-standby"
+    #: both channels drive on their consolidated LVDT
+    ACTIVE_ACTIVE = "active-active"
+
+
+def active_channels(mode: WingletMode, flight_index: int) -> tuple[str, ...]:
+    """Positions whose drives are active on flight ``flight_index`` of an aircraft.
+
+    Under active-standby the winglet's active channel alternates by flight, WL1 on even
+    flights: redundancy management exercises both channels, so a fault dormant in a standby's
+    inverter or loops cannot hide for more than one flight, and every motor fault of either
+    drive shows through a switching inverter on every second flight.
+    """
+    if mode is WingletMode.ACTIVE_ACTIVE:
+        return POSITIONS
+    idle = WINGLET_PAIR[1 - flight_index % 2]
+    return tuple(p for p in POSITIONS if p != idle)
 
 # production tolerances, 1 sigma relative (or absolute where stated) [est]
 _TOL = {

@@ -18,7 +18,15 @@ from server.flightlog import NOMINAL_SAMPLE_RATE_HZ, FlightLog, FlightMetadata
 from server.vocabulary import POSITIONS
 
 from .faults import ActuatorSummary, FaultState, FlightSummary, fault_entries
-from .fleet import SURFACE_OF, WINGLET, WINGTIP, Aircraft, draw_ground_temperature
+from .fleet import (
+    SURFACE_OF,
+    WINGLET,
+    WINGTIP,
+    Aircraft,
+    WingletMode,
+    active_channels,
+    draw_ground_temperature,
+)
 from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
 from .load_share import WORK_FIELD, load_share
 from .params import OUT_HZ, pack_ema, pack_surface
@@ -82,13 +90,19 @@ def draw_conditions(aircraft: Aircraft, flight_index: int, rng: np.random.Genera
 
 
 def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
-                 rng: np.random.Generator, *, t0_winding_c: float | None = None) -> SimResult:
-    """Simulate ``scenario`` at 12 kHz with ``fault`` on its position (kernel call)."""
+                 rng: np.random.Generator, *, t0_winding_c: float | None = None,
+                 active: tuple[str, ...] = POSITIONS) -> SimResult:
+    """Simulate ``scenario`` at 12 kHz with ``fault`` on its position (kernel call); the
+    drives not in ``active`` are in standby (each surface needs an active one)."""
     t0 = float(scenario.t_amb[0] + 3.0) if t0_winding_c is None else t0_winding_c
+    for s in set(SURFACE_OF.values()):
+        if not any(SURFACE_OF[p] == s for p in active):
+            raise ValueError(f"active={active!r} leaves surface {_SURFACES[s].name} undriven")
     par = np.stack([
         pack_ema(aircraft.ema[pos], aircraft.nominal, surface=SURFACE_OF[pos],
                  arm_m=_SURFACES[SURFACE_OF[pos]].arm_m, offsets=aircraft.offsets[pos],
-                 faults=fault_entries(fault, pos), t0_winding_c=t0)
+                 faults=fault_entries(fault, pos), t0_winding_c=t0,
+                 standby=pos not in active)
         for pos in POSITIONS
     ])
     spar = np.stack([pack_surface(s) for s in _SURFACES])
@@ -133,11 +147,14 @@ def simulate_flight(
     flight_id: str | None = None,
     started_at: datetime | None = None,
     duration_s: float = REFERENCE_DURATION_S,
+    winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE,
 ) -> tuple[FlightLog, FlightSummary]:
-    """Simulate one flight and return its download (format v1) and what the actuators did."""
+    """Simulate one flight and return its download (format v1) and what the actuators did;
+    under active-standby the log's metadata names the flight's active channels."""
     cond = draw_conditions(aircraft, flight_index, rng, started_at=started_at)
     scenario = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s)
-    res = run_scenario(aircraft, fault, scenario, rng)
+    active = active_channels(winglet_mode, flight_index)
+    res = run_scenario(aircraft, fault, scenario, rng, active=active)
     channels: dict[str, np.ndarray] = {"t": scenario.t.astype(np.float64)}
     for k, pos in enumerate(POSITIONS):
         for i, sig in enumerate(_SIGNALS):
@@ -155,6 +172,7 @@ def simulate_flight(
         sample_rate_hz=NOMINAL_SAMPLE_RATE_HZ,
         actuator_serials=dict(aircraft.serials),
         source=SOURCE,
+        active_channels=None if active == POSITIONS else active,
     )
     duration = float(scenario.t[-1]) if scenario.t.size else 0.0
     return FlightLog(metadata=meta, channels=channels), _summary_from_acc(res.acc, cond, duration)

@@ -22,7 +22,15 @@ Subsystems, each a small function below, wired once in :func:`simulate`:
 * thermal: single body, copper + short-circuit losses, to ambient through R_th;
 * sensors: offset, noise (in-kernel xorshift generator seeded from a numpy Generator),
   quantisation;
-* control: current PI every step, speed PI every 3 steps, position P every 12 steps.
+* control: current PI every step, speed PI every 3 steps, position P every 12 steps;
+* active-standby: a channel flagged standby (``P.STANDBY``) does not drive. Its inverter's gates
+  are off and a normally-closed contactor closes its windings on a star of damping resistors
+  ``R_d``, so the pole voltage is ``-R_d i_k`` (the averaged legs with duty 0 and ``R_d`` in
+  place of the conduction resistance); the back-driven magnet motor gives the damping torque
+  its back-EMF drives. Its loops do not run, its LVDT is not in the surface's consolidated
+  feedback, an open MOSFET of its (gated-off) inverter changes nothing, and its winding is not
+  referred to the DC link, so a turn-to-turn short leaks no current to the frame. Its
+  sensors and its link, screw and rod end are those of an active channel.
 
 The helpers are compiled with ``inline="always"``: numba inlines them into :func:`simulate` before
 type inference, so the kernel stays one loop with the same floating-point operations, in the same
@@ -340,18 +348,22 @@ def _lerp(a: np.ndarray, j: int, jn: int, col: int, frac: float) -> float:
 @njit(cache=True, error_model="numpy")
 def _position_loop(par: np.ndarray, st: np.ndarray, xcmd: np.ndarray, j: int, jn: int,
                    frac: float, rng: np.ndarray, xfb: np.ndarray, nfb: np.ndarray) -> None:
-    """Position P on the consolidated LVDT of each surface (mean of its actuators' LVDTs: the
-    two winglet channels exchange their measurements, which avoids force fight)."""
+    """Position P on the consolidated LVDT of each surface: the mean of its active channels'
+    LVDTs (two active winglet channels exchange their measurements, which avoids force fight;
+    a standby channel's LVDT is sampled but not fed back)."""
     n_ema = par.shape[0]
     xfb[:] = 0.0
     nfb[:] = 0.0
     for k in range(n_ema):
         xm = _sample_lvdt(par, st, k, rng)
         st[k, _XM] = xm
-        s = int(par[k, P.SURF])
-        xfb[s] += xm
-        nfb[s] += 1.0
+        if par[k, P.STANDBY] < 0.5:
+            s = int(par[k, P.SURF])
+            xfb[s] += xm
+            nfb[s] += 1.0
     for k in range(n_ema):
+        if par[k, P.STANDBY] > 0.5:
+            continue
         s = int(par[k, P.SURF])
         wref = par[k, P.KP_X] * (_lerp(xcmd, j, jn, k, frac) - xfb[s] / nfb[s])
         wmax = par[k, P.WMAX]
@@ -490,11 +502,15 @@ def _winding_temperature(par: np.ndarray, st: np.ndarray, k: int, div: int, dt_o
 def _period_coefficients(par: np.ndarray, st: np.ndarray, k: int, dt: float, coef: np.ndarray
                          ) -> None:
     """Temperature-dependent R_s, R_on and PM flux (with the DMD loss), the current update's
-    decay factors and the reciprocals the step multiplies by, held for one output period."""
+    decay factors and the reciprocals the step multiplies by, held for one output period. A
+    standby channel's windings close on the damping star: ``R_d`` takes the place of R_on."""
     tw = st[k, _TW]
     dtc = tw - par[k, P.TREF]
     coef[k, _C_R] = par[k, P.R0] * (1.0 + par[k, P.ALPHA_CU] * dtc)
-    coef[k, _C_RON] = par[k, P.RON] * (1.0 + par[k, P.ALPHA_ON] * (tw - 25.0))
+    if par[k, P.STANDBY] > 0.5:
+        coef[k, _C_RON] = par[k, P.R_DAMP]
+    else:
+        coef[k, _C_RON] = par[k, P.RON] * (1.0 + par[k, P.ALPHA_ON] * (tw - 25.0))
     coef[k, _C_PSI] = (par[k, P.PSI0] * (1.0 + par[k, P.ALPHA_BR] * dtc)
                        * (1.0 - par[k, P.DMD_H]))
     rt = coef[k, _C_R] + coef[k, _C_RON]
@@ -590,9 +606,10 @@ def _initial_state(par: np.ndarray, xcmd: np.ndarray, st: np.ndarray, delta: np.
         st[k, _TH] = xcmd[0, k] / par[k, P.R_SCREW]
         st[k, _THPREV] = st[k, _TH]
         st[k, _TW] = par[k, P.T0_W]
-        st[k, _DA] = 0.5
-        st[k, _DB] = 0.5
-        st[k, _DC] = 0.5
+        duty = 0.0 if par[k, P.STANDBY] > 0.5 else 0.5  # a standby leg never switches
+        st[k, _DA] = duty
+        st[k, _DB] = duty
+        st[k, _DC] = duty
         st[k, _XM] = xcmd[0, k]
         st[k, _XROD] = xcmd[0, k]
         acc[k, A.TW_MAX] = -1e9
@@ -680,8 +697,9 @@ def simulate(
             da = st[k, _DA]
             db = st[k, _DB]
             dc = st[k, _DC]
+            standby = par[k, P.STANDBY] > 0.5
             leg = int(par[k, P.BDO_LEG])
-            if leg >= 0:
+            if leg >= 0 and not standby:
                 st[k, _BDOPOS] = _current_sign_held(st[k, _IA + leg], st[k, _BDOPOS])
                 da, db, dc = _open_leg_duties(leg, st[k, _BDOPOS], par[k, P.BDO_UPPER], da, db,
                                               dc)
@@ -699,9 +717,10 @@ def simulate(
             we = pp * (1.5 * w - 0.5 * st[k, _WPREV])  # mid-step speed, extrapolated
             st[k, _WPREV] = w
             rt = rs + ron
+            v_frame = 0.0 if standby else vcm + 0.5 * ua
             dlt, i0, p_fault = _turn_short(par[k, P.TTS_SIGMA], par[k, P.TTS_RF],
                                            par[k, P.TTS_G], ud - rt * id_, uq - rt * iq, c, sn,
-                                           rs, vcm + 0.5 * ua)
+                                           rs, v_frame)
             ia, ib, ic = _terminal_currents(id_, iq, c, sn, cb, sb, dlt, i0)
             st[k, _IA] = ia
             st[k, _IB] = ib
@@ -715,18 +734,20 @@ def simulate(
             if record:
                 _record_signals(out, j, k, par, rng, ia_m, ib_m, ic_m, ua, ub, uc, th_m)
             # ---- speed loop (4 kHz; the position loop ran before the EMA loop) --------------
-            if step % SPEED_DIV == 0:
+            if step % SPEED_DIV == 0 and not standby:
                 _speed_loop(par, st, k, th_m, dt_w, a_wf)
             if record:  # LVDT sampled at the recording instant (the loop samples it at 1 kHz)
                 out[j, k, 7] = _sample_lvdt(par, st, k, rng)
-            # ---- current loop (12 kHz) -> duties for the next step --------------------------
-            lh = par[k, P.LHAT]
-            weh = pp * st[k, _WF]  # decoupling on the controller's own speed and parameters
-            udr, uqr, st[k, _ICD], st[k, _ICQ] = _current_pi(
-                -id_m, st[k, _IQREF] - iq_m, weh * lh * iq_m, weh * (lh * id_m + par[k, P.PSIHAT]),
-                st[k, _ICD], st[k, _ICQ], par[k, P.KP_I], par[k, P.KI_I], coef[k, _C_UMAX],
-                coef[k, _C_UMAX2], dt)
-            st[k, _DA], st[k, _DB], st[k, _DC] = _svm_duties(udr, uqr, cm, sm, cbm, sbm, udc)
+            # ---- current loop (12 kHz) -> duties for the next step (a standby leg stays at 0)
+            if not standby:
+                lh = par[k, P.LHAT]
+                weh = pp * st[k, _WF]  # decoupling on the controller's own speed and parameters
+                udr, uqr, st[k, _ICD], st[k, _ICQ] = _current_pi(
+                    -id_m, st[k, _IQREF] - iq_m, weh * lh * iq_m,
+                    weh * (lh * id_m + par[k, P.PSIHAT]), st[k, _ICD], st[k, _ICQ],
+                    par[k, P.KP_I], par[k, P.KI_I], coef[k, _C_UMAX], coef[k, _C_UMAX2], dt)
+                st[k, _DA], st[k, _DB], st[k, _DC] = _svm_duties(udr, uqr, cm, sm, cbm, sbm,
+                                                                 udc)
             # ---- PMSM electrical update (exact for frozen speed), torque at mid-step --------
             ld = par[k, P.LD]
             lq = par[k, P.LQ]

@@ -71,6 +71,13 @@ class InverterParams:
     u_dc_v: float = 270.0  # V, DC link
     r_on_ohm: float = 0.02  # Ohm, conduction resistance per leg at 25 degC [est]
     alpha_on_per_k: float = 0.005  # 1/K, MOSFET on-resistance coefficient [est]
+    #: Ohm per phase, the standby channel's damping star (a normally-closed contactor closes the
+    #: windings on it whenever the channel is not active or not powered, so the back-driven
+    #: magnet motor damps the surface against flutter, paper section 3.2). 10 Ohm gives 12 kN s/m
+    #: at the rod at low speed (1.5 p^2 psi^2 / (R_s + R_d) / r^2), 1.6 times the winglet tab's
+    #: hinge damping, and leaves the active drive about 1 kN of force margin on the reference
+    #: cycle's fastest loaded move (50 mm/s at 6.3 kN of hinge load) [est]
+    damping_resistance_ohm: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -264,9 +271,11 @@ class P(IntEnum):
     BDO_LEG = 55  # -1 none, 0/1/2 phase a/b/c
     BDO_UPPER = 56  # 1 upper switch open, 0 lower
     T0_W = 57  # degC, initial winding temperature
+    STANDBY = 58  # 1 standby (inverter off, windings on the damping star), 0 active
+    R_DAMP = 59  # Ohm per phase, the damping star of a standby channel
 
 
-N_PAR = 58
+N_PAR = 60
 
 
 class S(IntEnum):
@@ -289,8 +298,10 @@ def pack_ema(
     offsets: tuple[float, float, float, float],
     faults: dict[str, float],
     t0_winding_c: float,
+    standby: bool = False,
 ) -> np.ndarray:
-    """One kernel parameter row. ``faults`` holds already-applied fault entries (see faults.py)."""
+    """One kernel parameter row. ``faults`` holds already-applied fault entries (see faults.py);
+    ``standby``: the channel does not drive (active-standby pair, see kernel.py)."""
     m, inv, s, th, sen = p.motor, p.inverter, p.screw, p.thermal, p.sensors
     g = derive_gains(nominal)
     row = np.zeros(N_PAR)
@@ -332,6 +343,8 @@ def pack_ema(
     row[P.BDO_LEG] = faults.get("bdo_leg", -1.0)
     row[P.BDO_UPPER] = faults.get("bdo_upper", 1.0)
     row[P.T0_W] = t0_winding_c
+    row[P.STANDBY] = 1.0 if standby else 0.0
+    row[P.R_DAMP] = inv.damping_resistance_ohm
     return row
 
 

@@ -47,6 +47,15 @@ def test_parquet_round_trip_is_exact_and_deterministic() -> None:
     assert check_coherence(back, fleet_serials=serials_for("A1")) == []
 
 
+def test_active_channels_are_optional_and_read_in_position_order() -> None:
+    """An active-standby download names its active drives; a log without the field (every
+    drive active) reads as before."""
+    raw = make_log().metadata.to_strings()
+    assert "active_channels" not in raw and parse_metadata(raw).active_channels is None
+    assert parse_metadata({**raw, "active_channels": '["WT", "WL2"]'}).active_channels == (
+        "WL2", "WT")
+
+
 def test_writer_refuses_channels_outside_the_format() -> None:
     log = make_log()
     with pytest.raises(ValueError, match="outside format"):
@@ -60,6 +69,12 @@ def test_writer_refuses_channels_outside_the_format() -> None:
     ("actuator_serials", '{"WL1": "a"}', "bad_metadata"),
     ("aircraft", "../../etc", "bad_metadata"),
     ("sample_rate_hz", "nan", "bad_metadata"),
+    ("active_channels", '["WL1", "WL2"]', "bad_metadata"),  # the wingtip undriven
+    ("active_channels", '["WT"]', "bad_metadata"),  # the winglet undriven
+    ("active_channels", '["WL1", "WL1", "WT"]', "bad_metadata"),
+    ("active_channels", '["WL3", "WT"]', "bad_metadata"),
+    ("active_channels", '"WL1"', "bad_metadata"),
+    ("active_channels", "WL1,WT", "bad_metadata"),
 ])
 def test_metadata_rules(field: str, value: str, code: str) -> None:
     raw = make_log().metadata.to_strings()

@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from server.vocabulary import POSITIONS
 from sim_worker.faults import FaultState, healthy
 from sim_worker.fleet import Aircraft
 from sim_worker.flight import SimResult, run_scenario
@@ -35,6 +36,6 @@ def const(value: float) -> Profile:
 
 
 def run(aircraft: Aircraft, scenario: Scenario, fault: FaultState | None = None,
-        seed: int = 0) -> SimResult:
+        seed: int = 0, active: tuple[str, ...] = POSITIONS) -> SimResult:
     return run_scenario(aircraft, fault or healthy(), scenario, np.random.default_rng(seed),
-                        t0_winding_c=float(scenario.t_amb[0]))
+                        t0_winding_c=float(scenario.t_amb[0]), active=active)

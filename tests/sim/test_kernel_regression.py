@@ -16,22 +16,27 @@ import numpy as np
 import pytest
 
 from sim_worker.faults import THRESHOLDS, FaultState, healthy
-from sim_worker.fleet import build_aircraft
+from sim_worker.fleet import WingletMode, active_channels, build_aircraft
 from sim_worker.flight import draw_conditions, run_scenario
 from sim_worker.kernel import simulate_motor
 from sim_worker.params import MotorParams
 from sim_worker.scenario import build_scenario
 
-#: (mode, position, severity / threshold): healthy, then every fault mode on some position
-CASES: dict[str, tuple[str, str | None, float]] = {
-    "healthy": ("healthy", None, 0.0),
-    "TTS": ("TTS", "WL1", 0.6),
-    "DMD": ("DMD", "WT", 0.6),
-    "SE": ("SE", "WL2", 0.6),
-    "BDO": ("BDO", "WT", 1.0),
-    "MTEL": ("MTEL", "WL1", 0.7),
-    "MTWEAR": ("MTWEAR", "WL2", 0.7),
-    "REWEAR": ("REWEAR", "WL1", 0.7),
+#: (mode, position, severity / threshold, winglet mode, flight): healthy, then every fault
+#: mode on some position with both winglet drives active, then the winglet in active-standby
+#: (flight 0: WL2 in standby; flight 1: WL1)
+CASES: dict[str, tuple[str, str | None, float, WingletMode, int]] = {
+    "healthy": ("healthy", None, 0.0, WingletMode.ACTIVE_ACTIVE, 0),
+    "TTS": ("TTS", "WL1", 0.6, WingletMode.ACTIVE_ACTIVE, 0),
+    "DMD": ("DMD", "WT", 0.6, WingletMode.ACTIVE_ACTIVE, 0),
+    "SE": ("SE", "WL2", 0.6, WingletMode.ACTIVE_ACTIVE, 0),
+    "BDO": ("BDO", "WT", 1.0, WingletMode.ACTIVE_ACTIVE, 0),
+    "MTEL": ("MTEL", "WL1", 0.7, WingletMode.ACTIVE_ACTIVE, 0),
+    "MTWEAR": ("MTWEAR", "WL2", 0.7, WingletMode.ACTIVE_ACTIVE, 0),
+    "REWEAR": ("REWEAR", "WL1", 0.7, WingletMode.ACTIVE_ACTIVE, 0),
+    "standby healthy": ("healthy", None, 0.0, WingletMode.ACTIVE_STANDBY, 0),
+    "standby TTS": ("TTS", "WL2", 0.6, WingletMode.ACTIVE_STANDBY, 0),
+    "standby REWEAR": ("REWEAR", "WL1", 0.7, WingletMode.ACTIVE_STANDBY, 1),
 }
 
 EXPECTED: dict[str, str] = {
@@ -43,6 +48,9 @@ EXPECTED: dict[str, str] = {
     "MTEL": "0b0ad0138fbd18b81e528ab8b590c230927af7e0a29e0f72d73b7d99e7c51fa4",
     "MTWEAR": "bfab169fc5f48662326acdc16266411e72e84abe6a8c3ef98dbcde75715b86a0",
     "REWEAR": "d949f40e5159ce93dcf987d234ff074fbb572e3bbfd39c3da0f822734d84a40a",
+    "standby healthy": "8fe56e025c31e7875929fff635e7b3edd9420ca8a0c4b6d089188866484f3831",
+    "standby TTS": "62ff24fe820f49464448084d510c2a2d5fd019496973a082abca0c23d58ade2e",
+    "standby REWEAR": "f67d72245e798c8265033471190b83ba763ae756cfab5dea27f63c3cae43a8a4",
 }
 
 EXPECTED_MOTOR = "c0b0407ad9ed9f2c4e29c02ceb1a52c5722a824db545550d387eeaba00179815"
@@ -58,7 +66,7 @@ def _sha(*arrays: np.ndarray) -> str:
 
 
 def flight_hash(case: str) -> str:
-    mode, position, severity_norm = CASES[case]
+    mode, position, severity_norm, winglet_mode, flight = CASES[case]
     if mode == "healthy":
         fault = healthy()
     else:
@@ -69,7 +77,8 @@ def flight_hash(case: str) -> str:
     rng = np.random.default_rng(7)
     cond = draw_conditions(aircraft, 0, rng)
     scenario = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=_DURATION_S)
-    res = run_scenario(aircraft, fault, scenario, rng)
+    res = run_scenario(aircraft, fault, scenario, rng,
+                       active=active_channels(winglet_mode, flight))
     return _sha(res.signals, res.surfaces, res.truth, res.acc)
 
 
