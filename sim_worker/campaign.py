@@ -46,7 +46,7 @@ from .faults import (
     healthy,
     new_fault,
 )
-from .fleet import BASES, FLEET_BASES, Aircraft, build_aircraft
+from .fleet import BASES, FLEET_BASES, Aircraft, WingletMode, build_aircraft
 from .flight import (
     estimate_summary,
     flight_start,
@@ -374,13 +374,15 @@ class ParquetSink:
 
 
 def _render(out_dir: Path, aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index: int,
-            duration_s: float, sink: FlightSink, sensor_faults: tuple[SensorFault, ...] = ()
+            duration_s: float, sink: FlightSink, sensor_faults: tuple[SensorFault, ...] = (),
+            winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
             ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
     flight_id = f"{spec.id}-{index:04d}"
     start = flight_start(index, day_offset=spec.day_offset)
     log, summary = simulate_flight(_at_flight(aircraft, sensor_faults, index), fault, index,
                                    _flight_rng(spec, index, 0), flight_id=flight_id,
-                                   started_at=start, duration_s=duration_s)
+                                   started_at=start, duration_s=duration_s,
+                                   winglet_mode=winglet_mode)
     rel, stored = sink(out_dir, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
                        _ground_temp(summary))
     return flight_id, rel, summary, stored
@@ -418,6 +420,7 @@ class PatternTask:
     spec: PatternSpec
     options: dict[str, Any]
     sink: FlightSink
+    winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
 
 
 def run_pattern(task: PatternTask) -> dict[str, Any]:
@@ -437,7 +440,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
 
     def render(fault: FaultState, index: int) -> Any:
         fid, rel, summ, data = _render(out_dir, aircraft, spec, fault, index, cfg.duration_s,
-                                       sink, faults)
+                                       sink, faults, task.winglet_mode)
         rendered.append((index, fid, rel, fault, summ))
         if data is not None:
             stored[fid] = data
@@ -446,7 +449,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     if spec.mode == "healthy" or spec.mode in A_PRIORI:
         threshold = _constant_run(spec, render)
     else:
-        threshold, failure = _fault_to_failure(aircraft, spec, cfg, render)
+        threshold, failure = _fault_to_failure(aircraft, spec, cfg, render, task.winglet_mode)
     flights = [_flight_entry(fid, rel, index, f, summ, failure,
                              flight_start(index, day_offset=spec.day_offset).isoformat())
                for index, fid, rel, f, summ in rendered]
@@ -485,13 +488,15 @@ def _constant_run(spec: PatternSpec, render: Callable[[FaultState, int], Any]) -
 
 
 def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
-                      render: Callable[[FaultState, int], Any]) -> tuple[float | None, int | None]:
+                      render: Callable[[FaultState, int], Any], winglet_mode: WingletMode
+                      ) -> tuple[float | None, int | None]:
     """The healthy lead, then the fault advanced flight by flight to failure (every
     ``render_every``-th flight and the failure flight rendered); threshold and failure flight."""
     assert spec.position is not None
-    ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s, seed=spec.seed)
+    ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s, seed=spec.seed,
+                            winglet_mode=winglet_mode)
     fault = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]),
-                      reference=ref, span_range=cfg.span_flights)
+                      reference=ref, span_range=cfg.span_flights, winglet_mode=winglet_mode)
     for index in range(spec.onset):
         render(healthy(), index)
     for index in range(spec.onset, spec.onset + _MAX_FLIGHTS):
@@ -503,7 +508,8 @@ def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
         else:
             summ = estimate_summary(aircraft, index, _flight_rng(spec, index, 0),
                                     started_at=flight_start(index, day_offset=spec.day_offset),
-                                    duration_s=cfg.duration_s, fault=fault)
+                                    duration_s=cfg.duration_s, fault=fault,
+                                    winglet_mode=winglet_mode)
         fault = advance_fault(fault, summ, _flight_rng(spec, index, 1))
     return fault.threshold, None
 
@@ -527,7 +533,8 @@ def _completed(tasks: dict[int, PatternTask], workers: int, executor: Executor |
 
 
 def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[str, Any],
-              sink: FlightSink) -> dict[str, Any]:
+              sink: FlightSink, winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
+              ) -> dict[str, Any]:
     """What determines the campaign's content: a resumed campaign must match it exactly."""
     settings = {"format": FORMAT, "kind": kind, "seed": int(seed), "scale": scale,
                 "config": asdict(cfg),
@@ -540,6 +547,8 @@ def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[
         # only when given: campaigns without sensor faults keep the settings they had
         # before the option existed, so finished ones are still recognised
         settings["sensor_faults"] = [f.spec for f in options["sensor_faults"]]
+    if winglet_mode is not WingletMode.ACTIVE_ACTIVE:  # likewise
+        settings["winglet_mode"] = winglet_mode.value
     return settings
 
 
@@ -580,7 +589,8 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                  render_every: int | None = None,
                  span_flights: tuple[float, float] | None = None,
                  sink: FlightSink | None = None,
-                 executor: Executor | None = None) -> dict[str, Any]:
+                 executor: Executor | None = None,
+                 winglet_mode: WingletMode | str = WingletMode.ACTIVE_ACTIVE) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
@@ -601,7 +611,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     one sensor of one actuator on every aircraft, written as their specs
     (``["WT.lvdt:noise=2"]``, empty when none). ``render_every`` overrides the scale's
     rendering step of fault-to-failure runs (1 renders every flight, as a fleet in service
-    downloads every one); ``span_flights`` the range of expected fault-to-failure spans.
+    downloads every one); ``span_flights`` the range of expected fault-to-failure spans;
+    ``winglet_mode`` how the winglet pair moves its tab (:class:`~sim_worker.fleet.WingletMode`,
+    recorded in the manifest as ``"winglet_mode"``).
     ``sink`` decides what is kept of a rendered flight (default: its Parquet file). Patterns
     run on ``executor`` (any ``concurrent.futures.Executor``, e.g. a Dask client's) if given,
     else on a local pool of ``workers`` processes; the output does not depend on either. An
@@ -614,6 +626,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     if not noise_scale > 0:
         raise ValueError("noise_scale must be positive")
     faults = _sensor_faults(sensor_faults)
+    winglet = WingletMode(winglet_mode)
     cfg = _scale_config(scale, kind, render_every, span_flights)
     sink = sink if sink is not None else ParquetSink()
     from tqdm import tqdm
@@ -625,7 +638,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     # a plain tuple of frozen dataclasses: pickled as is to pool and Dask workers
     options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale),
                "sensor_faults": faults}
-    settings = _settings(kind, seed, scale, cfg, options, sink)
+    settings = _settings(kind, seed, scale, cfg, options, sink, winglet)
     finished = _finished_manifest(out, settings)
     if finished is not None:
         return finished
@@ -635,7 +648,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     store = _Progress(out, settings)
     results = {s.number: r for s in specs if (r := store.done(s)) is not None}
     # longest tasks first improves load balance; results are re-ordered by pattern number
-    todo = {s.number: PatternTask(str(out), kind, seed, cfg, s, options, sink)
+    todo = {s.number: PatternTask(str(out), kind, seed, cfg, s, options, sink, winglet)
             for s in sorted(specs, key=lambda s: (s.mode not in PROGRESSIVE, s.number))
             if s.number not in results}
     bar = tqdm(total=len(specs), initial=len(results), desc=f"{kind} campaign",
@@ -668,6 +681,7 @@ def _manifest(settings: dict[str, Any], cfg: ScaleConfig, fleet: list[Aircraft],
         "noise_scale": settings["noise_scale"],
         "bases": settings["bases"],
         "sensor_faults": settings.get("sensor_faults", []),
+        "winglet_mode": settings.get("winglet_mode", WingletMode.ACTIVE_ACTIVE.value),
         "sink": settings["sink"],
         "aircraft": [{"tail": a.tail, "base": a.base, "climate": BASES[a.base],
                       "serials": dict(a.serials), "params": a.params_summary()} for a in fleet],

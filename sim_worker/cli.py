@@ -101,6 +101,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """The options of a campaign run (``sim-worker campaign`` and ``hmsm campaign``)."""
     from .campaign import SCALES
+    from .fleet import WingletMode
 
     camp.add_argument("--kind", choices=("design", "verification"), required=True)
     camp.add_argument("--out", required=True, help="output directory; run again with the same "
@@ -123,6 +124,10 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
     camp.add_argument("--span-range", default=None, metavar="LOW,HIGH",
                       help="range of the expected fault-to-failure span drawn per pattern "
                       "[flights] (default: the scale's, 170,360)")
+    camp.add_argument("--winglet", choices=[m.value for m in WingletMode],
+                      default=WingletMode.ACTIVE_ACTIVE.value,
+                      help="how the winglet pair moves its tab: both drives active, or one "
+                      "active and one in standby, the active channel alternating by flight")
     camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     camp.add_argument("--bases", default=None, help="robustness: comma-separated bases to fly "
                       "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
@@ -195,7 +200,8 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None
                             sensor_faults=tuple(args.sensor_fault or ()),
                             render_every=args.render_every,
                             span_flights=parse_span_range(args.span_range),
-                            sink=sink, executor=executor)  # type: ignore[arg-type]
+                            sink=sink, executor=executor,  # type: ignore[arg-type]
+                            winglet_mode=args.winglet)
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:

@@ -29,7 +29,14 @@ from .fleet import (
 )
 from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
 from .load_share import WORK_FIELD, load_share
-from .params import OUT_HZ, pack_ema, pack_surface
+from .params import (
+    OUT_HZ,
+    EmaParams,
+    friction_angle_for_efficiency,
+    pack_ema,
+    pack_surface,
+    screw_efficiencies,
+)
 from .scenario import REFERENCE_DURATION_S, Scenario, Warp, build_scenario, draw_warp
 
 __all__ = [
@@ -182,41 +189,46 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
                      started_at: datetime | None = None,
                      duration_s: float = REFERENCE_DURATION_S,
                      conditions: FlightConditions | None = None,
-                     fault: FaultState | None = None) -> FlightSummary:
+                     fault: FaultState | None = None,
+                     winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> FlightSummary:
     """Quasi-static estimate of :class:`FlightSummary` from the scenario alone (no 12 kHz run).
 
-    Travel and sliding work from the command, link force from the aerodynamic load, current from
-    force x lead / (efficiency x torque constant), winding temperature from the same first-order
-    thermal model driven by ambient and copper losses. With a wear ``fault``, the faulty drive's
-    sliding work is scaled by its measured load share at the fault's severity
-    (:func:`~sim_worker.load_share.load_share`), so that unrendered flights wear it as rendered
-    ones do; without one, the estimate is the healthy aircraft's.
+    Travel and sliding work from the command; an active drive's link force from the hinge
+    load it carries (its surface's aerodynamic load shared among the surface's active drives,
+    plus the standby's drag), a standby's from its damping and drag (:func:`_standby_force`);
+    current from force x lead / (efficiency x torque constant), or a standby's damping
+    current; winding temperature from the same first-order thermal model driven by ambient
+    and copper losses. With a wear ``fault`` on a pair flying active-active, the faulty
+    drive's sliding work is scaled by its measured load share at the fault's severity
+    (:func:`~sim_worker.load_share.load_share`), so that unrendered flights wear it as
+    rendered ones do (an active-standby drive carries what its role gives it, worn or not);
+    without one, the estimate is the healthy aircraft's.
     """
     cond = conditions or draw_conditions(aircraft, flight_index, rng, started_at=started_at)
     sc = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s)
+    active = active_channels(winglet_mode, flight_index)
     acts = {}
-    dt = 1.0 / OUT_HZ
     for k, pos in enumerate(POSITIONS):
-        p = aircraft.ema[pos]
+        surface = SURFACE_OF[pos]
         x = sc.x_cmd[:, k]
-        f = np.abs(sc.f_ext[:, SURFACE_OF[pos]])
         dx = np.abs(np.diff(x, prepend=x[0]))
-        kt = 1.5 * p.motor.pole_pairs * p.motor.psi_pm_wb
-        i = (f * p.screw.r_m_per_rad / p.screw.eta_direct + p.screw.coulomb_torque_nm) / kt
-        r_hot = p.motor.r_s_ohm * (1.0 + p.motor.alpha_cu_per_k * (cond.ground_temp_c - 20.0))
-        p_cu = 1.5 * r_hot * i**2
-        rth, cth = p.thermal.r_th_k_per_w, p.thermal.c_th_j_per_k
-        a = 1.0 - dt / (rth * cth)
-        u = sc.t_amb + rth * p_cu
-        t0 = float(sc.t_amb[0] + 3.0)
-        tw, _ = lfilter([1.0 - a], [1.0, -a], u, zi=[a * t0])
-        acts[pos] = ActuatorSummary(
-            winding_mean_c=float(np.mean(tw)), winding_max_c=float(np.max(tw)),
-            current_rms_a=float(np.sqrt(np.mean(i**2))), load_rms_n=float(np.sqrt(np.mean(f**2))),
-            work_screw_n_m=float(np.sum((f + _F_DYN_N) * dx)),
-            work_rod_end_n_m=float(np.sum((f + _F_DYN_N) * dx)),
-            travel_m=float(np.sum(dx)))
-    if fault is not None and fault.position is not None and fault.mode in WORK_FIELD:
+        v = np.gradient(x) * OUT_HZ  # m/s, the command's rate
+        standby = [q for q in POSITIONS if SURFACE_OF[q] == surface and q not in active]
+        if pos in active:
+            n_active = sum(1 for q in active if SURFACE_OF[q] == surface)
+            hinge = -sc.f_ext[:, surface] * _SURFACES[surface].n_actuators / n_active
+            drag = sum(_standby_force(aircraft.ema[q], v)[0] for q in standby)
+            f, i = _active_force(aircraft.ema[pos], hinge + np.sign(v) * drag)
+            f_dyn = _F_DYN_N
+            # a lone active link flexes with the load: the rod end slides with the surface
+            # while the nut holds (active-active: the measured load share absorbs it)
+            flex = _flex_sliding(aircraft.ema[pos], f) if standby else 0.0
+        else:
+            f, i = _standby_force(aircraft.ema[pos], v)
+            f_dyn = flex = 0.0
+        acts[pos] = _estimated_actuator(aircraft.ema[pos], sc, cond, f, i, dx, f_dyn, flex)
+    if (fault is not None and fault.position is not None and fault.mode in WORK_FIELD
+            and winglet_mode is WingletMode.ACTIVE_ACTIVE):
         field = WORK_FIELD[fault.mode]
         own = acts[fault.position]
         share = load_share(fault.mode, fault.position, fault.severity_norm)
@@ -226,15 +238,65 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
                          duration_s=float(sc.t[-1]) if sc.t.size else 0.0, measured=False)
 
 
+def _active_force(p: EmaParams, link_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """|Link force| [N] and q current [A] of a drive holding ``link_n`` (quasi-static)."""
+    f = np.abs(link_n)
+    kt = 1.5 * p.motor.pole_pairs * p.motor.psi_pm_wb
+    return f, (f * p.screw.r_m_per_rad / p.screw.eta_direct + p.screw.coulomb_torque_nm) / kt
+
+
+def _flex_sliding(p: EmaParams, f: np.ndarray) -> float:
+    """Rod-end sliding work [N m] of the link's deflection under a varying force:
+    sum |F| |dF| / k (screw and rod-end stiffness in series)."""
+    k = 1.0 / (1.0 / p.screw.k_screw_n_per_m + 1.0 / p.screw.k_rod_end_n_per_m)
+    return float(np.sum(f[1:] * np.abs(np.diff(f)))) / k
+
+
+def _standby_force(p: EmaParams, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """|Link force| [N] and damping current [A] of a standby drive back-driven at rod speed
+    ``v``: its shorted windings' torque ``b w``, ``b = 1.5 p^2 psi^2 / (R_s + R_d)``, plus the
+    drag, through the back-driving efficiency; nothing while the rod is still."""
+    m, s = p.motor, p.screw
+    r = s.r_m_per_rad
+    w = np.abs(v) / r
+    r_total = m.r_s_ohm + p.inverter.damping_resistance_ohm
+    b = 1.5 * m.pole_pairs**2 * m.psi_pm_wb**2 / r_total
+    _, eta_b = screw_efficiencies(s.lead_angle_rad,
+                                  friction_angle_for_efficiency(s.lead_angle_rad, s.eta_direct))
+    f = np.where(w > 0.0, (b * w + s.coulomb_torque_nm) / (eta_b * r), 0.0)
+    return f, m.pole_pairs * m.psi_pm_wb * w / r_total
+
+
+def _estimated_actuator(p: EmaParams, sc: Scenario, cond: FlightConditions, f: np.ndarray,
+                        i: np.ndarray, dx: np.ndarray, f_dyn: float, flex_n_m: float
+                        ) -> ActuatorSummary:
+    """Summary of one drive from its estimated force and current: the winding heated by
+    its copper losses (a standby's damping resistors are outside the motor)."""
+    r_hot = p.motor.r_s_ohm * (1.0 + p.motor.alpha_cu_per_k * (cond.ground_temp_c - 20.0))
+    p_cu = 1.5 * r_hot * i**2
+    rth, cth = p.thermal.r_th_k_per_w, p.thermal.c_th_j_per_k
+    a = 1.0 - (1.0 / OUT_HZ) / (rth * cth)
+    u = sc.t_amb + rth * p_cu
+    t0 = float(sc.t_amb[0] + 3.0)
+    tw, _ = lfilter([1.0 - a], [1.0, -a], u, zi=[a * t0])
+    work = float(np.sum((f + f_dyn) * dx))
+    return ActuatorSummary(
+        winding_mean_c=float(np.mean(tw)), winding_max_c=float(np.max(tw)),
+        current_rms_a=float(np.sqrt(np.mean(i**2))), load_rms_n=float(np.sqrt(np.mean(f**2))),
+        work_screw_n_m=work, work_rod_end_n_m=work + flex_n_m, travel_m=float(np.sum(dx)))
+
+
 def reference_summary(aircraft: Aircraft, position: str, *, duration_s: float,
-                      seed: int | tuple[int, ...]) -> ActuatorSummary:
+                      seed: int | tuple[int, ...],
+                      winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> ActuatorSummary:
     """Average of 24 estimated flights of the aircraft at its base, spread over a year: the
     expected conditions against which a progressive fault's rate is calibrated (so that its
-    span holds on average, not only on one drawn flight)."""
+    span holds on average, not only on one drawn flight); active-standby drives take each
+    role on half of them, as in service."""
     key = (seed,) if isinstance(seed, int) else tuple(seed)
     n = 24
     sums = [estimate_summary(aircraft, i, np.random.default_rng([*key, 99, i]),
-                             started_at=flight_start(i * 30), duration_s=duration_s
-                             ).actuators[position] for i in range(n)]
+                             started_at=flight_start(i * 30), duration_s=duration_s,
+                             winglet_mode=winglet_mode).actuators[position] for i in range(n)]
     return ActuatorSummary(**{k: float(np.mean([getattr(s, k) for s in sums]))
                               for k in ActuatorSummary.__dataclass_fields__})

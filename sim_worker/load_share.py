@@ -17,7 +17,11 @@ its flights are rendered or not:
 * :func:`~sim_worker.faults.new_fault` sets the wear rate so that the *expected* life at the
   reference conditions, integrated with it, is the drawn (or the operator's) span of flights.
 
-Modes whose driver is not a sliding work (thermal modes) have no entry: ``g = 1``.
+Modes whose driver is not a sliding work (thermal modes) have no entry: ``g = 1``. Neither has a
+pair flying active-standby: its active drive carries the hinge moment and its standby its own
+drag whatever their wear, and :func:`~sim_worker.flight.estimate_summary` knows the roles
+(rendered over estimated work 0.95 at onset, 0.93 at failure for REWEAR, 1.02 throughout for
+MTWEAR, tests/sim/test_active_standby.py).
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ from functools import cache
 from importlib import resources
 
 import numpy as np
+
+from .fleet import WingletMode
 
 __all__ = ["WORK_FIELD", "load_share", "life_integral", "table"]
 
@@ -45,8 +51,11 @@ def table() -> dict:
     return doc
 
 
-def _shares(mode: str, position: str, severity_norm: np.ndarray) -> np.ndarray:
+def _shares(mode: str, position: str, severity_norm: np.ndarray,
+            winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> np.ndarray:
     """:func:`load_share` at every severity of an array."""
+    if winglet_mode is WingletMode.ACTIVE_STANDBY:
+        return np.ones_like(severity_norm, dtype=float)
     doc = table()
     curve = doc["ratio"].get(mode, {}).get(position)
     if curve is None:
@@ -54,16 +63,20 @@ def _shares(mode: str, position: str, severity_norm: np.ndarray) -> np.ndarray:
     return np.interp(severity_norm, doc["severity_norm"], curve)
 
 
-def load_share(mode: str, position: str, severity_norm: float) -> float:
-    """Simulated over estimated work of the faulty drive (1.0 for modes without an entry)."""
-    return float(_shares(mode, position, np.asarray(severity_norm, dtype=float)))
+def load_share(mode: str, position: str, severity_norm: float,
+               winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> float:
+    """Simulated over estimated work of the faulty drive (1.0 for modes without an entry and
+    under active-standby)."""
+    return float(_shares(mode, position, np.asarray(severity_norm, dtype=float), winglet_mode))
 
 
-def life_integral(mode: str, position: str, onset_norm: float, growth_c: float) -> float:
+def life_integral(mode: str, position: str, onset_norm: float, growth_c: float,
+                  winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> float:
     """``int_onset^1 ds / (g(s) (s + c))``: flights to failure times rate times driver.
 
     The progression ``ds/dn = rate d g(s) (s + c)`` (faults.advance_fault, with the driver ``d``
     of the estimated reference flight) reaches ``s = 1`` after this integral / (rate d) flights.
     """
     s = np.linspace(onset_norm, 1.0, 401)
-    return float(np.trapezoid(1.0 / (_shares(mode, position, s) * (s + growth_c)), s))
+    shares = _shares(mode, position, s, winglet_mode)
+    return float(np.trapezoid(1.0 / (shares * (s + growth_c)), s))

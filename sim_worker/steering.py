@@ -40,6 +40,7 @@ from .faults import (
     new_fault,
     reference_driver,
 )
+from .fleet import WingletMode
 from .load_share import load_share
 
 __all__ = ["SteeredFault", "plan_fault", "steer_and_advance"]
@@ -58,6 +59,7 @@ class SteeredFault:
     reference_driver: float
     driver_sum: float = 0.0
     flights: int = 0
+    winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
 
     @property
     def mean_driver(self) -> float:
@@ -67,18 +69,21 @@ class SteeredFault:
 
 def plan_fault(mode: str, position: str, rng: np.random.Generator, *,
                reference: ActuatorSummary, start_flight: int, span_flights: float | None = None,
-               severity_norm: float | None = None) -> tuple[FaultState, SteeredFault | None]:
+               severity_norm: float | None = None,
+               winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
+               ) -> tuple[FaultState, SteeredFault | None]:
     """A test-station fault at its start, and for a progressive mode its plan: failure
     ``span_flights`` after ``start_flight`` (drawn from the campaigns' range when None, with the
     draw :func:`~sim_worker.faults.new_fault` would make)."""
     if mode in PROGRESSIVE and span_flights is None:
         span_flights = float(rng.uniform(*SPAN_FLIGHTS))
     fault = new_fault(mode, position, rng, reference=reference, span_flights=span_flights,
-                      severity_norm=severity_norm)
+                      severity_norm=severity_norm, winglet_mode=winglet_mode)
     if mode not in PROGRESSIVE or span_flights is None:
         return fault, None
     return fault, SteeredFault(fault, target_flight=start_flight + round(span_flights),
-                               reference_driver=reference_driver(mode, reference))
+                               reference_driver=reference_driver(mode, reference),
+                               winglet_mode=winglet_mode)
 
 
 def steer_and_advance(fault: SteeredFault, summary: FlightSummary, flight: int,
@@ -91,12 +96,12 @@ def steer_and_advance(fault: SteeredFault, summary: FlightSummary, flight: int,
     sn = st.severity_norm
     flown_driver = driver(st.mode, summary.actuators[st.position], summary.block_hours)
     measured = replace(fault, driver_sum=fault.driver_sum
-                       + flown_driver / load_share(st.mode, st.position, sn),
+                       + flown_driver / load_share(st.mode, st.position, sn, fault.winglet_mode),
                        flights=fault.flights + 1)
     # flight n covers [n, n + 1): failing at the target flight T means crossing the threshold
     # during flight T - 1, so the plan aims at its middle; an overdue fault is planned to
     # finish within a tenth of a flight (a calm flight can still leave it short)
     flights_left = max(fault.target_flight - 0.5 - flight, _OVERDUE_FLIGHTS)
-    rate = life_to_go(st) / (flights_left * max(measured.mean_driver, 1e-9))
+    rate = life_to_go(st, fault.winglet_mode) / (flights_left * max(measured.mean_driver, 1e-9))
     return replace(measured, state=advance_fault(replace(st, rate=rate), summary, rng))
 

@@ -28,6 +28,7 @@ from sim_worker.campaign import (
 )
 from sim_worker.cli import build_parser
 from sim_worker.faults import healthy
+from sim_worker.fleet import WingletMode
 from sim_worker.flight import draw_conditions, run_scenario
 from sim_worker.kernel import D
 from sim_worker.scenario import build_scenario
@@ -134,9 +135,14 @@ def test_sensor_faults_are_campaign_settings(tmp_path) -> None:
     faulty = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": faults}, ParquetSink())
     assert "sensor_faults" not in plain  # campaigns made before the option stay recognised
     assert faulty["sensor_faults"] == ["WL1.lvdt:drift=1e-06", "WT.lvdt:noise=2"]  # canonical
+    standby = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": ()}, ParquetSink(),
+                        WingletMode.ACTIVE_STANDBY)
+    assert "winglet_mode" not in plain and standby["winglet_mode"] == "active-standby"
     _Progress(tmp_path, plain)
     with pytest.raises(ValueError, match="other settings"):
         _Progress(tmp_path, faulty)  # resuming with other sensor faults is refused
+    with pytest.raises(ValueError, match="other settings"):
+        _Progress(tmp_path, standby)  # or with the other winglet mode
     fleet = fleet_for("design", 1)
     assert _manifest(plain, cfg, fleet, [])["sensor_faults"] == []
     assert _manifest(faulty, cfg, fleet, [])["sensor_faults"] == faulty["sensor_faults"]
