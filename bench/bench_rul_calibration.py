@@ -1,7 +1,8 @@
 """Calibration of the generic RUL engine (server.phm.prognosis.forecast) on synthetic families.
 
 Run: ``python bench/bench_rul_calibration.py [--units-per-family 20] [--half tuning|held-out]
-[--progpy]`` (from the repository root). Writes ``docs/results/rul_calibration_<half>.json``.
+[--progpy] [--out PATH]`` (from the repository root). Writes
+``docs/results/rul_calibration_<half>.json`` unless ``--out`` names another file.
 ``--progpy`` scores progpy's particle filter with a linear-fade model on the same units beside
 ours (progpy is the ``bench`` extra).
 
@@ -169,10 +170,17 @@ def main(argv: list[str] | None = None) -> int:
                     help="also score progpy's particle filter (linear fade) on the same units")
     ap.add_argument("--memory-spans", type=float, default=None,
                     help="override the engine's default (choosing it: tuning half only)")
+    ap.add_argument("--rate-prior", choices=("log-uniform", "uniform"), default=None,
+                    help="override the engine's prior over the affine and exponential rates")
     args = ap.parse_args(argv)
     global CONFIG
+    overrides: dict = {}
     if args.memory_spans is not None:
-        CONFIG = LawAverageConfig(memory_spans=args.memory_spans)
+        overrides["memory_spans"] = args.memory_spans
+    if args.rate_prior is not None:
+        overrides["rate_prior"] = args.rate_prior
+    if overrides:
+        CONFIG = LawAverageConfig(**overrides)
     parity = 0 if args.half == "tuning" else 1
     start = time.perf_counter()
     results, theirs = [], []
