@@ -918,6 +918,80 @@ def rewear_feature(
                         min_events=cfg.min_events)
 
 
+def standby_play_feature(
+    x_active: np.ndarray, x_standby: np.ndarray, theta_active: np.ndarray,
+    theta_standby: np.ndarray, iq_active: np.ndarray, *, config: FeatureConfig | None = None,
+    motor: MotorConstants | None = None,
+) -> FeatureTrack:
+    """``F_REWEAR`` of the standby drive of an active-standby pair: the lost motion of
+    ``x_active - x_standby`` between the ends of consecutive strokes of the tab [m].
+
+    The standby is back-driven by the tab through its rod end, so once a stroke has crossed
+    the play the two LVDTs differ by half of it, on the other side after a reversal: the lost
+    motion is the standby's play (plus the change of the rod ends' deflection, force /
+    stiffness, a few um). Taken at the stroke's end, and only where the standby's own shaft
+    moves with the stroke there (the play is crossed: a worn rod end's play can exceed a short
+    stroke), and where the active drive's torque (``iq_active``, 80 Hz) has the same sign at
+    both ends (a one-sided hinge load keeps the active on one flank of its rod end; where the
+    load changes sign the active's play would add to the lost motion).
+    """
+    cfg = config or FeatureConfig()
+    mc = motor or MotorConstants()
+    d, r = cfg.decimation, mc.screw_radius_m
+    xa, xs = block_mean(x_active, d), block_mean(x_standby, d)
+    pos_a, pos_s = r * block_mean(theta_active, d), r * block_mean(theta_standby, d)
+    n = min(xa.size, xs.size, pos_a.size, pos_s.size, iq_active.size)
+    if n < 2:
+        return _event_track(n, np.zeros(0, dtype=np.int64), np.zeros(0), filter_alpha(cfg))
+    vel_a = np.gradient(pos_a[:n], cfg.step_s)
+    vel_s = np.gradient(pos_s[:n], cfg.step_s)
+    steps, vals = _stroke_end_lost_motion(xa[:n] - xs[:n], vel_a, vel_s, np.sign(iq_active[:n]),
+                                          cfg)
+    return _event_track(n, steps, vals, filter_alpha(cfg), absolute=True,
+                        min_events=cfg.min_events)
+
+
+def _stroke_end_lost_motion(e: np.ndarray, vel_a: np.ndarray, vel_s: np.ndarray,
+                            torque_sign: np.ndarray, cfg: FeatureConfig
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """Change of ``e`` between the ends of consecutive strokes of opposite direction (80 Hz):
+    strokes are runs of the active shaft's motion; ``e`` and the torque sign are averaged
+    over the last ``reversal_blocks`` steps of each stroke at which the standby shaft moves
+    the same way; the event (at the later stroke's last such step) needs both ends, the same
+    torque sign at both and a pause of at most ``reversal_max_gap_s`` between the strokes."""
+    moving = np.abs(vel_a) > cfg.reversal_speed_m_s
+    mv = np.flatnonzero(moving)
+    if mv.size < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    sgn = np.sign(vel_a[mv])
+    new_run = np.r_[True, sgn[1:] != sgn[:-1]]
+    run = np.cumsum(new_run) - 1
+    n_runs = int(run[-1]) + 1
+    engaged = sgn * vel_s[mv] > cfg.reversal_speed_m_s
+    # last k engaged steps of each run, counted backwards from the run's end
+    rev_eng, rev_run = engaged[::-1], run[::-1]
+    rev_new = np.r_[True, rev_run[1:] != rev_run[:-1]]
+    rcum = np.cumsum(rev_eng)
+    before = np.r_[0, rcum[np.flatnonzero(rev_new)[1:] - 1]]
+    sel = (rev_eng & (rcum - before[np.cumsum(rev_new) - 1] <= cfg.reversal_blocks))[::-1]
+    cnt = np.bincount(run, weights=sel, minlength=n_runs)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e_end = np.bincount(run, weights=np.where(sel, e[mv], 0.0), minlength=n_runs) / cnt
+        tq_end = np.bincount(run, weights=np.where(sel, torque_sign[mv], 0.0),
+                             minlength=n_runs) / cnt
+    last_sel = np.full(n_runs, -1, dtype=np.int64)
+    idx = np.flatnonzero(sel)
+    last_sel[run[idx]] = mv[idx]  # the last write per run is its last selected step
+    run_first = mv[new_run]
+    run_last = mv[np.r_[np.flatnonzero(new_run)[1:] - 1, mv.size - 1]]
+    a = np.arange(n_runs - 1)
+    b = a + 1
+    pause_s = (run_first[b] - run_last[a]) * cfg.step_s
+    good = ((cnt[a] >= 1) & (cnt[b] >= 1) & (pause_s <= cfg.reversal_max_gap_s)
+            & (np.abs(tq_end[b] - tq_end[a]) < 1.0))
+    return last_sel[b][good], (e_end[b] - e_end[a])[good]
+
+
 def operating_conditions(channels: Mapping[str, np.ndarray]) -> dict[str, float]:
     """Flight-level conditions from the optional ``T_amb`` channel [degC] (NaN if absent).
 

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from server.flightlog import read_parquet, write_parquet
+from server.phm.features import actuator_steps, standby_play_feature
+from server.vocabulary import SIGNALS
 from sim_worker.faults import THRESHOLDS, FaultState, FlightSummary, advance_fault, new_fault
 from sim_worker.fleet import WingletMode, active_channels
 from sim_worker.flight import estimate_summary, reference_summary, simulate_flight
@@ -229,3 +231,25 @@ def test_active_standby_wear_spans_hold_without_a_load_share(aircraft):
                 n += 1
             spans.append(n)
         assert 130 <= min(spans) and max(spans) <= 420, (mode, spans)
+
+
+@pytest.mark.parametrize("wear_m", [0.0, 0.2e-3, 1.5e-3])
+def test_standby_play_feature_reads_the_standby_rod_end(aircraft, wear_m):
+    """F_REWEAR of the standby (server.phm.features.standby_play_feature) from the recorded
+    signals: its rod-end play within 5 um, new or worn to three quarters of the failure
+    play, under a one-sided hinge load; no value where the load changes sign at every
+    reversal (the active's play would add to the lost motion)."""
+    fault = FaultState("REWEAR", "WL1", wear_m, THRESHOLDS["REWEAR"])
+    for load_n, expect_value in ((-1500.0, True), (0.0, False)):
+        sc = make_scenario(20.0, _triangle(0.005, 0.25), const(0.0), const(load_n),
+                           const(0.0))
+        res = run(aircraft, sc, fault=fault, active=WL2_DRIVES)
+        sig = res.signals
+        active_steps = actuator_steps({name: sig[:, WL2, i] for i, name in enumerate(SIGNALS)})
+        play = standby_play_feature(sig[:, WL2, 7], sig[:, WL1, 7], sig[:, WL2, 6],
+                                    sig[:, WL1, 6], active_steps.i_q).summary()
+        if expect_value:
+            assert play.n_valid >= 8
+            assert play.value == pytest.approx(res.params[WL1, P.BL_ROD], abs=5e-6)
+        else:
+            assert play.n_valid == 0 and np.isnan(play.value)
