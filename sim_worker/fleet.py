@@ -72,7 +72,7 @@ def active_channels(mode: WingletMode, flight_index: int) -> tuple[str, ...]:
     inverter or loops cannot hide for more than one flight, and every motor fault of either
     drive shows through a switching inverter on every second flight.
     """
-    if mode is WingletMode.ACTIVE_ACTIVE:
+    if WingletMode(mode) is WingletMode.ACTIVE_ACTIVE:
         return POSITIONS
     idle = WINGLET_PAIR[1 - flight_index % 2]
     return tuple(p for p in POSITIONS if p != idle)

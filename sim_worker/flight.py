@@ -228,7 +228,7 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
             f_dyn = flex = 0.0
         acts[pos] = _estimated_actuator(aircraft.ema[pos], sc, cond, f, i, dx, f_dyn, flex)
     if (fault is not None and fault.position is not None and fault.mode in WORK_FIELD
-            and winglet_mode is WingletMode.ACTIVE_ACTIVE):
+            and WingletMode(winglet_mode) is WingletMode.ACTIVE_ACTIVE):
         field = WORK_FIELD[fault.mode]
         own = acts[fault.position]
         share = load_share(fault.mode, fault.position, fault.severity_norm)

@@ -54,7 +54,7 @@ def table() -> dict:
 def _shares(mode: str, position: str, severity_norm: np.ndarray,
             winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> np.ndarray:
     """:func:`load_share` at every severity of an array."""
-    if winglet_mode is WingletMode.ACTIVE_STANDBY:
+    if WingletMode(winglet_mode) is WingletMode.ACTIVE_STANDBY:
         return np.ones_like(severity_norm, dtype=float)
     doc = table()
     curve = doc["ratio"].get(mode, {}).get(position)

@@ -253,3 +253,10 @@ def test_standby_play_feature_reads_the_standby_rod_end(aircraft, wear_m):
             assert play.value == pytest.approx(res.params[WL1, P.BL_ROD], abs=5e-6)
         else:
             assert play.n_valid == 0 and np.isnan(play.value)
+
+
+def test_winglet_mode_may_be_given_by_its_name():
+    assert active_channels("active-standby", 1) == WL2_DRIVES  # type: ignore[arg-type]
+    assert active_channels("active-active", 1) == ("WL1", "WL2", "WT")  # type: ignore[arg-type]
+    with pytest.raises(ValueError):
+        active_channels("standby-standby", 0)  # type: ignore[arg-type]
