@@ -29,9 +29,7 @@ from server.phm.prognosis import (
     RulDistribution,
     effective_sample_size,
     law_for,
-    predict_rul,
     systematic_resample,
-    track_rul,
 )
 
 MODEL = MeasurementModel((0.2, 2.0, 0.5), 0.03)  # feature = 0.2 + 2 h + 0.5 h^2 + N(0, 0.03^2)
@@ -314,21 +312,42 @@ def test_measurement_model_reads_version_1_documents() -> None:
         MeasurementModel.from_dict({**old, "version": 3})
 
 
-def test_generic_interface_on_decreasing_indicator() -> None:
-    # a capacity-like indicator: 100 -> 70 (threshold) linearly over 150 flights, noise 0.5
+def test_filter_on_a_decreasing_indicator_normalised_to_severity() -> None:
+    """A capacity-like indicator 100 -> 70 (threshold) linearly over 150 flights, noise 0.5,
+    normalised to a severity (x - 100) / (70 - 100) with its noise: the median RUL after 120
+    flights within 25 % of the truth, inside the 5-95 % band; quantiles by fraction or percent;
+    flight hours carried."""
     rng = np.random.default_rng(8)
     life = 150
     k = np.arange(120)
     x = 100.0 - 30.0 * k / life + 0.5 * rng.standard_normal(k.size)
-    dist = predict_rul(x, threshold=70.0, baseline=100.0, flight_hours=np.full(k.size, 1.2), rng=3)
+    severity = (x - 100.0) / (70.0 - 100.0)
+    cfg = _config()
+    model = MeasurementModel.identity(0.5 / 30.0)
+    pf = ParticleFilterPrognoser(cfg, model)
+    state = pf.initial_state(cfg, model, 3)
+    for i in k:
+        state = pf.update(state, float(severity[i]), int(i), flight_hours=1.2)
+    dist = pf.predict(state)
     true_rul = life - k[-1]
     assert abs(dist.median - true_rul) <= 0.25 * true_rul
     assert dist.quantiles[0.05] <= true_rul <= dist.quantiles[0.95]
     assert dist.hours_per_flight == pytest.approx(1.2)
-    dists, state = track_rul(x, 70.0, baseline=100.0, predict_at=[60, 119], rng=3)
-    assert len(dists) == 2 and state.flight_index == 119
-    with pytest.raises(ValueError):
-        predict_rul(x, threshold=100.0, baseline=100.0)
+    assert dist.percentile(5) == dist.quantile(0.05) == dist.quantiles[0.05]
+    assert dist.quantiles[0.25] <= dist.quantile(0.3) <= dist.quantiles[0.75]
+    assert 0.0 <= dist.p_beyond_horizon <= 1.0
+    with pytest.raises(ValueError, match="percentile"):
+        dist.quantile(5)
+
+
+def test_whole_numbers_given_as_floats_are_counts() -> None:
+    cfg = PrognoserConfig(n_particles=500.0, max_horizon_flights=2000.0,  # type: ignore[arg-type]
+                          pof_horizons_flights=(10.0, 25))  # type: ignore[arg-type]
+    assert cfg.n_particles == 500 and isinstance(cfg.n_particles, int)
+    assert cfg.pof_horizons_flights == (10, 25)
+    for bad in (500.5, True, "500"):
+        with pytest.raises(ValueError, match="whole number"):
+            PrognoserConfig(n_particles=bad)  # type: ignore[arg-type]
 
 
 def test_saturating_law_tracks_growth_that_slows_down() -> None:
@@ -619,9 +638,9 @@ def test_first_version_config_document_loads() -> None:
     assert cfg == GENERIC_CONFIG
 
 
-def test_config_defaults_are_the_chain_and_the_generic_interface_values() -> None:
+def test_config_defaults_are_the_chain_and_the_synthetic_series_values() -> None:
     """One owner per value: the config's default is the trained chain's process noise, the
-    generic interface keeps the one its synthetic series were measured with."""
+    filter's synthetic series keep the one they were measured with."""
     assert PrognoserConfig().process_noise_std == 0.01
     assert GENERIC_CONFIG.process_noise_std == 0.004
     assert replace(GENERIC_CONFIG, process_noise_std=0.01) == PrognoserConfig()

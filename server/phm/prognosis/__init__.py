@@ -16,14 +16,7 @@ from .filter import (
     systematic_resample,
 )
 from .forecast import RulForecast, backtest_forecasts, forecast_rul
-from .generic import (
-    GENERIC_CONFIG,
-    PriorDominatedWarning,
-    backtest_rul,
-    estimate_noise_std,
-    predict_rul,
-    track_rul,
-)
+from .generic import GENERIC_CONFIG, PriorDominatedWarning, estimate_noise_std
 from .law_average import LawAverageConfig
 from .laws import (
     LAWS,
@@ -63,19 +56,16 @@ __all__ = [
     "RulDistribution",
     "RulForecast",
     "backtest_forecasts",
-    "backtest_rul",
     "effective_sample_size",
     "estimate_noise_std",
     "forecast_rul",
     "growth_onset",
     "growth_rate",
     "law_for",
-    "predict_rul",
     "propagate_to_threshold",
     "regressor",
     "rls_update",
     "summarise_rul",
     "systematic_resample",
-    "track_rul",
     "weighted_quantiles",
 ]

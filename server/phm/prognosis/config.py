@@ -44,8 +44,8 @@ class PrognoserConfig:
         Standard deviation of the severity random walk added at each flight [1/sqrt(flight)];
         explicit and strictly positive (a zero process noise collapses the particle cloud).
         Default 0.01, the trained chain's: it lets the cloud follow a fault that grows faster
-        or slower than the design prior (docs/TUNING.md, Prognosis). The generic interface
-        keeps 0.004 (:data:`.generic.GENERIC_CONFIG`).
+        or slower than the design prior (docs/TUNING.md, Prognosis). On smooth synthetic
+        series the filter's tests and benchmark keep 0.004 (:data:`.generic.GENERIC_CONFIG`).
     rate_basis:
         Growth-rate model ``dh/dk = theta . phi(h)`` [1/flight], one class of :mod:`.laws` each
         (:attr:`law`): ``"constant"`` phi = [1] (linear wear, Archard at constant load),

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .generic import BASELINE_SAMPLES, MIN_INFORMATIVE_SAMPLES, PriorDominatedWarning, _seed
+from .generic import BASELINE_SAMPLES, MIN_INFORMATIVE_SAMPLES, PriorDominatedWarning, as_seed
 from .law_average import LawAverageConfig, fit_laws, rul_samples
 
 __all__ = ["RulForecast", "backtest_forecasts", "forecast_rul"]
@@ -104,7 +104,7 @@ def forecast_rul(series: ArrayLike, threshold: float, *, time: ArrayLike | None 
     observed = float(t[-1] - t[0])
     tau = (t - t[0]) / observed
     mixture = fit_laws(tau, (x - base) / span, cfg)
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(_seed(rng))
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(as_seed(rng))
     rul = rul_samples(mixture, cfg, gen) * observed
     return RulForecast(float(t[-1]), np.sort(rul), cfg.horizon_spans * observed,
                        mixture.law_weights, few)
