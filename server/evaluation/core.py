@@ -62,7 +62,9 @@ no per-flight trace and no per-pattern prediction list; keys in this order::
                           "alpha_lambda_ci" (pass rate), "cra", "cra_ci", "convergence",
                           "convergence_ci",
                           "calibration": {"n_predictions", "central_50", "central_50_ci",
-                                          "central_90", "central_90_ci"},
+                                          "central_90", "central_90_ci",
+                                          "width_50_flights", "width_50_flights_ci",
+                                          "width_90_flights", "width_90_flights_ci"},
                           "most_probable": {"point_estimate": "mode", "ph", "ph_ci",
                                             "ph_cone", "ph_cone_ci", "ra", "ra_ci"},
                           "n_patterns", "n_with_predictions", "paper": {"ph", "ra"}}},
@@ -430,7 +432,7 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
                            "detected_index": det, "predictions": [],
                            **_horizons(np.empty(0), np.empty(0), onset, t_eol, det, alpha),
                            "ra": None, "alpha_lambda": False, "cra": None, "convergence": None,
-                           "calibration": {"n": 0, "in_50": 0, "in_90": 0},
+                           "calibration": _no_calibration(),
                            "point_estimate": point_estimate}
     if det is None:
         return out
@@ -467,7 +469,8 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
                                                  t_p=(det - onset) / life)
     in50, in90 = _central_hits(docs, true, 0.25), _central_hits(docs, true, 0.05)
     out["calibration"] = {"n": int(true.size), "in_50": int(in50.sum()),
-                          "in_90": int(in90.sum())}
+                          "in_90": int(in90.sum()),
+                          **_widths(docs, 0.25, "50"), **_widths(docs, 0.05, "90")}
     out["predictions"] = [
         {"flight": int(i), "true_rul": float(t), "point": None if not math.isfinite(m) else m,
          "q05": rul_quantile(doc, 0.05), "q25": rul_quantile(doc, 0.25),
@@ -511,6 +514,21 @@ def _quantile_bound(doc: Mapping[str, Any] | None, level: float) -> float:
         return math.nan
     v = rul_quantile(doc, level)
     return math.inf if v is None else v
+
+
+def _no_calibration() -> dict[str, Any]:
+    return {"n": 0, "in_50": 0, "in_90": 0, "width_50_sum": 0.0, "n_width_50": 0,
+            "width_90_sum": 0.0, "n_width_90": 0}
+
+
+def _widths(docs: Sequence[Mapping[str, Any] | None], tail: float, name: str
+            ) -> dict[str, Any]:
+    """Sum and count of the finite widths q_(1-tail) - q_tail [flights] of the documents (a
+    band open beyond the prediction horizon, or missing, has none)."""
+    w = np.array([_quantile_bound(d, 1.0 - tail) - _quantile_bound(d, tail) for d in docs],
+                 dtype=float)
+    ok = np.isfinite(w)
+    return {f"width_{name}_sum": float(w[ok].sum()), f"n_width_{name}": int(ok.sum())}
 
 
 def _central_hits(docs: Sequence[Mapping[str, Any] | None], true: np.ndarray, tail: float
@@ -576,7 +594,8 @@ def _mode_prognosis(mode: str, pats: Sequence[dict[str, Any]], idx: np.ndarray
 
 
 def _calibration(counts: Sequence[Mapping[str, int]], idx: np.ndarray) -> dict[str, Any]:
-    """Share of the predictions whose central 50 / 90 % RUL interval holds the true RUL,
+    """Share of the predictions whose central 50 / 90 % RUL interval holds the true RUL, and
+    the mean width of those intervals [flights] (bands open beyond the horizon left out),
     pooled over the patterns' predictions and resampled by pattern."""
     n = np.array([c["n"] for c in counts], dtype=float)
     out: dict[str, Any] = {"n_predictions": int(n.sum())}
@@ -584,6 +603,11 @@ def _calibration(counts: Sequence[Mapping[str, int]], idx: np.ndarray) -> dict[s
         h = np.array([c[hits] for c in counts], dtype=float)
         rate = np.divide(h, n, out=np.full_like(h, np.nan), where=n > 0)
         out.update(_mean_ci(key, rate, idx, weights=n))
+    for level in ("50", "90"):
+        nw = np.array([c.get(f"n_width_{level}", 0) for c in counts], dtype=float)
+        ws = np.array([c.get(f"width_{level}_sum", 0.0) for c in counts], dtype=float)
+        mean_w = np.divide(ws, nw, out=np.full_like(ws, np.nan), where=nw > 0)
+        out.update(_mean_ci(f"width_{level}_flights", mean_w, idx, weights=nw))
     return out
 
 
@@ -721,7 +745,8 @@ def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, 
                      "convergence_axis": "(t - onset) / life",
                      "calibration": "true RUL within q25..q75 (central_50) and q05..q95 "
                                     "(central_90) of the RUL distribution at the selected "
-                                    "predictions; none counts as a miss",
+                                    "predictions; none counts as a miss; width_*_flights: "
+                                    "mean width of those intervals where finite",
                      "bootstrap": {"resamples": N_BOOT, "level": CI_LEVEL,
                                    "seed": BOOTSTRAP_SEED, "unit": "pattern",
                                    "interval": "percentile"},

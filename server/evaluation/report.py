@@ -227,11 +227,13 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
     p = ["Prognosis, RUL median as point estimate; mean [90 % bootstrap interval over "
          "patterns]. PH: Saxena's (every later estimate within true RUL +- 0.2 x life), PH "
          "cone: within +-20 % of the true RUL; both over the life. Calibration: share of the "
-         "predictions whose central 50 / 90 % RUL interval holds the true RUL.", "",
+         "predictions whose central 50 / 90 % RUL interval holds the true RUL; width: the "
+         "interval's mean width [flights] where it closes within the horizon.", "",
          "| mode | PH (Saxena) [-] | PH cone (+-20 %) [-] | PH [-] paper | RA [%] | RA [%] paper | "
          "PH from detection [-] | alpha-lambda (0.2, 0.5) | CRA [%] | convergence [-] | "
-         "calibration 50 % | calibration 90 % | predictions | patterns (with predictions) |",
-         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+         "calibration 50 % | calibration 90 % | width 90 % [flights] | predictions | "
+         "patterns (with predictions) |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for m, r in result["prognosis"].items():
         cal = r.get("calibration") or {}
         p.append(f"| {m} | {_get_ci(r, 'ph')} | {_get_ci(r, 'ph_cone')} | "
@@ -239,7 +241,8 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
                  f"{PAPER_TABLE2[m][1]:.1f} | {_get_ci(r, 'ph_from_detection')} | "
                  f"{_get_ci(r, 'alpha_lambda')} | {_get_ci(r, 'cra', '.1f', 100.0)} | "
                  f"{_get_ci(r, 'convergence')} | {_get_ci(cal, 'central_50')} | "
-                 f"{_get_ci(cal, 'central_90')} | {cal.get('n_predictions', '-')} | "
+                 f"{_get_ci(cal, 'central_90')} | {_get_ci(cal, 'width_90_flights', '.0f')} | "
+                 f"{cal.get('n_predictions', '-')} | "
                  f"{r['n_patterns']} ({r['n_with_predictions']}) |")
     out["prognosis"] = "\n".join(p)
     mp = ["Prognosis, most probable RUL as point estimate; mean [90 % bootstrap interval].",

@@ -184,6 +184,10 @@ def test_calibrated_rul_distributions_cover_50_and_90_percent() -> None:
     for key in ("central_50", "central_90"):
         lo, hi = cal[f"{key}_ci"]
         assert lo <= cal[key] <= hi and hi - lo < 0.1
+    # the bands of N(centre, 10): 2 x 0.674 x 10 and 2 x 1.645 x 10 flights wide
+    assert cal["width_50_flights"] == pytest.approx(2 * _Z25 * 10.0)
+    assert cal["width_90_flights"] == pytest.approx(2 * _Z05 * 10.0)
+    assert cal["width_90_flights_ci"] == pytest.approx([2 * _Z05 * 10.0] * 2)  # all alike
 
 
 def test_biased_rul_distributions_cover_much_less() -> None:
@@ -200,7 +204,8 @@ def test_a_prediction_without_distribution_misses_both_intervals() -> None:
     by = {f["index"]: f for f in tr["flights"]}
     by[280]["rul"] = None  # the second prediction (classified as a mode without prognosis)
     p = pattern_prognosis(tr)
-    assert p["calibration"] == {"n": 10, "in_50": 9, "in_90": 9}
+    assert {k: p["calibration"][k] for k in ("n", "in_50", "in_90", "n_width_90")} == {
+        "n": 10, "in_50": 9, "in_90": 9, "n_width_90": 9}  # no distribution: no width
     assert [q["in_90"] for q in p["predictions"]][:2] == [True, False]
     cal = summarise_prognosis([tr])["MTWEAR"]["calibration"]
     assert cal["central_50"] == pytest.approx(0.9) and cal["central_50_ci"] == [0.9, 0.9]
@@ -271,7 +276,9 @@ def test_summary_json_has_the_figures_but_no_per_flight_data(tmp_path: Path) -> 
     assert mine["ph"] == result["prognosis"]["MTWEAR"]["ph"]
     assert mine["ph_ci"] == result["prognosis"]["MTWEAR"]["ph_ci"]
     assert set(mine["calibration"]) == {"n_predictions", "central_50", "central_50_ci",
-                                        "central_90", "central_90_ci"}
+                                        "central_90", "central_90_ci", "width_50_flights",
+                                        "width_50_flights_ci", "width_90_flights",
+                                        "width_90_flights_ci"}
     assert doc["model"] == {"format": "ema-phm-model/5", "sha256": "0" * 64, "source": "test"}
     # stable: the same result gives the same bytes
     assert json.dumps(summary_document(result), indent=1) == json.dumps(
