@@ -29,14 +29,7 @@ from .fleet import (
 )
 from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
 from .load_share import WORK_FIELD, load_share
-from .params import (
-    OUT_HZ,
-    EmaParams,
-    friction_angle_for_efficiency,
-    pack_ema,
-    pack_surface,
-    screw_efficiencies,
-)
+from .params import OUT_HZ, EmaParams, pack_ema, pack_surface
 from .scenario import REFERENCE_DURATION_S, Scenario, Warp, build_scenario, draw_warp
 
 __all__ = [
@@ -261,8 +254,7 @@ def _standby_force(p: EmaParams, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     w = np.abs(v) / r
     r_total = m.r_s_ohm + p.inverter.damping_resistance_ohm
     b = 1.5 * m.pole_pairs**2 * m.psi_pm_wb**2 / r_total
-    _, eta_b = screw_efficiencies(s.lead_angle_rad,
-                                  friction_angle_for_efficiency(s.lead_angle_rad, s.eta_direct))
+    _, eta_b = s.efficiencies()
     f = np.where(w > 0.0, (b * w + s.coulomb_torque_nm) / (eta_b * r), 0.0)
     return f, m.pole_pairs * m.psi_pm_wb * w / r_total
 

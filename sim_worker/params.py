@@ -107,6 +107,13 @@ class ScrewParams:
         """Helix angle of the screw [rad]."""
         return math.atan(self.lead_m / (math.pi * self.nominal_diameter_m))
 
+    def efficiencies(self, efficiency_loss: float = 0.0) -> tuple[float, float]:
+        """(direct, back-driving) efficiency with the direct one lowered by
+        ``efficiency_loss`` (aged grease), through the same friction angle."""
+        rho = friction_angle_for_efficiency(self.lead_angle_rad,
+                                            self.eta_direct - efficiency_loss)
+        return screw_efficiencies(self.lead_angle_rad, rho)
+
 
 @dataclass(frozen=True)
 class ThermalParams:
@@ -305,9 +312,7 @@ def pack_ema(
     m, inv, s, th, sen = p.motor, p.inverter, p.screw, p.thermal, p.sensors
     g = derive_gains(nominal)
     row = np.zeros(N_PAR)
-    rho = friction_angle_for_efficiency(s.lead_angle_rad,
-                                        s.eta_direct - faults.get("mtel_deta", 0.0))
-    eta_d, eta_b = screw_efficiencies(s.lead_angle_rad, rho)
+    eta_d, eta_b = s.efficiencies(faults.get("mtel_deta", 0.0))
     k_eq = 1.0 / (1.0 / s.k_screw_n_per_m + 1.0 / s.k_rod_end_n_per_m)
     # link damping from the damping ratio of the reflected-motor / link mode
     m_ref = m.j_kgm2 / s.r_m_per_rad**2

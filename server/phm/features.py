@@ -367,6 +367,67 @@ def _run_length_ok(mask: np.ndarray, min_len: int) -> np.ndarray:
     return mask & (np.cumsum(run_len)[:-1] >= min_len)
 
 
+@dataclass(frozen=True)
+class _Runs:
+    """Maximal runs of moving steps in one direction (80 Hz): ``mv`` the moving steps,
+    ``sign`` their direction, ``run`` the run of each, ``new_run`` where a run starts."""
+
+    mv: np.ndarray
+    sign: np.ndarray
+    new_run: np.ndarray
+    run: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.run[-1]) + 1
+
+    def pauses_s(self, step_s: float) -> np.ndarray:
+        """Time from each run's last step to the next run's first [s] (n - 1)."""
+        first = self.mv[self.new_run]
+        last = self.mv[np.r_[np.flatnonzero(self.new_run)[1:] - 1, self.mv.size - 1]]
+        return (first[1:] - last[:-1]) * step_s
+
+    def first_k(self, mask: np.ndarray, k: int) -> np.ndarray:
+        """The first ``k`` steps of ``mask`` (over ``mv``) in each run."""
+        return _first_k(mask, self.new_run, self.run, k)
+
+    def last_k(self, mask: np.ndarray, k: int) -> np.ndarray:
+        """The last ``k`` steps of ``mask`` (over ``mv``) in each run."""
+        rev_run = self.run[::-1]
+        rev_new = np.r_[True, rev_run[1:] != rev_run[:-1]]
+        return _first_k(mask[::-1], rev_new, np.cumsum(rev_new) - 1, k)[::-1]
+
+    def means(self, sel: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per run: the count of ``sel`` steps and the mean of ``values`` (over ``mv``) on them
+        (NaN without any)."""
+        cnt = np.bincount(self.run, weights=sel, minlength=self.n)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.bincount(self.run, weights=np.where(sel, values, 0.0),
+                               minlength=self.n) / cnt
+        return cnt, mean
+
+
+def _first_k(mask: np.ndarray, new_run: np.ndarray, run: np.ndarray, k: int) -> np.ndarray:
+    c = np.cumsum(mask)
+    before = np.r_[0, c[np.flatnonzero(new_run)[1:] - 1]]
+    return mask & ((c - before[run]) <= k)
+
+
+def _motion_runs(vel_m_s: np.ndarray, cfg: FeatureConfig) -> _Runs | None:
+    """The runs of a velocity faster than ``reversal_speed_m_s``; None below two runs."""
+    mv = np.flatnonzero(np.abs(vel_m_s) > cfg.reversal_speed_m_s)
+    if mv.size < 2:
+        return None
+    sign = np.sign(vel_m_s[mv])
+    new_run = np.r_[True, sign[1:] != sign[:-1]]
+    runs = _Runs(mv, sign, new_run, np.cumsum(new_run) - 1)
+    return runs if runs.n >= 2 else None
+
+
+def _no_events() -> tuple[np.ndarray, np.ndarray]:
+    return np.zeros(0, dtype=np.int64), np.zeros(0)
+
+
 def _lost_motion_events(e: np.ndarray, pos_m: np.ndarray, vel_m_s: np.ndarray,
                         cfg: FeatureConfig) -> tuple[np.ndarray, np.ndarray]:
     """Lost motion of ``e`` across motion reversals of ``pos_m`` (all at 80 Hz).
@@ -377,52 +438,25 @@ def _lost_motion_events(e: np.ndarray, pos_m: np.ndarray, vel_m_s: np.ndarray,
     after ``reversal_skip_m`` of travel; the event value is ``s * (e_B - e_A)`` [m], placed at
     the first averaged step of B. Returns (event step indices, event values).
     """
-    moving = np.abs(vel_m_s) > cfg.reversal_speed_m_s
-    mv = np.flatnonzero(moving)
-    if mv.size < 2:
-        return np.zeros(0, dtype=np.int64), np.zeros(0)
-    s = np.sign(vel_m_s[mv])
-    new_run = np.r_[True, s[1:] != s[:-1]]
-    run = np.cumsum(new_run) - 1
-    n_runs = int(run[-1]) + 1
-    if n_runs < 2:
-        return np.zeros(0, dtype=np.int64), np.zeros(0)
-    start_pos = pos_m[mv[new_run]]
-    travel = np.abs(pos_m[mv] - start_pos[run])
-    ok = travel >= cfg.reversal_skip_m
-    k = cfg.reversal_blocks
-    # first k qualifying steps of each run
-    cq = np.cumsum(ok)
-    cq_before_run = np.r_[0, cq[np.flatnonzero(new_run)[1:] - 1]]
-    first_sel = ok & ((cq - cq_before_run[run]) <= k)
-    # last k qualifying steps of each run
-    rev_ok = ok[::-1]
-    rev_run = run[::-1]
-    rev_new = np.r_[True, rev_run[1:] != rev_run[:-1]]
-    rcq = np.cumsum(rev_ok)
-    rcq_before = np.r_[0, rcq[np.flatnonzero(rev_new)[1:] - 1]]
-    rev_run_id = np.cumsum(rev_new) - 1
-    last_sel = (rev_ok & ((rcq - rcq_before[rev_run_id]) <= k))[::-1]
-    cnt_first = np.bincount(run, weights=first_sel, minlength=n_runs)
-    cnt_last = np.bincount(run, weights=last_sel, minlength=n_runs)
-    e_first = np.bincount(run, weights=np.where(first_sel, e[mv], 0.0), minlength=n_runs)
-    e_last = np.bincount(run, weights=np.where(last_sel, e[mv], 0.0), minlength=n_runs)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        e_first = e_first / cnt_first
-        e_last = e_last / cnt_last
-    run_sign = s[new_run]
-    run_first_step = mv[new_run]
-    run_last_step = mv[np.r_[np.flatnonzero(new_run)[1:] - 1, mv.size - 1]]
+    runs = _motion_runs(vel_m_s, cfg)
+    if runs is None:
+        return _no_events()
+    mv, run = runs.mv, runs.run
+    start_pos = pos_m[mv[runs.new_run]]
+    ok = np.abs(pos_m[mv] - start_pos[run]) >= cfg.reversal_skip_m
+    first_sel = runs.first_k(ok, cfg.reversal_blocks)
+    last_sel = runs.last_k(ok, cfg.reversal_blocks)
+    cnt_first, e_first = runs.means(first_sel, e[mv])
+    cnt_last, e_last = runs.means(last_sel, e[mv])
     # first selected step of each run (event position)
-    first_sel_step = np.full(n_runs, -1, dtype=np.int64)
+    first_sel_step = np.full(runs.n, -1, dtype=np.int64)
     sel_idx = np.flatnonzero(first_sel)
     first_sel_step[run[sel_idx[::-1]]] = mv[sel_idx[::-1]]
-    a = np.arange(n_runs - 1)
+    a = np.arange(runs.n - 1)
     b = a + 1
-    gap_s = (run_first_step[b] - run_last_step[a]) * cfg.step_s
-    good = ((cnt_last[a] >= 1) & (cnt_first[b] >= 1) & (gap_s <= cfg.reversal_max_gap_s)
-            & (first_sel_step[b] >= 0))
-    vals = run_sign[a] * (e_first[b] - e_last[a])
+    good = ((cnt_last[a] >= 1) & (cnt_first[b] >= 1)
+            & (runs.pauses_s(cfg.step_s) <= cfg.reversal_max_gap_s) & (first_sel_step[b] >= 0))
+    vals = runs.sign[runs.new_run][a] * (e_first[b] - e_last[a])
     return first_sel_step[b][good], vals[good]
 
 
@@ -959,35 +993,21 @@ def _stroke_end_lost_motion(e: np.ndarray, vel_a: np.ndarray, vel_s: np.ndarray,
     over the last ``reversal_blocks`` steps of each stroke at which the standby shaft moves
     the same way; the event (at the later stroke's last such step) needs both ends, the same
     torque sign at both and a pause of at most ``reversal_max_gap_s`` between the strokes."""
-    moving = np.abs(vel_a) > cfg.reversal_speed_m_s
-    mv = np.flatnonzero(moving)
-    if mv.size < 2:
-        return np.zeros(0, dtype=np.int64), np.zeros(0)
-    sgn = np.sign(vel_a[mv])
-    new_run = np.r_[True, sgn[1:] != sgn[:-1]]
-    run = np.cumsum(new_run) - 1
-    n_runs = int(run[-1]) + 1
-    engaged = sgn * vel_s[mv] > cfg.reversal_speed_m_s
-    # last k engaged steps of each run, counted backwards from the run's end
-    rev_eng, rev_run = engaged[::-1], run[::-1]
-    rev_new = np.r_[True, rev_run[1:] != rev_run[:-1]]
-    rcum = np.cumsum(rev_eng)
-    before = np.r_[0, rcum[np.flatnonzero(rev_new)[1:] - 1]]
-    sel = (rev_eng & (rcum - before[np.cumsum(rev_new) - 1] <= cfg.reversal_blocks))[::-1]
-    cnt = np.bincount(run, weights=sel, minlength=n_runs)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        e_end = np.bincount(run, weights=np.where(sel, e[mv], 0.0), minlength=n_runs) / cnt
-        tq_end = np.bincount(run, weights=np.where(sel, torque_sign[mv], 0.0),
-                             minlength=n_runs) / cnt
-    last_sel = np.full(n_runs, -1, dtype=np.int64)
+    runs = _motion_runs(vel_a, cfg)
+    if runs is None:
+        return _no_events()
+    mv, run = runs.mv, runs.run
+    engaged = runs.sign * vel_s[mv] > cfg.reversal_speed_m_s
+    sel = runs.last_k(engaged, cfg.reversal_blocks)
+    cnt, e_end = runs.means(sel, e[mv])
+    _, tq_end = runs.means(sel, torque_sign[mv])
+    last_sel = np.full(runs.n, -1, dtype=np.int64)
     idx = np.flatnonzero(sel)
     last_sel[run[idx]] = mv[idx]  # the last write per run is its last selected step
-    run_first = mv[new_run]
-    run_last = mv[np.r_[np.flatnonzero(new_run)[1:] - 1, mv.size - 1]]
-    a = np.arange(n_runs - 1)
+    a = np.arange(runs.n - 1)
     b = a + 1
-    pause_s = (run_first[b] - run_last[a]) * cfg.step_s
-    good = ((cnt[a] >= 1) & (cnt[b] >= 1) & (pause_s <= cfg.reversal_max_gap_s)
+    good = ((cnt[a] >= 1) & (cnt[b] >= 1)
+            & (runs.pauses_s(cfg.step_s) <= cfg.reversal_max_gap_s)
             & (np.abs(tq_end[b] - tq_end[a]) < 1.0))
     return last_sel[b][good], (e_end[b] - e_end[a])[good]
 
