@@ -49,7 +49,8 @@ from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
 
 __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "read_manifest",
-           "read_flight_channels", "read_started_at", "load_campaign", "train_from_directory"]
+           "read_flight_channels", "decode_log", "log_features", "read_started_at",
+           "load_campaign", "train_from_directory"]
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
 FEATURE_CACHE = "phm_features.json"
@@ -77,8 +78,8 @@ def read_flight_channels(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     return decode_channels(Path(path).read_bytes(), str(path))
 
 
-def decode_channels(data: bytes, name: str) -> dict[str, np.ndarray]:
-    """All channels of a flight log's Parquet bytes, decoded and checked as an upload is."""
+def decode_log(data: bytes, name: str) -> FlightLog:
+    """A flight log's Parquet bytes, decoded and checked as an upload is."""
     try:
         log = read_parquet(data)
         issues = check_coherence(log, fleet_serials=dict(log.metadata.actuator_serials))
@@ -86,7 +87,25 @@ def decode_channels(data: bytes, name: str) -> dict[str, np.ndarray]:
         issues = exc.issues
     if issues:
         raise CampaignError(f"{name}: " + "; ".join(i.message for i in issues))
+    return log
+
+
+def decode_channels(data: bytes, name: str) -> dict[str, np.ndarray]:
+    """All channels of a flight log's Parquet bytes as float64 arrays, decoded and checked as
+    an upload is."""
+    return float64_channels(decode_log(data, name))
+
+
+def float64_channels(log: FlightLog) -> dict[str, np.ndarray]:
     return {n: np.asarray(v, dtype=np.float64) for n, v in log.channels.items()}
+
+
+def log_features(log: FlightLog, *, config: FeatureConfig,
+                 ground_temp_c: float | None) -> FlightFeatures:
+    """A decoded flight log's features, its drives' roles taken from its metadata (the
+    service's own computation, :func:`server.phm.features.flight_features`)."""
+    return flight_features(float64_channels(log), config=config, ground_temp_c=ground_temp_c,
+                           active_channels=log.metadata.active_channels)
 
 
 def feature_config_key(cfg: FeatureConfig) -> str:
@@ -136,8 +155,8 @@ class FeatureSink:
     def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
                  ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]:
         data = write_parquet(log)
-        features = flight_features(decode_channels(data, rel), config=self.config,
-                                   ground_temp_c=ground_temp_c).to_dict()
+        features = log_features(decode_log(data, rel), config=self.config,
+                                ground_temp_c=ground_temp_c).to_dict()
         if index % self.keep_raw_every:
             return None, features
         _write_atomic(out_dir / rel, data)
@@ -159,8 +178,8 @@ def read_started_at(path: str | os.PathLike[str]) -> datetime | None:
 
 def _features_of(args: tuple[str, float | None, FeatureConfig]) -> dict[str, Any]:
     path, ground, cfg = args
-    return flight_features(read_flight_channels(path), config=cfg,
-                           ground_temp_c=ground).to_dict()
+    return log_features(decode_log(Path(path).read_bytes(), path), config=cfg,
+                        ground_temp_c=ground).to_dict()
 
 
 def _features_from_dict(d: Mapping[str, Any]) -> FlightFeatures:

@@ -14,14 +14,13 @@ __all__ = [
     "SENSOR_OF_SIGNAL",
     "SENSORS",
     "WINGLET_PAIR",
-    "WINGLET_UNIT",
     "FAULT_MODES",
     "PROGRESSIVE",
     "ABRUPT",
     "ACTUATOR_FEATURES",
     "GENERIC_FEATURES",
     "REWEAR_FEATURE",
-    "REWEAR_NAME",
+    "position_features",
     "OWN_FEATURE",
     "MODE_NAMES",
     "FEATURE_LABELS",
@@ -32,10 +31,8 @@ __all__ = [
 
 #: actuator positions of the half-wing: two winglet-tab drives and the wingtip drive
 POSITIONS: tuple[str, ...] = ("WL1", "WL2", "WT")
-#: the two drives that share the winglet tab
+#: the two drives that share the winglet tab (active-standby: one drives, one stands by)
 WINGLET_PAIR: tuple[str, str] = ("WL1", "WL2")
-#: detection unit of the features that belong to the winglet pair, not to one drive
-WINGLET_UNIT = "WL"
 
 #: the recorded sensor signals of one actuator (flight-log v1 ``"<position>.<signal>"``):
 #: phase currents [A], phase voltages [V], resolver shaft angle [rad], LVDT rod position [m]
@@ -57,11 +54,10 @@ ABRUPT: tuple[str, ...] = tuple(m for m in FAULT_MODES if m not in PROGRESSIVE)
 
 #: the six features computed per actuator (paper Table 1)
 ACTUATOR_FEATURES: tuple[str, ...] = ("F_TTS", "F_DMD", "F_SE", "F_BDO", "F_MTEL", "F_MTWEAR")
-#: the pair feature: difference of the two winglet LVDTs across reversals
+#: the rod-end feature of a winglet drive: its rod end's play, read from the difference of
+#: the two winglet LVDTs (the standby's against the active's)
 REWEAR_FEATURE = "F_REWEAR"
-#: its aircraft-level name
-REWEAR_NAME = f"{WINGLET_UNIT}.{REWEAR_FEATURE}"
-#: the seven generic feature names (six per actuator plus the pair's)
+#: the seven generic feature names (six per actuator plus the winglet drives' rod-end play)
 GENERIC_FEATURES: tuple[str, ...] = ACTUATOR_FEATURES + (REWEAR_FEATURE,)
 #: the paper's Table 1: one preferential feature per fault mode (tracked by the filter)
 OWN_FEATURE: dict[str, str] = dict(zip(FAULT_MODES, GENERIC_FEATURES, strict=True))
@@ -85,7 +81,7 @@ FEATURE_LABELS: dict[str, str] = {
     "F_BDO": "phase-voltage imbalance",
     "F_MTEL": "screw friction ratio",
     "F_MTWEAR": "screw gap, LVDT against motor shaft",
-    "F_REWEAR": "winglet pair's lost motion, LVDT difference",
+    "F_REWEAR": "rod-end play, standby LVDT against the active one",
 }
 
 #: the paper's Table 2: prognostic horizon [-] and relative accuracy [%] per progressive mode
@@ -100,15 +96,22 @@ def is_winglet(position: str | None) -> bool:
     return position in WINGLET_PAIR
 
 
-def alarming_positions(mode: str, position: str | None) -> set[str]:
-    """Actuator positions expected to alarm for a fault of ``mode`` at ``position``.
+def position_features(position: str) -> tuple[str, ...]:
+    """The generic features monitored on the drive at ``position``: the six of every
+    actuator, plus the rod-end play for a winglet drive (the wingtip drive has no partner
+    LVDT to read its rod end against)."""
+    return GENERIC_FEATURES if is_winglet(position) else ACTUATOR_FEATURES
 
-    Rod-end wear is seen only as the difference of the two winglet LVDTs, so it alarms both
-    winglet drives; every other fault alarms its own actuator. A healthy pattern (no position
-    or mode ``"healthy"``) alarms nothing.
-    """
+
+def alarming_positions(mode: str, position: str | None, *,
+                       pair_rod_ends: bool = False) -> set[str]:
+    """Actuator positions expected to alarm for a fault of ``mode`` at ``position``: its own.
+    Rod-end wear of a winglet drive is read on the flights it stands by; when both drives
+    drive (``pair_rod_ends``: an active-active tab) each carries the pair's lost motion, which
+    cannot tell the two rod ends apart, so both alarm. A healthy pattern (no position or mode
+    ``"healthy"``) alarms nothing."""
     if position is None or mode not in FAULT_MODES:
         return set()
-    if mode == "REWEAR" and is_winglet(position):
+    if pair_rod_ends and mode == "REWEAR" and is_winglet(position):
         return set(WINGLET_PAIR)
     return {position}

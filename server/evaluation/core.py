@@ -95,7 +95,7 @@ import numpy as np
 from server.campaigns import load_campaign
 from server.phm import metrics
 from server.phm.chain import MeasurementHook, PhmModel, analyze_flight
-from server.phm.dataset import Campaign, Pattern
+from server.phm.dataset import Campaign, Pattern, reads_rod_ends_as_pair
 from server.phm.prognosis.document import rul_point, rul_quantile
 from server.vocabulary import PAPER_TABLE2, POSITIONS, PROGRESSIVE, alarming_positions
 
@@ -138,9 +138,10 @@ SUMMARY_FORMAT = "ema-evaluation-summary/1"
 Progress = Callable[[int, int], None]
 
 
-def expected_units(mode: str, position: str | None) -> set[str]:
-    """Actuators expected to alarm for a fault (both winglet actuators for rod-end wear)."""
-    return alarming_positions(mode, position)
+def expected_units(mode: str, position: str | None, pair_rod_ends: bool = False) -> set[str]:
+    """Actuators expected to alarm for a fault (both winglet actuators for rod-end wear on an
+    active-active tab)."""
+    return alarming_positions(mode, position, pair_rod_ends=pair_rod_ends)
 
 
 def pattern_seed(pattern_id: str) -> int:
@@ -206,6 +207,7 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
     return {"id": pattern.id, "aircraft": pattern.aircraft, "mode": pattern.mode,
             "position": pattern.position, "onset": pattern.onset_flight,
             "failure": pattern.failure_flight, "seed": seed,
+            "pair_rod_ends": reads_rod_ends_as_pair(pattern),
             "horizon": float(model.prognoser.max_horizon_flights), "flights": flights}
 
 
@@ -221,7 +223,8 @@ def detection_of(trace: Mapping[str, Any]) -> dict[str, Any]:
     """Detection facts of one pattern: first alarm of the faulty actuator, false alarms."""
     healthy = trace["mode"] == "healthy"
     onset = _onset(trace)
-    expected = expected_units(trace["mode"], trace["position"])
+    expected = expected_units(trace["mode"], trace["position"],
+                              bool(trace.get("pair_rod_ends", False)))
     detected: int | None = None
     first_probs = None
     false_alarms = 0  # new alarms on healthy flights (any actuator)

@@ -5,8 +5,8 @@ Usage::
     python -m server.evaluation.feature_quality --campaign DIR --out docs/
 
 For every fault pattern of the campaign, the features of the faulty unit (its six actuator
-features plus ``F_REWEAR`` of the winglet pair) are taken flight by flight. Per fault mode and
-feature:
+features, plus its rod-end play ``F_REWEAR`` on a winglet drive) are taken flight by flight.
+Per fault mode and feature:
 
 * ``rho``: Spearman rank correlation of the feature's flight value with the true severity,
   pooled over the mode's patterns (signed);
@@ -31,16 +31,12 @@ from scipy.stats import spearmanr
 
 from server.campaigns import load_campaign
 from server.phm.dataset import Campaign
-from server.vocabulary import ACTUATOR_FEATURES, FAULT_MODES, REWEAR_FEATURE, REWEAR_NAME
+from server.vocabulary import FAULT_MODES, GENERIC_FEATURES, position_features
 
 __all__ = ["REPORT_FEATURES", "feature_quality", "write_report", "main"]
 
-REPORT_FEATURES: tuple[str, ...] = ACTUATOR_FEATURES + (REWEAR_FEATURE,)
+REPORT_FEATURES: tuple[str, ...] = GENERIC_FEATURES
 MODES = FAULT_MODES
-
-
-def _name(position: str, feat: str) -> str:
-    return REWEAR_NAME if feat == "F_REWEAR" else f"{position}.{feat}"
 
 
 def feature_quality(campaign: Campaign) -> dict[str, dict[str, dict[str, float]]]:
@@ -55,7 +51,9 @@ def feature_quality(campaign: Campaign) -> dict[str, dict[str, dict[str, float]]
         for feat in REPORT_FEATURES:
             sev, val, late, base = [], [], [], []
             for p in pats:
-                name = _name(str(p.position), feat)
+                if feat not in position_features(str(p.position)):
+                    continue
+                name = f"{p.position}.{feat}"
                 for r in p.flights:
                     v = r.features.summaries[name].value
                     if not math.isfinite(v):

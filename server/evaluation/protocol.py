@@ -41,10 +41,10 @@ def add_protocol_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
                         help="local worker processes (default: all cores)")
     parser.add_argument("--dask", default=None, metavar="ADDRESS",
                         help="simulate on a Dask distributed scheduler (tcp://host:8786)")
-    from sim_worker.fleet import WingletMode
+    from sim_worker.fleet import DEFAULT_WINGLET_MODE, WingletMode
 
     parser.add_argument("--winglet", choices=[m.value for m in WingletMode],
-                        default=WingletMode.ACTIVE_ACTIVE.value,
+                        default=DEFAULT_WINGLET_MODE.value,
                         help="how the winglet pair moves its tab, in both campaigns")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     return parser

@@ -98,8 +98,8 @@ def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
 
     The flights are spread evenly over the manifest's list (deterministic choice).
     """
-    from server.campaigns import read_flight_channels
-    from server.phm.features import FeatureConfig, flight_features
+    from server.campaigns import decode_log, log_features
+    from server.phm.features import FeatureConfig
 
     root = Path(campaign_dir)
     manifest = json.loads((root / "manifest.json").read_text())
@@ -114,13 +114,13 @@ def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
     steps = 0
     for f, ground in chosen:
         t0 = time.perf_counter()
-        ch = read_flight_channels(root / f)
+        log = decode_log((root / f).read_bytes(), f)
         t1 = time.perf_counter()
-        flight_features(ch, config=cfg, ground_temp_c=ground)
+        log_features(log, config=cfg, ground_temp_c=ground)
         t2 = time.perf_counter()
         t_read += t1 - t0
         t_feat += t2 - t1
-        steps += max(len(next(iter(ch.values()))) // 10, 1)
+        steps += max(len(next(iter(log.channels.values()))) // 10, 1)
     n = len(chosen)
     return {"flights": n, "read_per_flight_ms": 1e3 * t_read / n,
             "features_per_flight_ms": 1e3 * t_feat / n, "steps_80hz_mean": steps / n}

@@ -57,7 +57,8 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
         _reject(ctx, todo.flight_id, bounded_reasons((i.as_dict() for i in exc.issues), limits))
         return
     features = flight_features({k: np.asarray(v, dtype=np.float64)
-                                for k, v in log.channels.items()})
+                                for k, v in log.channels.items()},
+                               active_channels=log.metadata.active_channels)
     with ctx.factory() as session:
         analysis.store_analysis(session=session, flight_id=todo.flight_id, features=features,
                                 model_id=model_id, model=model)

@@ -5,13 +5,17 @@ Pure data; :mod:`server.campaigns` reads campaign directories into these."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from server.vocabulary import REWEAR_FEATURE, WINGLET_PAIR
+
 from .features import FlightFeatures
 
-__all__ = ["FlightRecord", "Pattern", "Campaign", "is_healthy_flight", "healthy_flights"]
+__all__ = ["FlightRecord", "Pattern", "Campaign", "reads_rod_ends_as_pair", "is_healthy_flight",
+           "healthy_flights"]
 
 
 @dataclass
@@ -54,6 +58,14 @@ class Campaign:
     #: the design campaign's sensor-study patterns, kept apart: they are healthy actuators
     #: with noisier sensors, for :mod:`server.phm.sensor_health` only
     sensor_study: list[Pattern] = field(default_factory=list)
+
+
+def reads_rod_ends_as_pair(p: Pattern) -> bool:
+    """Whether both winglet drives carry a rod-end value on some flight of the pattern: an
+    active-active tab, whose drives both carry the pair's lost motion."""
+    names = [f"{w}.{REWEAR_FEATURE}" for w in WINGLET_PAIR]
+    return any(all(math.isfinite(r.features.summaries[n].value) for n in names)
+               for r in p.flights)
 
 
 def is_healthy_flight(p: Pattern, r: FlightRecord) -> bool:

@@ -1,7 +1,7 @@
 """Fault detection: running feature distributions against their healthy baselines.
 
 Time base: one update per flight, per monitored unit (an actuator ``WL1``/``WL2``/``WT`` with
-its six features, or the winglet pair ``WL`` with ``F_REWEAR``). Inputs are the standardised
+its six features, and a winglet drive's rod-end play ``F_REWEAR``). Inputs are the standardised
 residuals ``z`` of :class:`server.phm.baselines.FleetBaseline` (dimensionless, N(0, 1) on
 healthy flights by construction).
 
@@ -25,9 +25,9 @@ flights *before* it::
 this is the fleet test, ``z / sqrt(sigma^2 + tau^2)``. The detector below runs on ``z_self``.
 A fault already present during the reference flights is partly absorbed into the reference:
 the first flight of an actuator is always judged against the fleet alone.
-``F_REWEAR`` keeps the fleet test (``fleet_referenced``): its healthy values are bimodal, so a
-median of six flights is no stable reference, and a worn rod end moves it far beyond any
-actuator offset.
+``F_REWEAR`` keeps the fleet test (``fleet_referenced``): a healthy rod end's play is set by
+its manufacturing tolerance, and a worn one moves it far beyond any actuator offset, so a
+median of its first flights would absorb an early wear rather than reference a drive.
 
 Running distribution and separation confidence
 ----------------------------------------------
@@ -109,7 +109,6 @@ from server.vocabulary import (
     POSITIONS,
     PROGRESSIVE,
     REWEAR_FEATURE,
-    WINGLET_UNIT,
 )
 
 __all__ = [
@@ -136,8 +135,8 @@ STATE_FORMAT = "ema-detection-state/2"
 _STATE_FORMATS = (STATE_FORMAT, "ema-detection-state/1")  # /1 had no reference
 #: variance of a sample median over that of the mean (normal samples, large n)
 _MEDIAN_VARIANCE_FACTOR = math.pi / 2
-#: monitored units and the prefix of their feature names: the actuators and the winglet pair
-UNITS: tuple[str, ...] = POSITIONS + (WINGLET_UNIT,)
+#: monitored units and the prefix of their feature names: the actuators
+UNITS: tuple[str, ...] = POSITIONS
 
 
 @dataclass(frozen=True)
@@ -184,8 +183,7 @@ class DetectionConfig:
         odd flights does not move the 8-flight statistic; 0 never.
     fleet_referenced:
         Generic features tested against the fleet, not the actuator's own first flights [-]:
-        ``F_REWEAR``, whose healthy values are bimodal (a median of 6 first flights is no
-        stable reference) and which a worn rod end moves far beyond any actuator offset.
+        ``F_REWEAR``, which a worn rod end moves far beyond any actuator offset.
     """
 
     windows: tuple[int, ...] = (1, 3, 8)

@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from server.vocabulary import WINGLET_UNIT, is_winglet
+from server.vocabulary import alarming_positions
 
 from .baselines import FleetBaseline
-from .dataset import Campaign, FlightRecord, Pattern, healthy_flights
+from .dataset import Campaign, FlightRecord, Pattern, healthy_flights, reads_rod_ends_as_pair
 from .detection import UNITS, DetectionState, FaultDetector
 from .features import AIRCRAFT_FEATURES
 
@@ -113,12 +113,7 @@ class PatternOutcome:
 
 
 def _faulty_units(p: Pattern) -> set[str]:
-    if p.position is None:
-        return set()
-    units = {p.position}
-    if is_winglet(p.position):
-        units.add(WINGLET_UNIT)  # the pair's feature belongs to both winglet drives
-    return units
+    return alarming_positions(p.mode, p.position, pair_rod_ends=reads_rod_ends_as_pair(p))
 
 
 def run_pattern(model: DetectionModel, p: Pattern) -> PatternOutcome:

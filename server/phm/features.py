@@ -50,19 +50,28 @@ Features (formulas and validity rules are in ``docs/FEATURES.md``):
            the efficiency loss and the drag of aged grease.
 ``F_MTWEAR`` screw gap [m]: the step of ``x - r theta`` between the two flanks of the screw,
            the flank read from the sign of the motor torque (``i_q``).
-``F_REWEAR`` lost motion of ``x_WL1 - x_WL2`` across reversals of the winglet tab [m].
+``F_REWEAR`` rod-end play of a winglet drive [m]: on a flight it stands by, the lost motion of
+           ``x_active - x_standby`` between stroke ends (:func:`standby_play_feature`); with
+           both drives active, the pair's lost motion ``x_WL1 - x_WL2`` across reversals.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
 from scipy.signal import lfilter
 
-from server.vocabulary import ACTUATOR_FEATURES, POSITIONS, REWEAR_NAME, SIGNALS, WINGLET_PAIR
+from server.vocabulary import (
+    ACTUATOR_FEATURES,
+    POSITIONS,
+    REWEAR_FEATURE,
+    SIGNALS,
+    WINGLET_PAIR,
+    position_features,
+)
 
 from .signal_quality import flight_quality
 
@@ -72,7 +81,6 @@ __all__ = [
     "ACTUATOR_FEATURES",
     "POSITIONS",
     "WINGLET_PAIR",
-    "REWEAR_NAME",
     "AIRCRAFT_FEATURES",
     "CONDITION_NAMES",
     "SIGNALS",
@@ -99,13 +107,15 @@ __all__ = [
     "screw_gap",
     "actuator_features",
     "rewear_feature",
+    "standby_play_feature",
     "operating_conditions",
+    "standby_drive",
     "flight_features",
 ]
 
 #: bumped whenever a feature formula or validity changes (invalidates cached campaign
 #: features); the history of the bumps is in docs/TUNING.md
-FEATURE_VERSION = "features/7"
+FEATURE_VERSION = "features/8"
 #: the sensors each generic feature reads: its own actuator's, both winglet drives' for
 #: F_REWEAR. Every feature's validity windows read the motor speed, hence the resolver
 FEATURE_SENSORS: dict[str, tuple[str, ...]] = {
@@ -114,9 +124,10 @@ FEATURE_SENSORS: dict[str, tuple[str, ...]] = {
     "F_MTEL": ("current", "resolver", "lvdt"), "F_MTWEAR": ("current", "resolver", "lvdt"),
     "F_REWEAR": ("resolver", "lvdt"),
 }
-#: the 19 feature names of one aircraft, ``"<position>.<feature>"`` plus ``"WL.F_REWEAR"``
+#: the 20 feature names of one aircraft, ``"<position>.<feature>"``: six per drive, and the
+#: rod-end play of each winglet drive
 AIRCRAFT_FEATURES: tuple[str, ...] = tuple(
-    f"{p}.{f}" for p in POSITIONS for f in ACTUATOR_FEATURES) + (REWEAR_NAME,)
+    f"{p}.{f}" for p in POSITIONS for f in position_features(p))
 #: per-actuator operating conditions used by the baselines
 CONDITION_NAMES: tuple[str, ...] = (
     "temp_ground_c", "temp_mean_c", "load_rms_n", "speed_rms_rad_s", "temp_winding_est_c")
@@ -146,6 +157,7 @@ class MotorConstants:
 
 
 def _default_aero() -> dict[str, float]:
+    # a winglet drive, when active, carries the tab's whole hinge load: both of its shares
     return {"WL1": 8.0e4, "WL2": 8.0e4, "WT": 6.0e4}
 
 
@@ -279,7 +291,7 @@ class FeatureSummary:
 
 @dataclass
 class FlightFeatures:
-    """All 19 features of one flight plus the operating conditions of each actuator."""
+    """All 20 features of one flight plus the operating conditions of each actuator."""
 
     summaries: dict[str, FeatureSummary]  # AIRCRAFT_FEATURES -> summary
     conditions: dict[str, dict[str, float]]  # position -> CONDITION_NAMES -> value
@@ -895,8 +907,17 @@ def actuator_features(
         ``speed_rms_rad_s``, ``temp_winding_est_c``).
     """
     cfg = config or FeatureConfig()
-    mc = motor or MotorConstants()
-    steps = actuator_steps(sig, config=cfg, motor=mc)
+    steps = actuator_steps(sig, config=cfg, motor=motor)
+    tracks, r_hat, psi_hat = _driving_features(steps, t_amb_c, cfg, motor or MotorConstants())
+    extras = {"psi_hat_wb": psi_hat, "r_hat_ohm": r_hat,
+              **_step_conditions(steps, aero_gradient_n_per_m, aero_bias_n, r_hat, motor)}
+    return tracks, extras
+
+
+def _driving_features(steps: ActuatorSteps, t_amb_c: np.ndarray | None, cfg: FeatureConfig,
+                      mc: MotorConstants) -> tuple[dict[str, FeatureTrack], float, float]:
+    """The six features of a drive whose inverter switches, from its 80 Hz steps; with the
+    winding resistance and the flux they estimated."""
     windows = validity_windows(steps, config=cfg, t_amb_c=t_amb_c)
     r_hat = winding_resistance(steps, windows.still, config=cfg)
     omega_e = mc.pole_pairs * steps.speed
@@ -918,16 +939,17 @@ def actuator_features(
                                       config=cfg)
     tracks["F_MTWEAR"] = screw_gap(steps.x, mc.screw_radius_m * steps.theta, steps.i_q,
                                    config=cfg)
+    return tracks, r_hat, float(psi_hat)
 
+
+def _step_conditions(steps: ActuatorSteps, aero_gradient_n_per_m: float, aero_bias_n: float,
+                     r_hat: float, motor: MotorConstants | None) -> dict[str, float]:
+    """An actuator's operating conditions over the flight: design aero load and shaft speed
+    (RMS), winding temperature from the resistance estimate (NaN without one)."""
     load_exp = -(aero_gradient_n_per_m * steps.x + aero_bias_n)  # N, design aero load
-    extras = {
-        "psi_hat_wb": float(psi_hat),
-        "r_hat_ohm": r_hat,
-        "temp_winding_est_c": winding_temperature(r_hat, mc),
-        "load_rms_n": float(np.sqrt(np.mean(load_exp ** 2))),
-        "speed_rms_rad_s": float(np.sqrt(np.mean(steps.speed ** 2))),
-    }
-    return tracks, extras
+    return {"temp_winding_est_c": winding_temperature(r_hat, motor),
+            "load_rms_n": float(np.sqrt(np.mean(load_exp ** 2))),
+            "speed_rms_rad_s": float(np.sqrt(np.mean(steps.speed ** 2)))}
 
 
 def rewear_feature(
@@ -1025,52 +1047,84 @@ def operating_conditions(channels: Mapping[str, np.ndarray]) -> dict[str, float]
     return {"temp_ground_c": float(np.max(t)), "temp_mean_c": float(np.mean(t))}
 
 
+def standby_drive(active_channels: Collection[str] | None) -> str | None:
+    """The winglet drive standing by on a flight whose log names its active drives (None when
+    both drive: an active-active pair, or a log that names none).
+
+    Raises ``ValueError`` when the list leaves both winglet drives idle."""
+    if active_channels is None:
+        return None
+    idle = [p for p in WINGLET_PAIR if p not in active_channels]
+    if len(idle) == 2:
+        raise ValueError("active_channels names no winglet drive: the tab has no active drive")
+    return idle[0] if idle else None
+
+
+_NO_VALUE = FeatureSummary(float("nan"), float("nan"), 0)
+
+
 def flight_features(
     channels: Mapping[str, np.ndarray],
     *,
     config: FeatureConfig | None = None,
     motor: MotorConstants | None = None,
     ground_temp_c: float | None = None,
+    active_channels: Collection[str] | None = None,
     keep_tracks: bool = False,
 ) -> FlightFeatures:
-    """The 19 features of one flight from flight-log v1 channels (``"WL1.ia"``, ...).
+    """The 20 features of one flight from flight-log v1 channels (``"WL1.ia"``, ...).
+
+    ``active_channels`` (the log's optional metadata) names the drives that drove; a winglet
+    drive not named stood by. A standby's inverter does not switch and its loops are idle, so
+    its six motor features are not read (NaN, ``n_valid`` 0): the leakage, imbalance and
+    friction tests need a switching inverter and a driving torque, and its flux estimate from
+    the damping currents rests on a hundred-odd valid steps and sits 0.01-0.02 from the same
+    drive's active value (docs/FEATURES.md). Its rod-end play is read instead
+    (:func:`standby_play_feature`), and the active drive's ``F_REWEAR`` is NaN: a one-sided
+    hinge load keeps its rod end on one flank. Without a standby (``None``, or every drive
+    named) both winglet drives carry the pair's lost motion (:func:`rewear_feature`).
 
     ``ground_temp_c`` overrides the ground temperature when the log has no ``T_amb``.
     """
     cfg = config or FeatureConfig()
+    mc = motor or MotorConstants()
+    standby = standby_drive(active_channels)
     flight_cond = operating_conditions(channels)
     if ground_temp_c is not None and not np.isfinite(flight_cond["temp_ground_c"]):
         flight_cond = {"temp_ground_c": float(ground_temp_c),
                        "temp_mean_c": float(ground_temp_c)}
-    summaries: dict[str, FeatureSummary] = {}
+    tracks: dict[str, FeatureTrack] = {}
     conditions: dict[str, dict[str, float]] = {}
-    tracks_all: dict[str, FeatureTrack] = {}
+    steps: dict[str, ActuatorSteps] = {}
     for p in POSITIONS:
-        sig = {s: channels[f"{p}.{s}"] for s in SIGNALS}
-        tracks, extras = actuator_features(
-            sig, aero_gradient_n_per_m=float(cfg.aero_gradient_n_per_m[p]),
-            aero_bias_n=float(cfg.aero_bias_n[p]), t_amb_c=channels.get("T_amb"), config=cfg,
-            motor=motor)
-        for f, tr in tracks.items():
-            summaries[f"{p}.{f}"] = tr.summary()
-            if keep_tracks:
-                tracks_all[f"{p}.{f}"] = tr
-        conditions[p] = {**flight_cond,
-                         "load_rms_n": extras["load_rms_n"],
-                         "speed_rms_rad_s": extras["speed_rms_rad_s"],
-                         "temp_winding_est_c": extras["temp_winding_est_c"]}
-    a, b = WINGLET_PAIR
-    rew = rewear_feature(channels[f"{a}.x"], channels[f"{b}.x"], channels[f"{a}.theta"],
-                         channels[f"{b}.theta"], config=cfg, motor=motor)
-    summaries[REWEAR_NAME] = rew.summary()
-    if keep_tracks:
-        tracks_all[REWEAR_NAME] = rew
-    wl_cond = {k: float(np.nanmean([conditions[a][k], conditions[b][k]]))
-               if np.isfinite([conditions[a][k], conditions[b][k]]).any() else float("nan")
-               for k in CONDITION_NAMES}
-    conditions["WL"] = wl_cond
-    mc = motor or MotorConstants()
+        steps[p] = actuator_steps({s: channels[f"{p}.{s}"] for s in SIGNALS}, config=cfg,
+                                  motor=mc)
+        r_hat = float("nan")
+        if p != standby:
+            own, r_hat, _ = _driving_features(steps[p], channels.get("T_amb"), cfg, mc)
+            tracks.update({f"{p}.{f}": tr for f, tr in own.items()})
+        conditions[p] = {**flight_cond, **_step_conditions(
+            steps[p], float(cfg.aero_gradient_n_per_m[p]), float(cfg.aero_bias_n[p]), r_hat, mc)}
+    tracks.update(_rod_end_tracks(channels, steps, standby, cfg, mc))
+    summaries = {n: tracks[n].summary() if n in tracks else _NO_VALUE for n in AIRCRAFT_FEATURES}
     quality = flight_quality(channels, screw_radius_m=mc.screw_radius_m,
                              pole_pairs=mc.pole_pairs,
                              electrical_offset_rad=cfg.electrical_offset_rad)
-    return FlightFeatures(summaries, conditions, tracks_all if keep_tracks else None, quality)
+    return FlightFeatures(summaries, conditions, tracks if keep_tracks else None, quality)
+
+
+def _rod_end_tracks(channels: Mapping[str, np.ndarray], steps: Mapping[str, ActuatorSteps],
+                    standby: str | None, cfg: FeatureConfig, mc: MotorConstants
+                    ) -> dict[str, FeatureTrack]:
+    """``F_REWEAR`` of the winglet drives: the standby's play, or the pair's lost motion for
+    both when neither stands by."""
+    a, b = WINGLET_PAIR
+    if standby is None:
+        pair = rewear_feature(channels[f"{a}.x"], channels[f"{b}.x"], channels[f"{a}.theta"],
+                              channels[f"{b}.theta"], config=cfg, motor=mc)
+        return {f"{a}.{REWEAR_FEATURE}": pair, f"{b}.{REWEAR_FEATURE}": pair}
+    active = b if standby == a else a
+    play = standby_play_feature(channels[f"{active}.x"], channels[f"{standby}.x"],
+                                channels[f"{active}.theta"], channels[f"{standby}.theta"],
+                                steps[active].i_q, config=cfg, motor=mc)
+    return {f"{standby}.{REWEAR_FEATURE}": play}

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtri
 
-from server.vocabulary import POSITIONS, SENSOR_OF_SIGNAL, SIGNALS, WINGLET_PAIR
+from server.vocabulary import POSITIONS, REWEAR_FEATURE, SENSOR_OF_SIGNAL, SIGNALS, WINGLET_PAIR
 
 from .features import FEATURE_SENSORS, FlightFeatures
 from .signal_quality import FLOOR_CHANNELS
@@ -356,9 +356,10 @@ class SensorJudgement:
 
 
 def _feature_positions(name: str) -> tuple[str, list[str]]:
-    """``"WT.F_SE"`` -> ``("F_SE", ["WT"])``; the winglet pair's feature reads both drives."""
-    unit, generic = name.split(".", 1)
-    return generic, [unit] if unit in POSITIONS else list(WINGLET_PAIR)
+    """``"WT.F_SE"`` -> ``("F_SE", ["WT"])``; a winglet drive's rod-end play reads the LVDTs
+    and resolvers of both winglet drives."""
+    position, generic = name.split(".", 1)
+    return generic, list(WINGLET_PAIR) if generic == REWEAR_FEATURE else [position]
 
 
 @dataclass

@@ -13,10 +13,11 @@ from server.campaigns import (
     FEATURE_CACHE,
     CampaignError,
     FeatureSink,
+    decode_log,
     load_campaign,
-    read_flight_channels,
+    log_features,
 )
-from server.phm.features import FeatureConfig, flight_features
+from server.phm.features import FeatureConfig
 from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
 
 #: one pattern per mode, every flight, short recordings and fast faults: seconds per campaign
@@ -63,8 +64,8 @@ def test_streamed_features_equal_the_features_of_the_written_log(reference: Path
     assert len(kept) == sum(1 for f in flights if f["index"] % 4 == 0)
     assert not list(tmp_path.rglob("*.tmp")) and not (tmp_path / "progress").exists()
     for f in kept:
-        from_file = flight_features(read_flight_channels(tmp_path / f["file"]),
-                                    config=FeatureConfig(), ground_temp_c=f["ground_temp_c"])
+        log = decode_log((tmp_path / f["file"]).read_bytes(), f["file"])
+        from_file = log_features(log, config=FeatureConfig(), ground_temp_c=f["ground_temp_c"])
         # compared as JSON text: a feature without valid samples is NaN, and NaN != NaN
         assert json.dumps(from_file.to_dict()) == json.dumps(stored[f["flight"]])
     # the campaign reads back from the stored features alone, files or not

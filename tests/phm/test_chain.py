@@ -16,7 +16,7 @@ from server.phm.chain import (
     analyze_flight,
     read_model_document,
 )
-from server.phm.dataset import Campaign, Pattern
+from server.phm.dataset import Campaign, Pattern, reads_rod_ends_as_pair
 from server.vocabulary import POSITIONS, alarming_positions
 
 pytestmark = pytest.mark.slow
@@ -58,7 +58,7 @@ def test_growing_fault_is_alarmed_classified_and_given_a_rul(model, verification
                                                                ) -> None:  # type: ignore[no-untyped-def]
     p = _pattern(verification_campaign, "TTS")
     outcomes, health = _run(model, p, round_trip=False)
-    faulty = alarming_positions(p.mode, p.position)
+    faulty = alarming_positions(p.mode, p.position, pair_rod_ends=reads_rod_ends_as_pair(p))
     first = next(i for i, out in enumerate(outcomes) if out[p.position].alarm)
     assert p.flights[first].index >= int(p.onset_flight)  # never before the onset
     last = outcomes[-1][p.position]

@@ -61,7 +61,7 @@ def _flight(rng: np.random.Generator, shift: dict[str, float] | None = None) -> 
             for n in AIRCRAFT_FEATURES}
     cond = {p: {"temp_ground_c": float(rng.uniform(-5, 40)), "temp_mean_c": 0.0,
                 "load_rms_n": 500.0, "speed_rms_rad_s": 10.0, "temp_winding_est_c": 30.0}
-            for p in ("WL1", "WL2", "WT", "WL")}
+            for p in ("WL1", "WL2", "WT")}
     return FlightFeatures(summ, cond)
 
 
@@ -152,7 +152,7 @@ def test_a_fleet_referenced_feature_learns_no_offset_from_a_bimodal_start() -> N
     same data does judge them against it (twice the residual), and the unlucky starts among
     its healthy design sequences widen its healthy scale, so its bands are the blunter."""
     rng = np.random.default_rng(21)
-    names = ["WL.F_REWEAR"]
+    names = ["WL1.F_REWEAR"]
 
     def bimodal(n: int) -> np.ndarray:  # 60 % of flights near -0.6, 40 % near +0.9
         modes = np.where(rng.random(n) < 0.6, -0.6, 0.9)[:, np.newaxis]
@@ -174,10 +174,10 @@ def test_a_fleet_referenced_feature_learns_no_offset_from_a_bimodal_start() -> N
     worn = unlucky.copy()
     worn[12:] += 8.0  # a worn rod end moves the feature far beyond the healthy modes
     assert fleet.confidence_sequence(worn, names).max() >= 0.98
-    st = DetectionState.new("WL", names)
+    st = DetectionState.new("WL1", names)
     for row in unlucky[:8]:
-        fleet.update(st, {"WL.F_REWEAR": float(row[0])})
-    assert fleet.update(st, {"WL.F_REWEAR": 0.9}).offset["WL.F_REWEAR"] == 0.0
+        fleet.update(st, {"WL1.F_REWEAR": float(row[0])})
+    assert fleet.update(st, {"WL1.F_REWEAR": 0.9}).offset["WL1.F_REWEAR"] == 0.0
     again = FaultDetector.from_dict(json.loads(json.dumps(fleet.to_dict())))
     assert again.fleet_referenced == ("F_REWEAR",)
 
@@ -257,7 +257,7 @@ def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:
     detector's document carries exactly these hyper-parameters (values and key order):
     ``ema-detector/2`` sets its bands for a false-alarm rate (``ema-detector/1`` carried a
     ``band_margin`` on the largest healthy value instead; test_detection_bands.py loads one)."""
-    assert UNITS == ("WL1", "WL2", "WT", "WL")
+    assert UNITS == ("WL1", "WL2", "WT")
     assert DETECTION_DEFAULTS == DetectionConfig() == FaultDetector().config
     assert FaultDetector.from_config(DetectionConfig(reference_flights=0)).reference_flights == 0
     rng = np.random.default_rng(4)

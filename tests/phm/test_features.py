@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -15,11 +16,14 @@ from server.phm.features import (
     AIRCRAFT_FEATURES,
     FeatureConfig,
     actuator_features,
+    actuator_steps,
     block_mean,
     exp_filter,
     flight_features,
     rewear_feature,
+    standby_play_feature,
 )
+from server.vocabulary import POSITIONS, SIGNALS
 
 from .conftest import RS, make_actuator
 
@@ -175,17 +179,53 @@ def test_rewear_sees_lost_motion_between_winglet_rods() -> None:
     assert base < 2e-5 < v1 < v2
 
 
-def test_flight_features_gives_nineteen_with_conditions() -> None:
+def _three_drives(seconds: float = 30.0) -> dict[str, np.ndarray]:
     ch: dict[str, np.ndarray] = {}
     for i, p in enumerate(("WL1", "WL2", "WT")):
-        sig = make_actuator(seed=10 + i, seconds=30.0)
+        sig = make_actuator(seed=10 + i, seconds=seconds)
         for k, v in sig.items():
             if k != "t":
                 ch[f"{p}.{k}"] = v
         ch["t"] = sig["t"]
     ch["T_amb"] = np.linspace(15.0, -40.0, ch["t"].size)
+    return ch
+
+
+def test_a_standby_drive_carries_its_rod_end_play_and_no_motor_feature() -> None:
+    """WL2 stands by: its six motor features are not read (NaN, no valid step), its rod-end
+    play is; the active WL1 carries its six and no play; WT is untouched by the roles."""
+    ch = _three_drives()
+    both = flight_features(ch)
+    roles = flight_features(ch, active_channels=("WL1", "WT"), keep_tracks=True)
+    assert tuple(roles.summaries) == AIRCRAFT_FEATURES
+    def same(a: str, b: str = "") -> bool:  # NaN-equal
+        x, y = roles.summaries[a], both.summaries[b or a]
+        return np.array_equal([x.value, x.dispersion, x.n_valid],
+                              [y.value, y.dispersion, y.n_valid], equal_nan=True)
+
+    for g in ACTUATOR_FEATURES:
+        assert np.isnan(roles.summaries[f"WL2.{g}"].value)
+        assert roles.summaries[f"WL2.{g}"].n_valid == 0
+        assert same(f"WL1.{g}") and same(f"WT.{g}")
+    assert np.isnan(roles.summaries["WL1.F_REWEAR"].value)
+    assert roles.tracks is not None and "WL1.F_REWEAR" not in roles.tracks
+    play = standby_play_feature(ch["WL1.x"], ch["WL2.x"], ch["WL1.theta"], ch["WL2.theta"],
+                                actuator_steps({s: ch[f"WL1.{s}"] for s in SIGNALS}).i_q)
+    assert np.array_equal(roles.tracks["WL2.F_REWEAR"].series, play.series, equal_nan=True)
+    # both active (no roles named, or every drive named): the pair's lost motion on both
+    assert both.summaries["WL1.F_REWEAR"] == both.summaries["WL2.F_REWEAR"]
+    named = flight_features(ch, active_channels=POSITIONS)
+    assert json.dumps(named.to_dict()) == json.dumps(both.to_dict())
+    assert np.isnan(roles.conditions["WL2"]["temp_winding_est_c"])
+    assert roles.conditions["WL2"]["load_rms_n"] == both.conditions["WL2"]["load_rms_n"]
+    with pytest.raises(ValueError, match="no winglet drive"):
+        flight_features(ch, active_channels=("WT",))
+
+
+def test_flight_features_gives_twenty_with_conditions() -> None:
+    ch = _three_drives()
     ff = flight_features(ch, keep_tracks=True)
-    assert tuple(ff.summaries) == AIRCRAFT_FEATURES and len(AIRCRAFT_FEATURES) == 19
+    assert tuple(ff.summaries) == AIRCRAFT_FEATURES and len(AIRCRAFT_FEATURES) == 20
     assert ff.conditions["WT"]["temp_ground_c"] == pytest.approx(15.0)
     assert ff.tracks is not None and ff.tracks["WT.F_DMD"].series.size == ch["t"].size // 10
     for name, s in ff.summaries.items():
@@ -213,8 +253,7 @@ def test_each_feature_is_monotone_with_its_fault(mode: str, design_campaign) -> 
         pytest.skip(f"no {mode} pattern in the design campaign")
     rhos = []
     for p in pats:
-        unit = "WL" if mode == "REWEAR" else p.position
-        name = f"{unit}.{OWN_FEATURE[mode]}"
+        name = f"{p.position}.{OWN_FEATURE[mode]}"
         sev = np.array([r.severity for r in p.flights])
         val = np.array([r.features.summaries[name].value for r in p.flights])
         ok = np.isfinite(val)
@@ -229,6 +268,6 @@ def test_feature_names_cover_table_1() -> None:
 
 def test_vocabulary_names_are_re_exported() -> None:
     """The names the vocabulary owns are the same objects under server.phm.features."""
-    for name in ("ACTUATOR_FEATURES", "POSITIONS", "WINGLET_PAIR", "REWEAR_NAME"):
+    for name in ("ACTUATOR_FEATURES", "POSITIONS", "WINGLET_PAIR"):
         assert getattr(features_module, name) is getattr(vocabulary, name)
         assert name in features_module.__all__

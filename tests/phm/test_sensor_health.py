@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from server.phm.detection import FaultDetector
-from server.phm.features import FEATURE_SENSORS, FeatureSummary, FlightFeatures
+from server.phm.features import AIRCRAFT_FEATURES, FEATURE_SENSORS, FeatureSummary, FlightFeatures
 from server.phm.sensor_health import (
     NoiseSensitivity,
     SensorBands,
@@ -100,8 +100,7 @@ def _sensitivity() -> NoiseSensitivity:
     return s
 
 
-Z = {f"{p}.{g}": 0.1 for p in POSITIONS for g in FEATURE_SENSORS if g != "F_REWEAR"}
-Z["WL.F_REWEAR"] = 0.1
+Z = {n: 0.1 for n in AIRCRAFT_FEATURES}
 
 
 def test_no_finding_changes_nothing(bands: SensorBands) -> None:
@@ -123,11 +122,14 @@ def test_a_noisier_current_sensor_widens_and_shifts_its_own_features(
     assert [f.channel for f in judged.for_position("WT")] == ["WT.i_sum"]
 
 
-def test_one_noisier_winglet_lvdt_widens_the_pair_feature_by_half(bands: SensorBands) -> None:
+def test_one_noisier_winglet_lvdt_widens_both_drives_rod_end_play_by_half(
+        bands: SensorBands) -> None:
+    """The rod-end play reads both winglet LVDTs: one noisier LVDT adds half its excess."""
     q = _quality(np.random.default_rng(8), scale={"WL1.x": 2.0})
     judged = SensorModel(bands, _sensitivity()).judge(q, Z)
     r2 = (q["WL1.x"]["noise"] / bands.floor_medians_["WL1.x"]) ** 2
-    assert judged.extra_variance["WL.F_REWEAR"] == pytest.approx(0.2 * (r2 - 1.0) / 2.0)
+    for p in ("WL1", "WL2"):
+        assert judged.extra_variance[f"{p}.F_REWEAR"] == pytest.approx(0.2 * (r2 - 1.0) / 2.0)
 
 
 def test_a_stuck_channel_sets_aside_the_features_that_read_it(bands: SensorBands) -> None:

@@ -51,7 +51,7 @@ CONFUSION = {
     "n": sum(map(sum, _COUNTS)),
 }
 FEATURES = ["WL1.F_TTS", "WL1.F_DMD", "WL1.F_SE", "WL1.F_BDO", "WL1.F_MTEL", "WL1.F_MTWEAR",
-            "WL.F_REWEAR"]
+            "WL1.F_REWEAR"]
 
 
 @dataclass(frozen=True)

@@ -10,10 +10,10 @@ offset removed.
 Units and time base: one step per flight; ``flight_index`` counts the flights an actuator has
 seen since installation. Severity is normalised (failure threshold 1.0).
 
-Monitored units: each actuator carries its own six features; the winglet actuators also carry
-the pair's ``WL.F_REWEAR`` (rod-end wear cannot be told apart between the two rod ends from the
-two LVDTs alone, so both winglet actuators alarm on it). The classifier sees the seven generic
-features of the alarmed actuator (``F_REWEAR`` = 0 for the wingtip).
+Monitored units: each actuator carries its own six features, read on the flights its inverter
+switches; a winglet drive also carries its rod-end play ``F_REWEAR``, read on the flights it
+stands by (the active-standby tab alternates its active drive by flight). The classifier sees
+the seven generic features of the alarmed actuator (``F_REWEAR`` = 0 for the wingtip).
 
 Modules: :mod:`.model` (the trained model document and its reader), :mod:`.state` (an
 actuator's state between flights), :mod:`.inputs` (what each stage is fed), :mod:`.run` (one

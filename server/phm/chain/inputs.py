@@ -8,7 +8,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from server.vocabulary import GENERIC_FEATURES, REWEAR_FEATURE, REWEAR_NAME, WINGLET_PAIR
+from server.vocabulary import GENERIC_FEATURES, WINGLET_PAIR, position_features
 
 from ..baselines import FleetBaseline
 from ..detection import DetectionResult, DetectionState
@@ -19,12 +19,9 @@ __all__ = ["actuator_feature_names", "classifier_vector", "measurement_values",
 
 
 def actuator_feature_names(position: str) -> list[str]:
-    """Aircraft feature names monitored for one actuator position: its own six, plus the
-    winglet pair's rod-end feature for a winglet drive."""
-    names = [f"{position}.{g}" for g in GENERIC_FEATURES if g != REWEAR_FEATURE]
-    if position in WINGLET_PAIR:
-        names.append(REWEAR_NAME)
-    return names
+    """Aircraft feature names monitored for one actuator position: its own six, plus its
+    rod-end play for a winglet drive."""
+    return [f"{position}.{g}" for g in position_features(position)]
 
 
 def surface_of(position: str) -> str:
