@@ -1,4 +1,5 @@
-"""Measure the worn drive's load share (``data/load_share.json``, see :mod:`.load_share`).
+"""Measure the worn drive's load share of an active-active winglet pair (``data/load_share.json``,
+see :mod:`.load_share`).
 
 For each wear mode and position, the same flights (same conditions, gusts and sensor seeds) are
 simulated at 12 kHz at a grid of normalised severities; the ratio of the faulty drive's summed
@@ -19,7 +20,7 @@ import numpy as np
 from server.vocabulary import POSITIONS
 
 from .faults import THRESHOLDS, FaultState, healthy
-from .fleet import BASES, build_aircraft
+from .fleet import BASES, WingletMode, build_aircraft
 from .flight import (
     _summary_from_acc,
     build_scenario,
@@ -55,7 +56,8 @@ def _curve(args: tuple[str, str, tuple[float, ...], int, float]) -> list[float]:
         index = 37 * j  # spread the flights over the seasons
         seed = [_CALIBRATION_SEED, j]  # the same conditions, gusts and noise at every severity
         est = estimate_summary(aircraft, index, np.random.default_rng(seed),
-                               started_at=flight_start(index), duration_s=duration_s)
+                               started_at=flight_start(index), duration_s=duration_s,
+                               winglet_mode=WingletMode.ACTIVE_ACTIVE)
         estimated += getattr(est.actuators[position], field)
         for k, s_n in enumerate(grid):
             fault = healthy() if s_n == 0.0 else FaultState(

@@ -46,7 +46,7 @@ from .faults import (
     healthy,
     new_fault,
 )
-from .fleet import BASES, FLEET_BASES, Aircraft, WingletMode, build_aircraft
+from .fleet import BASES, DEFAULT_WINGLET_MODE, FLEET_BASES, Aircraft, WingletMode, build_aircraft
 from .flight import (
     estimate_summary,
     flight_start,
@@ -375,7 +375,7 @@ class ParquetSink:
 
 def _render(out_dir: Path, aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index: int,
             duration_s: float, sink: FlightSink, sensor_faults: tuple[SensorFault, ...] = (),
-            winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
+            winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
             ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
     flight_id = f"{spec.id}-{index:04d}"
     start = flight_start(index, day_offset=spec.day_offset)
@@ -420,7 +420,7 @@ class PatternTask:
     spec: PatternSpec
     options: dict[str, Any]
     sink: FlightSink
-    winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
+    winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
 
 
 def run_pattern(task: PatternTask) -> dict[str, Any]:
@@ -533,7 +533,7 @@ def _completed(tasks: dict[int, PatternTask], workers: int, executor: Executor |
 
 
 def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[str, Any],
-              sink: FlightSink, winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
+              sink: FlightSink, winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
               ) -> dict[str, Any]:
     """What determines the campaign's content: a resumed campaign must match it exactly."""
     settings = {"format": FORMAT, "kind": kind, "seed": int(seed), "scale": scale,
@@ -590,7 +590,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                  span_flights: tuple[float, float] | None = None,
                  sink: FlightSink | None = None,
                  executor: Executor | None = None,
-                 winglet_mode: WingletMode | str = WingletMode.ACTIVE_ACTIVE) -> dict[str, Any]:
+                 winglet_mode: WingletMode | str = DEFAULT_WINGLET_MODE) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::

@@ -101,7 +101,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """The options of a campaign run (``sim-worker campaign`` and ``hmsm campaign``)."""
     from .campaign import SCALES
-    from .fleet import WingletMode
+    from .fleet import DEFAULT_WINGLET_MODE, WingletMode
 
     camp.add_argument("--kind", choices=("design", "verification"), required=True)
     camp.add_argument("--out", required=True, help="output directory; run again with the same "
@@ -125,7 +125,7 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
                       help="range of the expected fault-to-failure span drawn per pattern "
                       "[flights] (default: the scale's, 170,360)")
     camp.add_argument("--winglet", choices=[m.value for m in WingletMode],
-                      default=WingletMode.ACTIVE_ACTIVE.value,
+                      default=DEFAULT_WINGLET_MODE.value,
                       help="how the winglet pair moves its tab: both drives active, or one "
                       "active and one in standby, the active channel alternating by flight")
     camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")

@@ -39,7 +39,7 @@ import numpy as np
 
 from server.vocabulary import ABRUPT, FAULT_MODES, PROGRESSIVE
 
-from .fleet import WingletMode
+from .fleet import DEFAULT_WINGLET_MODE, WingletMode
 from .load_share import life_integral
 
 __all__ = [
@@ -148,7 +148,7 @@ def reference_driver(mode: str, reference: ActuatorSummary) -> float:
 
 
 def life_to_go(state: FaultState,
-               winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> float:
+               winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> float:
     """``int_s^1 ds / (g(s) (s + c))`` from the fault's severity now: flights to failure times
     rate times the mean driver (:func:`~sim_worker.load_share.life_integral`)."""
     if state.mode not in PROGRESSIVE or state.position is None:
@@ -161,7 +161,7 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
               reference: ActuatorSummary | None = None, span_flights: float | None = None,
               span_range: tuple[float, float] = SPAN_FLIGHTS,
               severity_norm: float | None = None,
-              winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> FaultState:
+              winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> FaultState:
     """A fault at onset. Progressive modes draw the rate so that, at the ``reference`` flight
     (the base's average conditions, estimated), failure comes after ``U(*span_range)`` flights
     (default U(170, 360)), or after ``span_flights`` when a test-station operator sets it;

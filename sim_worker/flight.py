@@ -19,6 +19,7 @@ from server.vocabulary import POSITIONS
 
 from .faults import ActuatorSummary, FaultState, FlightSummary, fault_entries
 from .fleet import (
+    DEFAULT_WINGLET_MODE,
     SURFACE_OF,
     WINGLET,
     WINGTIP,
@@ -47,7 +48,6 @@ __all__ = [
 EPOCH = datetime(2024, 1, 1, 6, 0, tzinfo=timezone.utc)
 SOURCE = "sim_worker RT model v1"
 _SURFACES = (WINGLET, WINGTIP)
-_F_DYN_N = 50.0  # N, mean inertial + friction share of the link force while moving [est]
 _X_LSB_M = 2.0**-20  # m, recorder resolution of the command channel
 _T_LSB_C = 2.0**-6  # degC, recorder resolution of the ambient temperature
 _SURF_LSB_RAD = 2.0**-18  # rad, recorder resolution of the surface deflections
@@ -147,7 +147,7 @@ def simulate_flight(
     flight_id: str | None = None,
     started_at: datetime | None = None,
     duration_s: float = REFERENCE_DURATION_S,
-    winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE,
+    winglet_mode: WingletMode = DEFAULT_WINGLET_MODE,
 ) -> tuple[FlightLog, FlightSummary]:
     """Simulate one flight and return its download (format v1) and what the actuators did;
     under active-standby the log's metadata names the flight's active channels."""
@@ -183,16 +183,16 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
                      duration_s: float = REFERENCE_DURATION_S,
                      conditions: FlightConditions | None = None,
                      fault: FaultState | None = None,
-                     winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> FlightSummary:
+                     winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> FlightSummary:
     """Quasi-static estimate of :class:`FlightSummary` from the scenario alone (no 12 kHz run).
 
     Travel and sliding work from the command; an active drive's link force from the hinge
-    load it carries (its surface's aerodynamic load shared among the surface's active drives,
-    plus the standby's drag), a standby's from its damping and drag (:func:`_standby_force`);
-    current from force x lead / (efficiency x torque constant), or a standby's damping
-    current; winding temperature from the same first-order thermal model driven by ambient
-    and copper losses. With a wear ``fault`` on a pair flying active-active, the faulty
-    drive's sliding work is scaled by its measured load share at the fault's severity
+    load it carries (its surface's aerodynamic load and hinge damping shared among the
+    surface's active drives, plus the standby's drag), a standby's from its damping and drag
+    (:func:`_standby_force`); current from force x lead / (efficiency x torque constant), or
+    a standby's damping current; winding temperature from the same first-order thermal model
+    driven by ambient and copper losses. With a wear ``fault`` on a pair flying active-active,
+    the faulty drive's sliding work is scaled by its measured load share at the fault's severity
     (:func:`~sim_worker.load_share.load_share`), so that unrendered flights wear it as
     rendered ones do (an active-standby drive carries what its role gives it, worn or not);
     without one, the estimate is the healthy aircraft's.
@@ -209,17 +209,19 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
         standby = [q for q in POSITIONS if SURFACE_OF[q] == surface and q not in active]
         if pos in active:
             n_active = sum(1 for q in active if SURFACE_OF[q] == surface)
-            hinge = -sc.f_ext[:, surface] * _SURFACES[surface].n_actuators / n_active
+            surf = _SURFACES[surface]
+            # aerodynamic load and hinge damping (C_h w at the rod: C_h v / arm^2) of the surface
+            hinge = (-sc.f_ext[:, surface] * surf.n_actuators
+                     + surf.hinge_damping_nms * v / surf.arm_m**2) / n_active
             drag = sum(_standby_force(aircraft.ema[q], v)[0] for q in standby)
             f, i = _active_force(aircraft.ema[pos], hinge + np.sign(v) * drag)
-            f_dyn = _F_DYN_N
             # a lone active link flexes with the load: the rod end slides with the surface
             # while the nut holds (active-active: the measured load share absorbs it)
             flex = _flex_sliding(aircraft.ema[pos], f) if standby else 0.0
         else:
             f, i = _standby_force(aircraft.ema[pos], v)
-            f_dyn = flex = 0.0
-        acts[pos] = _estimated_actuator(aircraft.ema[pos], sc, cond, f, i, dx, f_dyn, flex)
+            flex = 0.0
+        acts[pos] = _estimated_actuator(aircraft.ema[pos], sc, cond, f, i, dx, flex)
     if (fault is not None and fault.position is not None and fault.mode in WORK_FIELD
             and WingletMode(winglet_mode) is WingletMode.ACTIVE_ACTIVE):
         field = WORK_FIELD[fault.mode]
@@ -260,7 +262,7 @@ def _standby_force(p: EmaParams, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def _estimated_actuator(p: EmaParams, sc: Scenario, cond: FlightConditions, f: np.ndarray,
-                        i: np.ndarray, dx: np.ndarray, f_dyn: float, flex_n_m: float
+                        i: np.ndarray, dx: np.ndarray, flex_n_m: float
                         ) -> ActuatorSummary:
     """Summary of one drive from its estimated force and current: the winding heated by
     its copper losses (a standby's damping resistors are outside the motor)."""
@@ -271,7 +273,7 @@ def _estimated_actuator(p: EmaParams, sc: Scenario, cond: FlightConditions, f: n
     u = sc.t_amb + rth * p_cu
     t0 = float(sc.t_amb[0] + 3.0)
     tw, _ = lfilter([1.0 - a], [1.0, -a], u, zi=[a * t0])
-    work = float(np.sum((f + f_dyn) * dx))
+    work = float(np.sum(f * dx))
     return ActuatorSummary(
         winding_mean_c=float(np.mean(tw)), winding_max_c=float(np.max(tw)),
         current_rms_a=float(np.sqrt(np.mean(i**2))), load_rms_n=float(np.sqrt(np.mean(f**2))),
@@ -280,7 +282,7 @@ def _estimated_actuator(p: EmaParams, sc: Scenario, cond: FlightConditions, f: n
 
 def reference_summary(aircraft: Aircraft, position: str, *, duration_s: float,
                       seed: int | tuple[int, ...],
-                      winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> ActuatorSummary:
+                      winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> ActuatorSummary:
     """Average of 24 estimated flights of the aircraft at its base, spread over a year: the
     expected conditions against which a progressive fault's rate is calibrated (so that its
     span holds on average, not only on one drawn flight); active-standby drives take each

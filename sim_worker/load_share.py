@@ -32,7 +32,7 @@ from importlib import resources
 
 import numpy as np
 
-from .fleet import WingletMode
+from .fleet import DEFAULT_WINGLET_MODE, WingletMode
 
 __all__ = ["WORK_FIELD", "load_share", "life_integral", "table"]
 
@@ -52,7 +52,7 @@ def table() -> dict:
 
 
 def _shares(mode: str, position: str, severity_norm: np.ndarray,
-            winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> np.ndarray:
+            winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> np.ndarray:
     """:func:`load_share` at every severity of an array."""
     if WingletMode(winglet_mode) is WingletMode.ACTIVE_STANDBY:
         return np.ones_like(severity_norm, dtype=float)
@@ -64,14 +64,14 @@ def _shares(mode: str, position: str, severity_norm: np.ndarray,
 
 
 def load_share(mode: str, position: str, severity_norm: float,
-               winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> float:
+               winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> float:
     """Simulated over estimated work of the faulty drive (1.0 for modes without an entry and
     under active-standby)."""
     return float(_shares(mode, position, np.asarray(severity_norm, dtype=float), winglet_mode))
 
 
 def life_integral(mode: str, position: str, onset_norm: float, growth_c: float,
-                  winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE) -> float:
+                  winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> float:
     """``int_onset^1 ds / (g(s) (s + c))``: flights to failure times rate times driver.
 
     The progression ``ds/dn = rate d g(s) (s + c)`` (faults.advance_fault, with the driver ``d``

@@ -40,7 +40,7 @@ from .faults import (
     new_fault,
     reference_driver,
 )
-from .fleet import WingletMode
+from .fleet import DEFAULT_WINGLET_MODE, WingletMode
 from .load_share import load_share
 
 __all__ = ["SteeredFault", "plan_fault", "steer_and_advance"]
@@ -59,7 +59,7 @@ class SteeredFault:
     reference_driver: float
     driver_sum: float = 0.0
     flights: int = 0
-    winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
+    winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
 
     @property
     def mean_driver(self) -> float:
@@ -70,7 +70,7 @@ class SteeredFault:
 def plan_fault(mode: str, position: str, rng: np.random.Generator, *,
                reference: ActuatorSummary, start_flight: int, span_flights: float | None = None,
                severity_norm: float | None = None,
-               winglet_mode: WingletMode = WingletMode.ACTIVE_ACTIVE
+               winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
                ) -> tuple[FaultState, SteeredFault | None]:
     """A test-station fault at its start, and for a progressive mode its plan: failure
     ``span_flights`` after ``start_flight`` (drawn from the campaigns' range when None, with the

@@ -135,14 +135,15 @@ def test_sensor_faults_are_campaign_settings(tmp_path) -> None:
     faulty = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": faults}, ParquetSink())
     assert "sensor_faults" not in plain  # campaigns made before the option stay recognised
     assert faulty["sensor_faults"] == ["WL1.lvdt:drift=1e-06", "WT.lvdt:noise=2"]  # canonical
-    standby = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": ()}, ParquetSink(),
-                        WingletMode.ACTIVE_STANDBY)
-    assert "winglet_mode" not in plain and standby["winglet_mode"] == "active-standby"
+    pair = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": ()}, ParquetSink(),
+                     WingletMode.ACTIVE_ACTIVE)
+    # an active-active campaign keeps the settings it had before the option existed
+    assert plain["winglet_mode"] == "active-standby" and "winglet_mode" not in pair
     _Progress(tmp_path, plain)
     with pytest.raises(ValueError, match="other settings"):
         _Progress(tmp_path, faulty)  # resuming with other sensor faults is refused
     with pytest.raises(ValueError, match="other settings"):
-        _Progress(tmp_path, standby)  # or with the other winglet mode
+        _Progress(tmp_path, pair)  # or with the other winglet mode
     fleet = fleet_for("design", 1)
     assert _manifest(plain, cfg, fleet, [])["sensor_faults"] == []
     assert _manifest(faulty, cfg, fleet, [])["sensor_faults"] == faulty["sensor_faults"]
@@ -174,16 +175,20 @@ def _rendered_x(tmp_path, faults: tuple[SensorFault, ...], index: int) -> dict[s
 
 
 def test_lvdt_drift_shifts_the_rendered_winglet_lvdts(tmp_path) -> None:
-    drift, index = 2e-5, 5
+    """The tab's position loop closes on the active drive's LVDT: a drifted standby LVDT
+    reads the offset and moves nothing; a drifted active one moves the tab by the offset,
+    which its partner reads with the opposite sign."""
+    drift = 2e-5
     faults = (SensorFault.parse(f"WL1.lvdt:drift={drift}"),)
-    base, drifted = _rendered_x(tmp_path, (), index), _rendered_x(tmp_path, faults, index)
-    shift = {pos: float(np.median(drifted[pos] - base[pos])) for pos in POSITIONS}
     lsb = 2.0**-19
-    # the position loop closes on the mean of the two winglet LVDTs: the tab moves by half the
-    # offset, so WL1 reads +offset/2, WL2 -offset/2, and their difference the whole offset
-    assert shift["WL1"] - shift["WL2"] == pytest.approx(drift * index, abs=2 * lsb)
-    assert shift["WL1"] == pytest.approx(drift * index / 2, abs=2 * lsb)
-    assert shift["WT"] == 0.0
+    # flight 5: WL1 stands by, it reads the offset; flight 4: WL1 drives, WL2 reads -offset
+    for index, wl1_reads, wl2_reads in ((5, 1.0, 0.0), (4, 0.0, -1.0)):
+        base, drifted = _rendered_x(tmp_path, (), index), _rendered_x(tmp_path, faults, index)
+        shift = {pos: float(np.median(drifted[pos] - base[pos])) for pos in POSITIONS}
+        assert shift["WL1"] - shift["WL2"] == pytest.approx(drift * index, abs=2 * lsb)
+        assert shift["WL1"] == pytest.approx(wl1_reads * drift * index, abs=2 * lsb)
+        assert shift["WL2"] == pytest.approx(wl2_reads * drift * index, abs=2 * lsb)
+        assert shift["WT"] == 0.0
     # flight 0 is the rigged one
     assert np.array_equal(_rendered_x(tmp_path, faults, 0)["WL1"],
                           _rendered_x(tmp_path, (), 0)["WL1"])

@@ -40,17 +40,17 @@ CASES: dict[str, tuple[str, str | None, float, WingletMode, int]] = {
 }
 
 EXPECTED: dict[str, str] = {
-    "healthy": "4029094519e4a18f353c4629365a4eca5e4d9e0dd169a15e07335af137262e1d",
-    "TTS": "6b7556bbfc22fdeaa1d0eb80ddd9f9370966554de8a9912dedd052bdf7d626a6",
-    "DMD": "eabcf18930ea9c4c9c2316ccc69617a1052386faf5d818f5df4b5aea4b600752",
-    "SE": "7fb52a0802a9b74f1d5dd11e8b79a5086cc7df0d488c5d067cc95e796aeacad7",
-    "BDO": "4f349c13c7aaf8ad3023cdf4b67897c481f5d86440785f13322f1ddf736597af",
-    "MTEL": "0b0ad0138fbd18b81e528ab8b590c230927af7e0a29e0f72d73b7d99e7c51fa4",
-    "MTWEAR": "bfab169fc5f48662326acdc16266411e72e84abe6a8c3ef98dbcde75715b86a0",
-    "REWEAR": "d949f40e5159ce93dcf987d234ff074fbb572e3bbfd39c3da0f822734d84a40a",
-    "standby healthy": "8fe56e025c31e7875929fff635e7b3edd9420ca8a0c4b6d089188866484f3831",
-    "standby TTS": "62ff24fe820f49464448084d510c2a2d5fd019496973a082abca0c23d58ade2e",
-    "standby REWEAR": "f67d72245e798c8265033471190b83ba763ae756cfab5dea27f63c3cae43a8a4",
+    "healthy": "a0080e0434576f3d14320d879b205ad3a80c7998c648095d56f72240790d269e",
+    "TTS": "08d58219474aa6347e0f94143193d638d68ad4322ccbce6a3b4b691f46039afb",
+    "DMD": "4e4378d5d5cc1c3ad8acb682cb739a2c9bea1e177549335b55a7fc0bc2d33aa7",
+    "SE": "4e8bf36b995cc8ed7998763c9e7fe11fe6e8fac4a3588f2f0896dfc81d275e05",
+    "BDO": "517810565285da98ef7cb81ccfac1b70f54d981ab5635395986e47f18b5cee4c",
+    "MTEL": "c2ad72bf08af66fd02e3686a5022dbdff1e6eecfa331458acaed0b2d5986037e",
+    "MTWEAR": "dc8e75e5441a69e5e145bd4f453cf1930f59acaff02bc04b1188fd5343465d6c",
+    "REWEAR": "cd5db159d6549d158c06fd7c3060e26c0f6abfba8b648132482f27cebe0cddb1",
+    "standby healthy": "2f5f3465056bb42009fa2e4c7c69b22ffd00a76f8e276ae58844d29c6a69cdc8",
+    "standby TTS": "2d2d3dbe09eb79c9a50cbc7da7a68828c5e06cf21fa04ff761ea92da5f560a4b",
+    "standby REWEAR": "9d906192ffdf24c3eb53cdab1473e6b97624e467f55113b7ffc4a40274fe213c",
 }
 
 EXPECTED_MOTOR = "c0b0407ad9ed9f2c4e29c02ceb1a52c5722a824db545550d387eeaba00179815"
