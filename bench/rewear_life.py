@@ -16,7 +16,7 @@ import argparse
 import numpy as np
 
 from server.phm.features import actuator_steps, flight_features, standby_play_feature
-from server.vocabulary import REWEAR_NAME, SIGNALS, WINGLET_PAIR
+from server.vocabulary import SIGNALS, WINGLET_PAIR
 from sim_worker.faults import advance_fault, new_fault
 from sim_worker.fleet import WingletMode, active_channels, build_aircraft
 from sim_worker.flight import reference_summary, simulate_flight
@@ -47,7 +47,7 @@ def run_life(mode: WingletMode, span: float, seed: int) -> list[dict[str, float 
             standby = next(p for p in WINGLET_PAIR if p != active)
             value, reads = _standby_play(ch, active, standby), standby
         else:
-            value, reads = flight_features(ch).summaries[REWEAR_NAME].value, "pair"
+            value, reads = flight_features(ch).summaries["WL1.F_REWEAR"].value, "pair"
         rows.append({"added_m": fault.severity, "sn": fault.severity_norm, "value": value,
                      "reads": reads})
         if fault.failed:

@@ -154,7 +154,7 @@ def life_to_go(state: FaultState,
     if state.mode not in PROGRESSIVE or state.position is None:
         raise ValueError(f"{state.mode} has no progression")
     return life_integral(state.mode, state.position, min(state.severity_norm, 1.0),
-                         _GROWTH_C[state.mode], winglet_mode)
+                         _GROWTH_C[state.mode], winglet_mode=winglet_mode)
 
 
 def new_fault(mode: str, position: str, rng: np.random.Generator, *,
@@ -181,7 +181,8 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
     if reference is None:
         raise ValueError("progressive modes need a reference flight summary to set the rate")
     span = float(rng.uniform(*span_range)) if span_flights is None else float(span_flights)
-    rate = life_integral(mode, position, _ONSET_NORM, _GROWTH_C[mode], winglet_mode) / (
+    rate = life_integral(mode, position, _ONSET_NORM, _GROWTH_C[mode],
+                         winglet_mode=winglet_mode) / (
         span * reference_driver(mode, reference))
     return FaultState(mode, position, _ONSET_NORM * thr, thr, rate=rate)
 

@@ -226,7 +226,8 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
             and WingletMode(winglet_mode) is WingletMode.ACTIVE_ACTIVE):
         field = WORK_FIELD[fault.mode]
         own = acts[fault.position]
-        share = load_share(fault.mode, fault.position, fault.severity_norm)
+        share = load_share(fault.mode, fault.position, fault.severity_norm,
+                           winglet_mode=WingletMode.ACTIVE_ACTIVE)
         acts[fault.position] = replace(own, **{field: getattr(own, field) * share})
     return FlightSummary(actuators=acts, block_hours=cond.block_hours,
                          ground_temp_c=cond.ground_temp_c,

@@ -32,7 +32,7 @@ from importlib import resources
 
 import numpy as np
 
-from .fleet import DEFAULT_WINGLET_MODE, WingletMode
+from .fleet import WingletMode
 
 __all__ = ["WORK_FIELD", "load_share", "life_integral", "table"]
 
@@ -52,7 +52,7 @@ def table() -> dict:
 
 
 def _shares(mode: str, position: str, severity_norm: np.ndarray,
-            winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> np.ndarray:
+            winglet_mode: WingletMode) -> np.ndarray:
     """:func:`load_share` at every severity of an array."""
     if WingletMode(winglet_mode) is WingletMode.ACTIVE_STANDBY:
         return np.ones_like(severity_norm, dtype=float)
@@ -63,15 +63,16 @@ def _shares(mode: str, position: str, severity_norm: np.ndarray,
     return np.interp(severity_norm, doc["severity_norm"], curve)
 
 
-def load_share(mode: str, position: str, severity_norm: float,
-               winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> float:
+def load_share(mode: str, position: str, severity_norm: float, *,
+               winglet_mode: WingletMode) -> float:
     """Simulated over estimated work of the faulty drive (1.0 for modes without an entry and
-    under active-standby)."""
+    under active-standby; the mode is required: a default would silently give 1.0 to an
+    active-active caller)."""
     return float(_shares(mode, position, np.asarray(severity_norm, dtype=float), winglet_mode))
 
 
-def life_integral(mode: str, position: str, onset_norm: float, growth_c: float,
-                  winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> float:
+def life_integral(mode: str, position: str, onset_norm: float, growth_c: float, *,
+                  winglet_mode: WingletMode) -> float:
     """``int_onset^1 ds / (g(s) (s + c))``: flights to failure times rate times driver.
 
     The progression ``ds/dn = rate d g(s) (s + c)`` (faults.advance_fault, with the driver ``d``

@@ -96,7 +96,8 @@ def steer_and_advance(fault: SteeredFault, summary: FlightSummary, flight: int,
     sn = st.severity_norm
     flown_driver = driver(st.mode, summary.actuators[st.position], summary.block_hours)
     measured = replace(fault, driver_sum=fault.driver_sum
-                       + flown_driver / load_share(st.mode, st.position, sn, fault.winglet_mode),
+                       + flown_driver / load_share(st.mode, st.position, sn,
+                                                  winglet_mode=fault.winglet_mode),
                        flights=fault.flights + 1)
     # flight n covers [n, n + 1): failing at the target flight T means crossing the threshold
     # during flight T - 1, so the plan aims at its middle; an overdue fault is planned to

@@ -254,7 +254,7 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
     out["prognosis_most_probable"] = "\n".join(mp)
     tm = result["timing"]
     rows = [
-        ("features + detection per 80 Hz step, 3 EMAs, 19 features (amortised over a flight)",
+        ("features + detection per 80 Hz step, 3 EMAs, 20 features (amortised over a flight)",
          tm.get("features_detection_per_step_ms"), "11.3"),
         ("  of which feature extraction per step", tm.get("features_per_step_ms"), ""),
         ("  of which z-scores + detection per step", tm.get("detection_per_step_ms"), ""),

@@ -94,7 +94,7 @@ class ChainTimer:
 
 def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
                    ) -> dict[str, Any]:
-    """Mean time to read a flight file and to compute its features (3 EMAs, 19 features).
+    """Mean time to read a flight file and to compute its features (3 EMAs, 20 features).
 
     The flights are spread evenly over the manifest's list (deterministic choice).
     """

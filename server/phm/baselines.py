@@ -2,7 +2,7 @@
 
 Time base: one sample per flight (the per-flight feature value of :mod:`server.phm.features`).
 
-For each of the 19 aircraft features a linear model of the healthy flight value on the
+For each of the 20 aircraft features a linear model of the healthy flight value on the
 operating conditions of its actuator (ground and mean ambient temperature [degC], rms expected
 aerodynamic load [N], rms motor speed [rad/s], and for selected features the winding
 temperature estimated from the still-hold resistance [degC]) is fitted on the healthy flights of
@@ -208,7 +208,7 @@ def _covariates_for(name: str, base: Sequence[str]) -> tuple[str, ...]:
 
 
 class FleetBaseline:
-    """One :class:`LinearBaseline` per aircraft feature (19), fitted on healthy flights.
+    """One :class:`LinearBaseline` per aircraft feature (20), fitted on healthy flights.
 
     Parameters
     ----------
@@ -285,7 +285,7 @@ class FleetBaseline:
                 if name in self.models_}
 
     def zscore_matrix(self, flights: Sequence[FlightFeatures]) -> np.ndarray:
-        """(n_flights, 19) standardised residuals in ``AIRCRAFT_FEATURES`` order."""
+        """(n_flights, 20) standardised residuals in ``AIRCRAFT_FEATURES`` order."""
         self._check()
         cols = []
         for name in AIRCRAFT_FEATURES:

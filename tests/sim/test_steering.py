@@ -35,9 +35,9 @@ def _fly(mode: str, position: str, span: int, *, steered: bool, colder_k: float,
                              span_flights=float(span))
     n = 100
     while not fault.failed and n < 100 + 5 * span:
-        # a worn winglet drive hands part of its work to its partner (the measured flights
-        # hold it; sim_worker.load_share)
-        share = load_share(mode, position, fault.severity_norm)
+        # a worn drive of an active-active pair hands part of its work to its partner (the
+        # measured flights hold it; sim_worker.load_share); 1 on the active-standby tab
+        share = load_share(mode, position, fault.severity_norm, winglet_mode=plan.winglet_mode)
         summary = _flight(position, -colder_k + rng.normal(0.0, 4.0),
                           calmer * share * rng.lognormal(-0.125, 0.5),
                           float(rng.uniform(0.8, 2.5)))

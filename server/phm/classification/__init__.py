@@ -1,7 +1,7 @@
 """Fault classification: a linear SVM over the feature vector (paper section 4.2, Figure 22).
 
 Time base: one feature vector per faulty flight (flights after detection) per monitored
-aircraft, e.g. the 19 residual features ``<unit>.F_*`` of :mod:`server.phm.features` (each
+aircraft, e.g. the 20 residual features ``<unit>.F_*`` of :mod:`server.phm.features` (each
 standardised against its healthy baseline, dimensionless). Labels are the fault modes (``TTS``,
 ``DMD``, ``SE``, ``BDO``, ``MTEL``, ``MTWEAR``, ``REWEAR`` in the campaign manifest,
 :data:`server.vocabulary.FAULT_MODES`), but the class list is learned from ``y``; any hashable,
