@@ -29,7 +29,7 @@ def ratios(mode: str, severity_norm: float) -> dict[str, float]:
         _, rendered = simulate_flight(aircraft, fault, n, np.random.default_rng([2, n]),
                                       duration_s=60.0, winglet_mode=winglet)
         estimated = estimate_summary(aircraft, n, np.random.default_rng([2, n]), duration_s=60.0,
-                                     fault=fault, winglet_mode=winglet)
+                                     winglet_mode=winglet)
         role = "active" if "WL1" in active_channels(winglet, n) else "standby"
         sums[role] += [getattr(rendered.actuators["WL1"], FIELDS[mode]),
                        getattr(estimated.actuators["WL1"], FIELDS[mode])]

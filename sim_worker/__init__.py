@@ -26,9 +26,9 @@ Public API (what the service's sim worker calls)::
   duration_s=120.0) -> (FlightLog, FlightSummary)``. All draws come from ``rng`` (seed it per
   aircraft and flight); the same seed gives the same bytes.
 * ``advance_fault(fault, summary, rng) -> FaultState``: one flight of progression.
-* ``estimate_summary(aircraft, flight_index, rng, ..., fault=None) -> FlightSummary``: what a
-  flight would do, without the 12 kHz run (for flights that are not rendered; with a wear
-  ``fault``, the worn drive's work scaled by its load share, :mod:`sim_worker.load_share`).
+* ``estimate_summary(aircraft, flight_index, rng, ...) -> FlightSummary``: what a flight would
+  do, without the 12 kHz run (for flights that are not rendered; each winglet drive in its
+  role).
 * ``reference_summary(aircraft, position, *, duration_s, seed) -> ActuatorSummary``: the
   aircraft's average flight (24 estimates over a year), against which a fault's rate is set.
 * ``run_campaign(kind, out_dir, *, seed, scale, workers=None)``: see :mod:`sim_worker.campaign`.

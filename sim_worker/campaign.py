@@ -14,9 +14,9 @@ Fault-to-failure runs start with ``lead_flights`` healthy flights (the actuator'
 the fault, every one rendered), then advance the progression law every flight from the onset;
 only every ``render_every``-th flight after the onset (and the failure flight) is simulated at
 12 kHz and given to the sink; the others use the quasi-static
-:func:`~sim_worker.flight.estimate_summary` of the same flight conditions, fault-aware (a
-worn drive's measured load share), so a run's expected life does not depend on
-``render_every``.
+:func:`~sim_worker.flight.estimate_summary` of the same flight conditions (which agrees with
+the rendered flights on the wear drivers of either role), so a run's expected life does not
+depend on ``render_every``.
 """
 
 from __future__ import annotations
@@ -316,7 +316,7 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
     for m_i, mode in enumerate(MODES):
         for j in range(cfg.patterns_per_mode):
             ai = (j * 3 + m_i) % n_air
-            # rod-end wear is seen only across the winglet pair, so it goes on a winglet drive
+            # a rod end's play is read against the partner drive's LVDT: a winglet drive
             pos = (WINGLET_PAIR[j % 2] if mode == "REWEAR"
                    else POSITIONS[(j + m_i) % len(POSITIONS)])
             if mode in A_PRIORI:
@@ -374,15 +374,13 @@ class ParquetSink:
 
 
 def _render(out_dir: Path, aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index: int,
-            duration_s: float, sink: FlightSink, sensor_faults: tuple[SensorFault, ...] = (),
-            winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
+            duration_s: float, sink: FlightSink, sensor_faults: tuple[SensorFault, ...] = ()
             ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
     flight_id = f"{spec.id}-{index:04d}"
     start = flight_start(index, day_offset=spec.day_offset)
     log, summary = simulate_flight(_at_flight(aircraft, sensor_faults, index), fault, index,
                                    _flight_rng(spec, index, 0), flight_id=flight_id,
-                                   started_at=start, duration_s=duration_s,
-                                   winglet_mode=winglet_mode)
+                                   started_at=start, duration_s=duration_s)
     rel, stored = sink(out_dir, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
                        _ground_temp(summary))
     return flight_id, rel, summary, stored
@@ -420,7 +418,6 @@ class PatternTask:
     spec: PatternSpec
     options: dict[str, Any]
     sink: FlightSink
-    winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
 
 
 def run_pattern(task: PatternTask) -> dict[str, Any]:
@@ -440,7 +437,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
 
     def render(fault: FaultState, index: int) -> Any:
         fid, rel, summ, data = _render(out_dir, aircraft, spec, fault, index, cfg.duration_s,
-                                       sink, faults, task.winglet_mode)
+                                       sink, faults)
         rendered.append((index, fid, rel, fault, summ))
         if data is not None:
             stored[fid] = data
@@ -449,7 +446,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     if spec.mode == "healthy" or spec.mode in A_PRIORI:
         threshold = _constant_run(spec, render)
     else:
-        threshold, failure = _fault_to_failure(aircraft, spec, cfg, render, task.winglet_mode)
+        threshold, failure = _fault_to_failure(aircraft, spec, cfg, render)
     flights = [_flight_entry(fid, rel, index, f, summ, failure,
                              flight_start(index, day_offset=spec.day_offset).isoformat())
                for index, fid, rel, f, summ in rendered]
@@ -488,15 +485,14 @@ def _constant_run(spec: PatternSpec, render: Callable[[FaultState, int], Any]) -
 
 
 def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
-                      render: Callable[[FaultState, int], Any], winglet_mode: WingletMode
+                      render: Callable[[FaultState, int], Any]
                       ) -> tuple[float | None, int | None]:
     """The healthy lead, then the fault advanced flight by flight to failure (every
     ``render_every``-th flight and the failure flight rendered); threshold and failure flight."""
     assert spec.position is not None
-    ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s, seed=spec.seed,
-                            winglet_mode=winglet_mode)
+    ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s, seed=spec.seed)
     fault = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]),
-                      reference=ref, span_range=cfg.span_flights, winglet_mode=winglet_mode)
+                      reference=ref, span_range=cfg.span_flights)
     for index in range(spec.onset):
         render(healthy(), index)
     for index in range(spec.onset, spec.onset + _MAX_FLIGHTS):
@@ -508,8 +504,7 @@ def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
         else:
             summ = estimate_summary(aircraft, index, _flight_rng(spec, index, 0),
                                     started_at=flight_start(index, day_offset=spec.day_offset),
-                                    duration_s=cfg.duration_s, fault=fault,
-                                    winglet_mode=winglet_mode)
+                                    duration_s=cfg.duration_s)
         fault = advance_fault(fault, summ, _flight_rng(spec, index, 1))
     return fault.threshold, None
 
@@ -533,13 +528,13 @@ def _completed(tasks: dict[int, PatternTask], workers: int, executor: Executor |
 
 
 def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[str, Any],
-              sink: FlightSink, winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
-              ) -> dict[str, Any]:
+              sink: FlightSink) -> dict[str, Any]:
     """What determines the campaign's content: a resumed campaign must match it exactly."""
     settings = {"format": FORMAT, "kind": kind, "seed": int(seed), "scale": scale,
                 "config": asdict(cfg),
                 "bases": list(options["bases"]) if options["bases"] else None,
-                "noise_scale": options["noise_scale"], "sink": sink.describe()}
+                "noise_scale": options["noise_scale"], "sink": sink.describe(),
+                "winglet_mode": DEFAULT_WINGLET_MODE.value}
     if kind == "design":
         settings["sensor_study"] = {"patterns": SENSOR_STUDY_PATTERNS,
                                     "noise": SENSOR_STUDY_NOISE}
@@ -547,8 +542,6 @@ def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[
         # only when given: campaigns without sensor faults keep the settings they had
         # before the option existed, so finished ones are still recognised
         settings["sensor_faults"] = [f.spec for f in options["sensor_faults"]]
-    if winglet_mode is not WingletMode.ACTIVE_ACTIVE:  # likewise
-        settings["winglet_mode"] = winglet_mode.value
     return settings
 
 
@@ -589,8 +582,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                  render_every: int | None = None,
                  span_flights: tuple[float, float] | None = None,
                  sink: FlightSink | None = None,
-                 executor: Executor | None = None,
-                 winglet_mode: WingletMode | str = DEFAULT_WINGLET_MODE) -> dict[str, Any]:
+                 executor: Executor | None = None) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
@@ -611,9 +603,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     one sensor of one actuator on every aircraft, written as their specs
     (``["WT.lvdt:noise=2"]``, empty when none). ``render_every`` overrides the scale's
     rendering step of fault-to-failure runs (1 renders every flight, as a fleet in service
-    downloads every one); ``span_flights`` the range of expected fault-to-failure spans;
-    ``winglet_mode`` how the winglet pair moves its tab (:class:`~sim_worker.fleet.WingletMode`,
-    recorded in the manifest as ``"winglet_mode"``).
+    downloads every one); ``span_flights`` the range of expected fault-to-failure spans. The
+    winglet tab flies active-standby (``fleet.DEFAULT_WINGLET_MODE``, recorded in the manifest
+    as ``"winglet_mode"``).
     ``sink`` decides what is kept of a rendered flight (default: its Parquet file). Patterns
     run on ``executor`` (any ``concurrent.futures.Executor``, e.g. a Dask client's) if given,
     else on a local pool of ``workers`` processes; the output does not depend on either. An
@@ -626,7 +618,6 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     if not noise_scale > 0:
         raise ValueError("noise_scale must be positive")
     faults = _sensor_faults(sensor_faults)
-    winglet = WingletMode(winglet_mode)
     cfg = _scale_config(scale, kind, render_every, span_flights)
     sink = sink if sink is not None else ParquetSink()
     from tqdm import tqdm
@@ -638,7 +629,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     # a plain tuple of frozen dataclasses: pickled as is to pool and Dask workers
     options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale),
                "sensor_faults": faults}
-    settings = _settings(kind, seed, scale, cfg, options, sink, winglet)
+    settings = _settings(kind, seed, scale, cfg, options, sink)
     finished = _finished_manifest(out, settings)
     if finished is not None:
         return finished
@@ -648,7 +639,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     store = _Progress(out, settings)
     results = {s.number: r for s in specs if (r := store.done(s)) is not None}
     # longest tasks first improves load balance; results are re-ordered by pattern number
-    todo = {s.number: PatternTask(str(out), kind, seed, cfg, s, options, sink, winglet)
+    todo = {s.number: PatternTask(str(out), kind, seed, cfg, s, options, sink)
             for s in sorted(specs, key=lambda s: (s.mode not in PROGRESSIVE, s.number))
             if s.number not in results}
     bar = tqdm(total=len(specs), initial=len(results), desc=f"{kind} campaign",

@@ -3,7 +3,6 @@
 ``sim-worker campaign --kind design|verification --out DIR --seed N --scale SCALE``
 writes a campaign of flight logs and its manifest (see :mod:`sim_worker.campaign`);
 ``hmsm campaign`` takes the same options and streams it (features kept, logs sampled).
-``sim-worker load-share --out FILE`` measures a worn drive's load share (:mod:`.calibration`).
 ``sim-worker span-check --out FILE`` measures how well the test station honours a requested
 time to failure (:mod:`.span_check`).
 """
@@ -31,13 +30,6 @@ def build_parser() -> argparse.ArgumentParser:
     add_campaign_arguments(camp)
     camp.set_defaults(func=_cmd_campaign)
 
-    share = sub.add_parser("load-share", help="measure a worn drive's load share at 12 kHz "
-                           "(regenerates sim_worker/data/load_share.json)")
-    share.add_argument("--out", required=True, help="JSON file to write")
-    share.add_argument("--flights", type=int, default=12, help="paired flights per point")
-    share.add_argument("--duration", type=float, default=60.0, help="seconds per flight")
-    share.add_argument("--workers", type=int, default=None)
-    share.set_defaults(func=_cmd_load_share)
 
     check = sub.add_parser("span-check", help="fly test-station injections to failure and "
                            "measure how well the requested time to failure is honoured")
@@ -101,7 +93,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """The options of a campaign run (``sim-worker campaign`` and ``hmsm campaign``)."""
     from .campaign import SCALES
-    from .fleet import DEFAULT_WINGLET_MODE, WingletMode
 
     camp.add_argument("--kind", choices=("design", "verification"), required=True)
     camp.add_argument("--out", required=True, help="output directory; run again with the same "
@@ -124,10 +115,6 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
     camp.add_argument("--span-range", default=None, metavar="LOW,HIGH",
                       help="range of the expected fault-to-failure span drawn per pattern "
                       "[flights] (default: the scale's, 170,360)")
-    camp.add_argument("--winglet", choices=[m.value for m in WingletMode],
-                      default=DEFAULT_WINGLET_MODE.value,
-                      help="how the winglet pair moves its tab: both drives active, or one "
-                      "active and one in standby, the active channel alternating by flight")
     camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     camp.add_argument("--bases", default=None, help="robustness: comma-separated bases to fly "
                       "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
@@ -200,8 +187,7 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None
                             sensor_faults=tuple(args.sensor_fault or ()),
                             render_every=args.render_every,
                             span_flights=parse_span_range(args.span_range),
-                            sink=sink, executor=executor,  # type: ignore[arg-type]
-                            winglet_mode=args.winglet)
+                            sink=sink, executor=executor)  # type: ignore[arg-type]
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
@@ -210,23 +196,6 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     n = sum(len(p["flights"]) for p in manifest["patterns"])
     print(f"{args.kind} campaign: {len(manifest['patterns'])} patterns, {n} flights written to "
           f"{args.out} in {time.perf_counter() - t0:.1f} s")
-    return 0
-
-
-def _cmd_load_share(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
-    from .calibration import measure_load_share
-
-    t0 = time.perf_counter()
-    doc = measure_load_share(n_flights=args.flights, duration_s=args.duration,
-                             workers=args.workers)
-    Path(args.out).write_text(json.dumps(doc, indent=1) + "\n")
-    for mode, curves in doc["ratio"].items():
-        for pos, curve in curves.items():
-            print(f"{mode:7s} {pos:4s} " + " ".join(f"{v:.3f}" for v in curve))
-    print(f"load share written to {args.out} in {time.perf_counter() - t0:.1f} s")
     return 0
 
 

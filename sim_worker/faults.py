@@ -25,9 +25,8 @@ Archard wear volume ``K F_N s / H`` grows with force times sliding distance on t
 and on the rod end (REWEAR). Every driver is multiplied by the flight's block hours over 1.5 h.
 ``rate`` is drawn per pattern so that the expected fault-to-failure span at the base's average
 conditions is ``U(170, 360)`` flights (accelerated ageing, as in the paper); actual spans spread
-further with season and usage. On a winglet pair flying active-active a worn drive does less and
-less of the work as its backlash grows (its partner holds the tab), so winglet wear decelerates:
-see :mod:`.load_share`; in active-standby each drive carries what its role gives it, worn or not.
+further with season and usage. On the active-standby winglet tab each drive carries what its role
+gives it, worn or not, so a worn drive's wear is driven by the work it does in its role.
 """
 
 from __future__ import annotations
@@ -38,9 +37,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from server.vocabulary import ABRUPT, FAULT_MODES, PROGRESSIVE
-
-from .fleet import DEFAULT_WINGLET_MODE, WingletMode
-from .load_share import life_integral
 
 __all__ = [
     "MODES",
@@ -57,6 +53,7 @@ __all__ = [
     "fault_entries",
     "driver",
     "reference_driver",
+    "life_integral",
     "life_to_go",
 ]
 
@@ -147,26 +144,29 @@ def reference_driver(mode: str, reference: ActuatorSummary) -> float:
     return max(driver(mode, reference, _BLOCK_HOURS_REF), 1e-9)
 
 
-def life_to_go(state: FaultState,
-               winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> float:
-    """``int_s^1 ds / (g(s) (s + c))`` from the fault's severity now: flights to failure times
-    rate times the mean driver (:func:`~sim_worker.load_share.life_integral`)."""
+def life_integral(onset_norm: float, growth_c: float) -> float:
+    """``int_onset^1 ds / (s + c) = ln((1 + c) / (onset + c))``: flights to failure times rate
+    times driver. The progression ``ds/dn = rate d (s + c)`` (:func:`advance_fault`, with the
+    driver ``d`` of the estimated reference flight) reaches ``s = 1`` after this integral /
+    (rate d) flights."""
+    return math.log((1.0 + growth_c) / (onset_norm + growth_c))
+
+
+def life_to_go(state: FaultState) -> float:
+    """:func:`life_integral` from the fault's severity now: flights to failure times rate times
+    the mean driver."""
     if state.mode not in PROGRESSIVE or state.position is None:
         raise ValueError(f"{state.mode} has no progression")
-    return life_integral(state.mode, state.position, min(state.severity_norm, 1.0),
-                         _GROWTH_C[state.mode], winglet_mode=winglet_mode)
+    return life_integral(min(state.severity_norm, 1.0), _GROWTH_C[state.mode])
 
 
 def new_fault(mode: str, position: str, rng: np.random.Generator, *,
               reference: ActuatorSummary | None = None, span_flights: float | None = None,
               span_range: tuple[float, float] = SPAN_FLIGHTS,
-              severity_norm: float | None = None,
-              winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> FaultState:
+              severity_norm: float | None = None) -> FaultState:
     """A fault at onset. Progressive modes draw the rate so that, at the ``reference`` flight
     (the base's average conditions, estimated), failure comes after ``U(*span_range)`` flights
-    (default U(170, 360)), or after ``span_flights`` when a test-station operator sets it;
-    wear modes of an active-active pair integrate the worn drive's falling load share
-    (:mod:`.load_share`) over the life, so the span holds for them too.
+    (default U(170, 360)), or after ``span_flights`` when a test-station operator sets it.
     ``severity_norm`` imposes the severity of an a priori fault (SE) as a fraction of its
     threshold."""
     if mode not in MODES:
@@ -181,9 +181,7 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
     if reference is None:
         raise ValueError("progressive modes need a reference flight summary to set the rate")
     span = float(rng.uniform(*span_range)) if span_flights is None else float(span_flights)
-    rate = life_integral(mode, position, _ONSET_NORM, _GROWTH_C[mode],
-                         winglet_mode=winglet_mode) / (
-        span * reference_driver(mode, reference))
+    rate = life_integral(_ONSET_NORM, _GROWTH_C[mode]) / (span * reference_driver(mode, reference))
     return FaultState(mode, position, _ONSET_NORM * thr, thr, rate=rate)
 
 

@@ -8,7 +8,7 @@ a fault-to-failure run that are not rendered) sees the same conditions as a simu
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 
 import numpy as np
@@ -29,7 +29,6 @@ from .fleet import (
     draw_ground_temperature,
 )
 from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
-from .load_share import WORK_FIELD, load_share
 from .params import OUT_HZ, EmaParams, pack_ema, pack_surface
 from .scenario import REFERENCE_DURATION_S, Scenario, Warp, build_scenario, draw_warp
 
@@ -182,7 +181,6 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
                      started_at: datetime | None = None,
                      duration_s: float = REFERENCE_DURATION_S,
                      conditions: FlightConditions | None = None,
-                     fault: FaultState | None = None,
                      winglet_mode: WingletMode = DEFAULT_WINGLET_MODE) -> FlightSummary:
     """Quasi-static estimate of :class:`FlightSummary` from the scenario alone (no 12 kHz run).
 
@@ -191,11 +189,11 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
     surface's active drives, plus the standby's drag), a standby's from its damping and drag
     (:func:`_standby_force`); current from force x lead / (efficiency x torque constant), or
     a standby's damping current; winding temperature from the same first-order thermal model
-    driven by ambient and copper losses. With a wear ``fault`` on a pair flying active-active,
-    the faulty drive's sliding work is scaled by its measured load share at the fault's severity
-    (:func:`~sim_worker.load_share.load_share`), so that unrendered flights wear it as
-    rendered ones do (an active-standby drive carries what its role gives it, worn or not);
-    without one, the estimate is the healthy aircraft's.
+    driven by ambient and copper losses. On the active-standby tab a drive carries what its role
+    gives it, worn or not, so unrendered flights wear it as rendered ones do (within 8 %,
+    bench/fast_path_agreement.py), and the estimate needs no fault. An active-active pair's
+    estimate shares the load evenly and does not know that a worn drive hands its load to its
+    partner: campaigns fly active-standby.
     """
     cond = conditions or draw_conditions(aircraft, flight_index, rng, started_at=started_at)
     sc = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s)
@@ -216,19 +214,12 @@ def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Gener
             drag = sum(_standby_force(aircraft.ema[q], v)[0] for q in standby)
             f, i = _active_force(aircraft.ema[pos], hinge + np.sign(v) * drag)
             # a lone active link flexes with the load: the rod end slides with the surface
-            # while the nut holds (active-active: the measured load share absorbs it)
+            # while the nut holds
             flex = _flex_sliding(aircraft.ema[pos], f) if standby else 0.0
         else:
             f, i = _standby_force(aircraft.ema[pos], v)
             flex = 0.0
         acts[pos] = _estimated_actuator(aircraft.ema[pos], sc, cond, f, i, dx, flex)
-    if (fault is not None and fault.position is not None and fault.mode in WORK_FIELD
-            and WingletMode(winglet_mode) is WingletMode.ACTIVE_ACTIVE):
-        field = WORK_FIELD[fault.mode]
-        own = acts[fault.position]
-        share = load_share(fault.mode, fault.position, fault.severity_norm,
-                           winglet_mode=WingletMode.ACTIVE_ACTIVE)
-        acts[fault.position] = replace(own, **{field: getattr(own, field) * share})
     return FlightSummary(actuators=acts, block_hours=cond.block_hours,
                          ground_temp_c=cond.ground_temp_c,
                          duration_s=float(sc.t[-1]) if sc.t.size else 0.0, measured=False)

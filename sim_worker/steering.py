@@ -12,14 +12,13 @@ The station therefore steers the rate the way an accelerated-ageing rig steers i
 after each flight it re-plans the rate constant so that the *expected* remaining progression,
 at the mean driver measured on the flights flown so far, reaches the failure threshold at the
 planned flight. The law of the mode is untouched -- each flight still grows the fault by
-``rate * driver(flight) * g(s) * (s + c)`` with its random factor, so a hot flight still ages a
+``rate * driver(flight) * (s + c)`` with its random factor, so a hot flight still ages a
 drive more than a cold one -- only the constant is re-estimated. The planned failure flight
 is known to the station from onset: it is the live "true RUL" the test station shows.
 
-Mean driver: ``D = (w0 d_ref + sum_k d_k / g(s_k)) / (w0 + n)``, with ``d_k`` the driver of
-flight ``k`` measured at 12 kHz, divided by the load share ``g`` the measured work already
-holds (the life integral applies it), and the reference driver ``d_ref`` as a prior worth
-``w0 = 3`` flights (one flight alone is a noisy estimate of a mean).
+Mean driver: ``D = (w0 d_ref + sum_k d_k) / (w0 + n)``, with ``d_k`` the driver of flight ``k``
+measured at 12 kHz and the reference driver ``d_ref`` as a prior worth ``w0 = 3`` flights (one
+flight alone is a noisy estimate of a mean).
 """
 
 from __future__ import annotations
@@ -40,8 +39,6 @@ from .faults import (
     new_fault,
     reference_driver,
 )
-from .fleet import DEFAULT_WINGLET_MODE, WingletMode
-from .load_share import load_share
 
 __all__ = ["SteeredFault", "plan_fault", "steer_and_advance"]
 
@@ -59,7 +56,6 @@ class SteeredFault:
     reference_driver: float
     driver_sum: float = 0.0
     flights: int = 0
-    winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
 
     @property
     def mean_driver(self) -> float:
@@ -69,21 +65,18 @@ class SteeredFault:
 
 def plan_fault(mode: str, position: str, rng: np.random.Generator, *,
                reference: ActuatorSummary, start_flight: int, span_flights: float | None = None,
-               severity_norm: float | None = None,
-               winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
-               ) -> tuple[FaultState, SteeredFault | None]:
+               severity_norm: float | None = None) -> tuple[FaultState, SteeredFault | None]:
     """A test-station fault at its start, and for a progressive mode its plan: failure
     ``span_flights`` after ``start_flight`` (drawn from the campaigns' range when None, with the
     draw :func:`~sim_worker.faults.new_fault` would make)."""
     if mode in PROGRESSIVE and span_flights is None:
         span_flights = float(rng.uniform(*SPAN_FLIGHTS))
     fault = new_fault(mode, position, rng, reference=reference, span_flights=span_flights,
-                      severity_norm=severity_norm, winglet_mode=winglet_mode)
+                      severity_norm=severity_norm)
     if mode not in PROGRESSIVE or span_flights is None:
         return fault, None
     return fault, SteeredFault(fault, target_flight=start_flight + round(span_flights),
-                               reference_driver=reference_driver(mode, reference),
-                               winglet_mode=winglet_mode)
+                               reference_driver=reference_driver(mode, reference))
 
 
 def steer_and_advance(fault: SteeredFault, summary: FlightSummary, flight: int,
@@ -93,16 +86,13 @@ def steer_and_advance(fault: SteeredFault, summary: FlightSummary, flight: int,
     st = fault.state
     if st.position is None or st.failed:
         return fault
-    sn = st.severity_norm
     flown_driver = driver(st.mode, summary.actuators[st.position], summary.block_hours)
-    measured = replace(fault, driver_sum=fault.driver_sum
-                       + flown_driver / load_share(st.mode, st.position, sn,
-                                                  winglet_mode=fault.winglet_mode),
+    measured = replace(fault, driver_sum=fault.driver_sum + flown_driver,
                        flights=fault.flights + 1)
     # flight n covers [n, n + 1): failing at the target flight T means crossing the threshold
     # during flight T - 1, so the plan aims at its middle; an overdue fault is planned to
     # finish within a tenth of a flight (a calm flight can still leave it short)
     flights_left = max(fault.target_flight - 0.5 - flight, _OVERDUE_FLIGHTS)
-    rate = life_to_go(st, fault.winglet_mode) / (flights_left * max(measured.mean_driver, 1e-9))
+    rate = life_to_go(st) / (flights_left * max(measured.mean_driver, 1e-9))
     return replace(measured, state=advance_fault(replace(st, rate=rate), summary, rng))
 

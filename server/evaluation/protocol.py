@@ -41,11 +41,6 @@ def add_protocol_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
                         help="local worker processes (default: all cores)")
     parser.add_argument("--dask", default=None, metavar="ADDRESS",
                         help="simulate on a Dask distributed scheduler (tcp://host:8786)")
-    from sim_worker.fleet import DEFAULT_WINGLET_MODE, WingletMode
-
-    parser.add_argument("--winglet", choices=[m.value for m in WingletMode],
-                        default=DEFAULT_WINGLET_MODE.value,
-                        help="how the winglet pair moves its tab, in both campaigns")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     return parser
 
@@ -55,7 +50,7 @@ def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
     return argparse.Namespace(kind=kind, out=str(out), seed=seed, scale=args.scale,
                               workers=args.workers, dask=args.dask, render_every=None,
                               span_range=span_range, no_progress=args.no_progress, bases=None,
-                              noise_scale=1.0, sensor_fault=None, winglet=args.winglet)
+                              noise_scale=1.0, sensor_fault=None)
 
 
 def _evaluate_args(args: argparse.Namespace, root: Path) -> argparse.Namespace:

@@ -28,7 +28,6 @@ from sim_worker.campaign import (
 )
 from sim_worker.cli import build_parser
 from sim_worker.faults import healthy
-from sim_worker.fleet import WingletMode
 from sim_worker.flight import draw_conditions, run_scenario
 from sim_worker.kernel import D
 from sim_worker.scenario import build_scenario
@@ -135,15 +134,10 @@ def test_sensor_faults_are_campaign_settings(tmp_path) -> None:
     faulty = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": faults}, ParquetSink())
     assert "sensor_faults" not in plain  # campaigns made before the option stay recognised
     assert faulty["sensor_faults"] == ["WL1.lvdt:drift=1e-06", "WT.lvdt:noise=2"]  # canonical
-    pair = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": ()}, ParquetSink(),
-                     WingletMode.ACTIVE_ACTIVE)
-    # an active-active campaign keeps the settings it had before the option existed
-    assert plain["winglet_mode"] == "active-standby" and "winglet_mode" not in pair
+    assert plain["winglet_mode"] == "active-standby"
     _Progress(tmp_path, plain)
     with pytest.raises(ValueError, match="other settings"):
         _Progress(tmp_path, faulty)  # resuming with other sensor faults is refused
-    with pytest.raises(ValueError, match="other settings"):
-        _Progress(tmp_path, pair)  # or with the other winglet mode
     fleet = fleet_for("design", 1)
     assert _manifest(plain, cfg, fleet, [])["sensor_faults"] == []
     assert _manifest(faulty, cfg, fleet, [])["sensor_faults"] == faulty["sensor_faults"]

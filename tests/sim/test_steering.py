@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from sim_worker.faults import ActuatorSummary, FlightSummary, advance_fault, driver
-from sim_worker.load_share import load_share
 from sim_worker.steering import plan_fault, steer_and_advance
 
 _REF = ActuatorSummary(winding_mean_c=55.0, winding_max_c=70.0, current_rms_a=3.0,
@@ -35,11 +34,8 @@ def _fly(mode: str, position: str, span: int, *, steered: bool, colder_k: float,
                              span_flights=float(span))
     n = 100
     while not fault.failed and n < 100 + 5 * span:
-        # a worn drive of an active-active pair hands part of its work to its partner (the
-        # measured flights hold it; sim_worker.load_share); 1 on the active-standby tab
-        share = load_share(mode, position, fault.severity_norm, winglet_mode=plan.winglet_mode)
         summary = _flight(position, -colder_k + rng.normal(0.0, 4.0),
-                          calmer * share * rng.lognormal(-0.125, 0.5),
+                          calmer * rng.lognormal(-0.125, 0.5),
                           float(rng.uniform(0.8, 2.5)))
         if steered:
             plan = steer_and_advance(plan, summary, n, rng)
