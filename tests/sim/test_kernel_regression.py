@@ -1,11 +1,13 @@
 """Bit-for-bit regression of the 12 kHz kernel: short flights hashed against recorded values.
 
-The hashes are sha256 of the kernel's float64 outputs as computed at commit b52df62 (before the
-kernel was split into subsystem functions). They must change only with a deliberate change of
-the physics, the controller, the sensors or the random draws; a refactor must leave them alone.
-After a deliberate change, re-record them with ``python tests/sim/test_kernel_regression.py``
-and say why in the commit. (The hashes also depend on the platform's libm for cos, sin and exp:
-a failure on a new kind of machine with no kernel change is that, not a physics change.)
+The hashes are sha256 of the kernel's float64 outputs, compiled with the kernel's fastmath flags
+(FMA contraction and reciprocals, see :mod:`sim_worker.kernel`). They must change only with a
+deliberate change of the physics, the controller, the sensors, the random draws or the
+compilation flags; a refactor must leave them alone. After a deliberate change, re-record them
+with ``python tests/sim/test_kernel_regression.py`` and say why in the commit. (The hashes also
+depend on the platform's libm for cos, sin and exp and, through FMA contraction, on whether the
+CPU has fused multiply-add: a failure on a new kind of machine with no kernel change is that,
+not a physics change.)
 """
 
 from __future__ import annotations
@@ -40,17 +42,17 @@ CASES: dict[str, tuple[str, str | None, float, WingletMode, int]] = {
 }
 
 EXPECTED: dict[str, str] = {
-    "healthy": "4029094519e4a18f353c4629365a4eca5e4d9e0dd169a15e07335af137262e1d",
-    "TTS": "6b7556bbfc22fdeaa1d0eb80ddd9f9370966554de8a9912dedd052bdf7d626a6",
-    "DMD": "eabcf18930ea9c4c9c2316ccc69617a1052386faf5d818f5df4b5aea4b600752",
-    "SE": "7fb52a0802a9b74f1d5dd11e8b79a5086cc7df0d488c5d067cc95e796aeacad7",
-    "BDO": "4f349c13c7aaf8ad3023cdf4b67897c481f5d86440785f13322f1ddf736597af",
-    "MTEL": "0b0ad0138fbd18b81e528ab8b590c230927af7e0a29e0f72d73b7d99e7c51fa4",
-    "MTWEAR": "bfab169fc5f48662326acdc16266411e72e84abe6a8c3ef98dbcde75715b86a0",
-    "REWEAR": "d949f40e5159ce93dcf987d234ff074fbb572e3bbfd39c3da0f822734d84a40a",
-    "standby healthy": "8fe56e025c31e7875929fff635e7b3edd9420ca8a0c4b6d089188866484f3831",
-    "standby TTS": "62ff24fe820f49464448084d510c2a2d5fd019496973a082abca0c23d58ade2e",
-    "standby REWEAR": "f67d72245e798c8265033471190b83ba763ae756cfab5dea27f63c3cae43a8a4",
+    "healthy": "26df7d4dc55189b7b96361fa9010ef6cd121ac9ea6c6cbdbf619e1143f3f94c4",
+    "TTS": "8b6c58ced461f6ed765b54450a1a554b0d27a3ef41d8d9aed49efae843d46342",
+    "DMD": "dff70c2d57ca9b608b8231e481406a10a2b3811dd13735bc56f3e9d69c3f9882",
+    "SE": "8d025ba98925274bd60cf6579aa9b05ba3102d0c6747e61533e9149fbd2a2475",
+    "BDO": "04be4173c4630d444e77f32b264d450e546c444505397447eba582c6ddb1395d",
+    "MTEL": "e78e9b565cc62813bb829be930758fcb3622426772cb8c67c71bc848ba4f60ac",
+    "MTWEAR": "b52f7d560cbb16f972dfa38ead91cb8b6b34c1b04e700170e61db122cc75244d",
+    "REWEAR": "2d9c37316d1f5940d4bfc624873a37293e564baba870c81a70d2b9acc5c76142",
+    "standby healthy": "e8eabb7b13732b96da0917122c59489663df1ee4a62846dc6ff9a15b088ed217",
+    "standby TTS": "73259f9af7e209de6eb36c7716bdcb3a3c63f1c282ad64836ae7a40f888f9753",
+    "standby REWEAR": "d86d1e6b06b842175c4459cbaa83080b67788d185ea7ad34b653456072a62f5d",
 }
 
 EXPECTED_MOTOR = "c0b0407ad9ed9f2c4e29c02ceb1a52c5722a824db545550d387eeaba00179815"
