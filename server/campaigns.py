@@ -9,9 +9,12 @@ and configuration). Every flight log is decoded and checked by :mod:`server.flig
 as an upload is, then its features are computed by the service's own
 :func:`server.phm.features.flight_features`.
 
-A streamed campaign (:class:`FeatureSink`) does that in the worker that simulated the flight,
-on the log's Parquet bytes in memory, and keeps the features instead of the file; only every
-``keep_raw_every``-th flight of a pattern is also written as a file, so ingest stays exercised.
+A streamed campaign (:class:`FeatureSink`) does that in the worker that simulated the flight
+and keeps the features instead of the file; only every ``keep_raw_every``-th flight of a
+pattern is written as a file, so ingest stays exercised, and its features are computed from
+its Parquet bytes. The other flights skip the Parquet round trip: their features are computed
+from the in-memory log after the same checks, on the very channel values a file would hold
+(:func:`server.flightlog.read_back`).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from server.flightlog import (
     FlightLog,
     FlightLogError,
     check_coherence,
+    read_back,
     read_parquet,
     read_parquet_metadata,
     write_parquet,
@@ -49,7 +53,8 @@ from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
 
 __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "read_manifest",
-           "read_flight_channels", "read_started_at", "load_campaign", "train_from_directory"]
+           "read_flight_channels", "decode_channels", "log_channels", "read_started_at",
+           "load_campaign", "train_from_directory"]
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
 FEATURE_CACHE = "phm_features.json"
@@ -79,8 +84,18 @@ def read_flight_channels(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
 
 def decode_channels(data: bytes, name: str) -> dict[str, np.ndarray]:
     """All channels of a flight log's Parquet bytes, decoded and checked as an upload is."""
+    return _checked_channels(lambda: read_parquet(data), name)
+
+
+def log_channels(log: FlightLog, name: str) -> dict[str, np.ndarray]:
+    """All channels of an in-memory flight log, checked as an upload is: the same arrays, to
+    the bit, as :func:`decode_channels` gives for its Parquet bytes (:func:`read_back`)."""
+    return _checked_channels(lambda: read_back(log), name)
+
+
+def _checked_channels(decode: Callable[[], FlightLog], name: str) -> dict[str, np.ndarray]:
     try:
-        log = read_parquet(data)
+        log = decode()
         issues = check_coherence(log, fleet_serials=dict(log.metadata.actuator_serials))
     except FlightLogError as exc:
         issues = exc.issues
@@ -120,10 +135,11 @@ def _read_cache(root: Path, key: str) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class FeatureSink:
-    """Streams a campaign: each rendered flight, written to the flight-log contract in memory,
-    decoded and checked as an upload, its features computed by the service's own code; the
-    log is then dropped, except every ``keep_raw_every``-th flight of a pattern (index 0
-    included), written as its file. Features go to ``phm_features.json`` at the end."""
+    """Streams a campaign: each rendered flight checked as an upload, its features computed by
+    the service's own code; the log is then dropped, except every ``keep_raw_every``-th flight
+    of a pattern (index 0 included), written as its file and analysed from its bytes. A
+    dropped flight is analysed on its stored channels without encoding them
+    (:func:`log_channels`). Features go to ``phm_features.json`` at the end."""
 
     keep_raw_every: int = 200
     config: FeatureConfig = field(default_factory=FeatureConfig)
@@ -135,13 +151,17 @@ class FeatureSink:
 
     def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
                  ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]:
+        if index % self.keep_raw_every:  # dropped: no Parquet round trip, the same channels
+            return None, self._features(log_channels(log, rel), ground_temp_c)
         data = write_parquet(log)
-        features = flight_features(decode_channels(data, rel), config=self.config,
-                                   ground_temp_c=ground_temp_c).to_dict()
-        if index % self.keep_raw_every:
-            return None, features
+        features = self._features(decode_channels(data, rel), ground_temp_c)
         _write_atomic(out_dir / rel, data)
         return rel, features
+
+    def _features(self, channels: dict[str, np.ndarray], ground_temp_c: float
+                  ) -> dict[str, Any]:
+        return flight_features(channels, config=self.config,
+                               ground_temp_c=ground_temp_c).to_dict()
 
     def describe(self) -> dict[str, Any]:
         return {"sink": "features", "keep_raw_every": self.keep_raw_every,

@@ -1,5 +1,6 @@
-"""Streamed campaigns: features kept in place of the logs, identical to the logs' own features,
-for any number of workers and on a Dask cluster, resumable after an interruption."""
+"""Streamed campaigns: features kept in place of the logs, identical to the logs' own features
+(a dropped log's, computed without its Parquet bytes, too), for any number of workers and on a
+Dask cluster, resumable after an interruption."""
 
 from __future__ import annotations
 
@@ -7,17 +8,24 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from server.campaigns import (
     FEATURE_CACHE,
     CampaignError,
     FeatureSink,
+    decode_channels,
     load_campaign,
+    log_channels,
     read_flight_channels,
 )
+from server.flightlog import write_parquet
 from server.phm.features import FeatureConfig, flight_features
 from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
+from sim_worker.faults import THRESHOLDS, FaultState, healthy
+from sim_worker.fleet import WingletMode, build_aircraft
+from sim_worker.flight import flight_start, simulate_flight
 
 #: one pattern per mode, every flight, short recordings and fast faults: seconds per campaign
 TINY = ScaleConfig(duration_s=14.0, healthy_patterns=2, healthy_flights=3, patterns_per_mode=1,
@@ -74,6 +82,38 @@ def test_streamed_features_equal_the_features_of_the_written_log(reference: Path
     fault_runs = [p for p in manifest["patterns"] if p["failure_flight"] is not None]
     for p in fault_runs:  # every flight from onset to failure is rendered
         assert [f["index"] for f in p["flights"]] == list(range(p["failure_flight"] + 1))
+
+
+@pytest.mark.parametrize(("mode", "position", "winglet"), [
+    ("healthy", None, WingletMode.ACTIVE_ACTIVE),
+    ("TTS", "WL1", WingletMode.ACTIVE_ACTIVE),
+    ("BDO", "WT", WingletMode.ACTIVE_ACTIVE),
+    ("REWEAR", "WL2", WingletMode.ACTIVE_ACTIVE),
+    ("MTWEAR", "WL1", WingletMode.ACTIVE_STANDBY),
+])
+def test_a_dropped_flight_is_analysed_as_its_written_log_would_be(
+        mode: str, position: str | None, winglet: WingletMode, tmp_path: Path) -> None:
+    fault = healthy() if mode == "healthy" else FaultState(mode, position, 0.7 * THRESHOLDS[mode],
+                                                           THRESHOLDS[mode])
+    log, summary = simulate_flight(build_aircraft("I-DROP01", "Turin", seed=5), fault, 3,
+                                   np.random.default_rng(11), flight_id="I-DROP01-F00003",
+                                   started_at=flight_start(3), duration_s=TINY.duration_s,
+                                   winglet_mode=winglet)
+    read = decode_channels(write_parquet(log), "file")
+    kept = log_channels(log, "memory")
+    assert list(kept) == list(read)
+    for name, values in read.items():  # the same values to the bit
+        assert kept[name].dtype == values.dtype
+        assert kept[name].tobytes() == values.tobytes(), name
+    sink = FeatureSink(keep_raw_every=2)
+    dropped_rel, dropped = sink(tmp_path, "f/dropped.parquet", 1, log, summary.ground_temp_c)
+    kept_rel, written = sink(tmp_path, "f/kept.parquet", 2, log, summary.ground_temp_c)
+    assert dropped_rel is None and not (tmp_path / "f" / "dropped.parquet").exists()
+    assert kept_rel == "f/kept.parquet"
+    from_file = flight_features(read_flight_channels(tmp_path / kept_rel), config=FeatureConfig(),
+                                ground_temp_c=summary.ground_temp_c).to_dict()
+    # compared as JSON text: a feature without valid samples is NaN, and NaN != NaN
+    assert json.dumps(dropped) == json.dumps(written) == json.dumps(from_file)
 
 
 def test_stale_features_without_logs_are_refused(reference: Path) -> None:
