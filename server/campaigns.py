@@ -9,9 +9,12 @@ and configuration). Every flight log is decoded and checked by :mod:`server.flig
 as an upload is, then its features are computed by the service's own
 :func:`server.phm.features.flight_features`.
 
-A streamed campaign (:class:`FeatureSink`) does that in the worker that simulated the flight,
-on the log's Parquet bytes in memory, and keeps the features instead of the file; only every
-``keep_raw_every``-th flight of a pattern is also written as a file, so ingest stays exercised.
+A streamed campaign (:class:`FeatureSink`) does that in the worker that simulated the flight
+and keeps the features instead of the file; only every ``keep_raw_every``-th flight of a
+pattern is written as a file, so ingest stays exercised, and its features are computed from
+its Parquet bytes. The other flights skip the Parquet round trip: their features are computed
+from the in-memory log after the same checks, on the very channel values a file would hold
+(:func:`server.flightlog.read_back`).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from server.flightlog import (
     FlightLog,
     FlightLogError,
     check_coherence,
+    read_back,
     read_parquet,
     read_parquet_metadata,
     write_parquet,
@@ -49,7 +53,8 @@ from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
 
 __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "read_manifest",
-           "read_flight_channels", "decode_log", "log_features", "read_started_at",
+           "read_flight_channels", "decode_log", "checked_log", "log_features",
+           "read_started_at",
            "load_campaign", "train_from_directory"]
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
@@ -80,8 +85,19 @@ def read_flight_channels(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
 
 def decode_log(data: bytes, name: str) -> FlightLog:
     """A flight log's Parquet bytes, decoded and checked as an upload is."""
+    return _checked(lambda: read_parquet(data), name)
+
+
+def checked_log(log: FlightLog, name: str) -> FlightLog:
+    """An in-memory flight log as it would read back from its Parquet bytes, to the bit
+    (:func:`~server.flightlog.read_back`), checked as an upload is: :func:`decode_log` without
+    the encoding."""
+    return _checked(lambda: read_back(log), name)
+
+
+def _checked(decode: Callable[[], FlightLog], name: str) -> FlightLog:
     try:
-        log = read_parquet(data)
+        log = decode()
         issues = check_coherence(log, fleet_serials=dict(log.metadata.actuator_serials))
     except FlightLogError as exc:
         issues = exc.issues
@@ -139,10 +155,11 @@ def _read_cache(root: Path, key: str) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class FeatureSink:
-    """Streams a campaign: each rendered flight, written to the flight-log contract in memory,
-    decoded and checked as an upload, its features computed by the service's own code; the
-    log is then dropped, except every ``keep_raw_every``-th flight of a pattern (index 0
-    included), written as its file. Features go to ``phm_features.json`` at the end."""
+    """Streams a campaign: each rendered flight checked as an upload, its features computed by
+    the service's own code; the log is then dropped, except every ``keep_raw_every``-th flight
+    of a pattern (index 0 included), written as its file and analysed from its bytes. A
+    dropped flight is analysed on its stored channels without encoding them
+    (:func:`checked_log`). Features go to ``phm_features.json`` at the end."""
 
     keep_raw_every: int = 200
     config: FeatureConfig = field(default_factory=FeatureConfig)
@@ -154,13 +171,15 @@ class FeatureSink:
 
     def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
                  ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]:
+        if index % self.keep_raw_every:  # dropped: no Parquet round trip, the same channels
+            return None, self._features(checked_log(log, rel), ground_temp_c)
         data = write_parquet(log)
-        features = log_features(decode_log(data, rel), config=self.config,
-                                ground_temp_c=ground_temp_c).to_dict()
-        if index % self.keep_raw_every:
-            return None, features
+        features = self._features(decode_log(data, rel), ground_temp_c)
         _write_atomic(out_dir / rel, data)
         return rel, features
+
+    def _features(self, log: FlightLog, ground_temp_c: float) -> dict[str, Any]:
+        return log_features(log, config=self.config, ground_temp_c=ground_temp_c).to_dict()
 
     def describe(self) -> dict[str, Any]:
         return {"sink": "features", "keep_raw_every": self.keep_raw_every,

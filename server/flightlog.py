@@ -56,8 +56,10 @@ __all__ = [
     "FlightLogError",
     "FlightMetadata",
     "FlightLog",
+    "stored_channels",
     "write_parquet",
     "read_parquet",
+    "read_back",
     "read_parquet_metadata",
     "read_parquet_decimated",
     "read_csv",
@@ -452,20 +454,26 @@ def _json_depth(text: str) -> int:
 # --------------------------------------------------------------------------------------------
 
 
+def stored_channels(log: FlightLog) -> dict[str, np.ndarray]:
+    """``log``'s channels as format v1 stores them, in the file's column order: ``t`` float64,
+    the signals float32 (an array already so is not copied). ValueError on a channel outside
+    the format."""
+    names = list(REQUIRED_CHANNELS) + [c for c in OPTIONAL_CHANNELS if c in log.channels]
+    unknown = set(log.channels) - set(names)
+    if unknown:
+        raise ValueError(f"channels outside format v1: {sorted(unknown)}")
+    return {n: np.ascontiguousarray(log.channels[n], dtype=np.float64 if n == "t" else np.float32)
+            for n in names}
+
+
 def write_parquet(log: FlightLog) -> bytes:
     """Encode ``log`` as canonical Parquet bytes (zstd). Same input, same bytes."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    names = list(REQUIRED_CHANNELS) + [c for c in OPTIONAL_CHANNELS if c in log.channels]
-    unknown = set(log.channels) - set(names)
-    if unknown:
-        raise ValueError(f"channels outside format v1: {sorted(unknown)}")
-    arrays = [
-        pa.array(np.ascontiguousarray(log.channels[n],
-                                      dtype=np.float64 if n == "t" else np.float32))
-        for n in names
-    ]
+    channels = stored_channels(log)
+    arrays = [pa.array(v) for v in channels.values()]
+    names = list(channels)
     meta = {k.encode(): v.encode() for k, v in log.metadata.to_strings().items()}
     table = pa.Table.from_arrays(arrays, names=names).replace_schema_metadata(meta)
     sink = io.BytesIO()
@@ -510,6 +518,17 @@ def read_parquet(data: bytes, limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> F
         raise
     except (pa.ArrowException, OSError, ValueError) as exc:
         raise _undecodable_column(exc) from None
+    return FlightLog(metadata=metadata, channels=channels)
+
+
+def read_back(log: FlightLog, limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightLog:
+    """What :func:`read_parquet` returns for :func:`write_parquet`'s bytes of ``log``, without
+    encoding them: the stored channels (:func:`stored_channels`, the values a file holds to the
+    bit) and the metadata through its strings, within the same limits. A simulated flight whose
+    log is not kept is checked and analysed on this."""
+    channels = stored_channels(log)
+    _check_rows(channels["t"].shape[0], sum(v.itemsize for v in channels.values()), limits)
+    metadata = parse_metadata(log.metadata.to_strings(), limits)
     return FlightLog(metadata=metadata, channels=channels)
 
 

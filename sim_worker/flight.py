@@ -155,9 +155,12 @@ def simulate_flight(
     active = active_channels(winglet_mode, flight_index)
     res = run_scenario(aircraft, fault, scenario, rng, active=active)
     channels: dict[str, np.ndarray] = {"t": scenario.t.astype(np.float64)}
+    # one cast into (EMA, signal, sample) order: each channel a contiguous row, not a strided
+    # copy of its own
+    signals = np.ascontiguousarray(res.signals.transpose(1, 2, 0), dtype=np.float32)
     for k, pos in enumerate(POSITIONS):
         for i, sig in enumerate(_SIGNALS):
-            channels[f"{pos}.{sig}"] = res.signals[:, k, i].astype(np.float32)
+            channels[f"{pos}.{sig}"] = signals[k, i]
     for k, pos in enumerate(POSITIONS):
         channels[f"{pos}.x_cmd"] = _q32(scenario.x_cmd[:, k], _X_LSB_M)
     channels["T_amb"] = _q32(scenario.t_amb, _T_LSB_C)

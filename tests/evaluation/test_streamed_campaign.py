@@ -1,5 +1,6 @@
-"""Streamed campaigns: features kept in place of the logs, identical to the logs' own features,
-for any number of workers and on a Dask cluster, resumable after an interruption."""
+"""Streamed campaigns: features kept in place of the logs, identical to the logs' own features
+(a dropped log's, computed without its Parquet bytes, too), for any number of workers and on a
+Dask cluster, resumable after an interruption."""
 
 from __future__ import annotations
 
@@ -7,18 +8,24 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from server.campaigns import (
     FEATURE_CACHE,
     CampaignError,
     FeatureSink,
+    checked_log,
     decode_log,
     load_campaign,
     log_features,
 )
+from server.flightlog import write_parquet
 from server.phm.features import FeatureConfig
 from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
+from sim_worker.faults import THRESHOLDS, FaultState, healthy
+from sim_worker.fleet import WingletMode, build_aircraft
+from sim_worker.flight import flight_start, simulate_flight
 
 #: one pattern per mode, every flight, short recordings and fast faults: seconds per campaign
 TINY = ScaleConfig(duration_s=14.0, healthy_patterns=2, healthy_flights=3, patterns_per_mode=1,
@@ -75,6 +82,40 @@ def test_streamed_features_equal_the_features_of_the_written_log(reference: Path
     fault_runs = [p for p in manifest["patterns"] if p["failure_flight"] is not None]
     for p in fault_runs:  # every flight from onset to failure is rendered
         assert [f["index"] for f in p["flights"]] == list(range(p["failure_flight"] + 1))
+
+
+@pytest.mark.parametrize(("mode", "position", "winglet"), [
+    ("healthy", None, WingletMode.ACTIVE_STANDBY),
+    ("TTS", "WL1", WingletMode.ACTIVE_STANDBY),
+    ("BDO", "WT", WingletMode.ACTIVE_STANDBY),
+    ("REWEAR", "WL2", WingletMode.ACTIVE_STANDBY),
+    ("MTWEAR", "WL1", WingletMode.ACTIVE_ACTIVE),
+])
+def test_a_dropped_flight_is_analysed_as_its_written_log_would_be(
+        mode: str, position: str | None, winglet: WingletMode, tmp_path: Path) -> None:
+    fault = healthy() if mode == "healthy" else FaultState(mode, position, 0.7 * THRESHOLDS[mode],
+                                                           THRESHOLDS[mode])
+    log, summary = simulate_flight(build_aircraft("I-DROP01", "Turin", seed=5), fault, 3,
+                                   np.random.default_rng(11), flight_id="I-DROP01-F00003",
+                                   started_at=flight_start(3), duration_s=TINY.duration_s,
+                                   winglet_mode=winglet)
+    read = decode_log(write_parquet(log), "file")
+    kept = checked_log(log, "memory")
+    assert kept.metadata == read.metadata
+    assert list(kept.channels) == list(read.channels)
+    for name, values in read.channels.items():  # the same values to the bit
+        assert kept.channels[name].dtype == values.dtype
+        assert kept.channels[name].tobytes() == values.tobytes(), name
+    sink = FeatureSink(keep_raw_every=2)
+    dropped_rel, dropped = sink(tmp_path, "f/dropped.parquet", 1, log, summary.ground_temp_c)
+    kept_rel, written = sink(tmp_path, "f/kept.parquet", 2, log, summary.ground_temp_c)
+    assert dropped_rel is None and not (tmp_path / "f" / "dropped.parquet").exists()
+    assert kept_rel == "f/kept.parquet"
+    from_file = log_features(decode_log((tmp_path / kept_rel).read_bytes(), kept_rel),
+                             config=FeatureConfig(),
+                             ground_temp_c=summary.ground_temp_c).to_dict()
+    # compared as JSON text: a feature without valid samples is NaN, and NaN != NaN
+    assert json.dumps(dropped) == json.dumps(written) == json.dumps(from_file)
 
 
 def test_stale_features_without_logs_are_refused(reference: Path) -> None:

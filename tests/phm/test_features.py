@@ -15,6 +15,8 @@ from server.phm.features import (
     ACTUATOR_FEATURES,
     AIRCRAFT_FEATURES,
     FeatureConfig,
+    _row_max,
+    _row_min,
     actuator_features,
     actuator_steps,
     block_mean,
@@ -51,6 +53,21 @@ def test_block_mean_and_exp_filter_match_loops() -> None:
     assert np.allclose(y, ref)
     two = exp_filter(np.c_[bm, 2 * bm], a)
     assert np.allclose(two[:, 1], 2 * ref)
+
+
+def test_block_means_and_row_extremes_are_numpys_to_the_bit() -> None:
+    """The column-wise block means and row extremes (a speed-up) give NumPy's own values."""
+    rng = np.random.default_rng(1)
+    for d in (*range(1, 21), 64):
+        x = rng.standard_normal(3000 * d) * 10.0 ** rng.integers(-12, 12, 3000 * d)
+        x[rng.random(x.size) < 0.05] = -0.0
+        assert block_mean(x, d).tobytes() == x.reshape(-1, d).mean(axis=1).tobytes()
+    assert block_mean(np.full(20, -0.0), 10).tobytes() == np.zeros(2).tobytes()
+    special = np.array([0.0, -0.0, 1.0, -1.0, np.nan, np.inf, -np.inf])
+    rows = np.array(np.meshgrid(special, special, special)).reshape(3, -1).T
+    with np.errstate(invalid="ignore"):
+        assert _row_max(rows).tobytes() == rows.max(axis=1).tobytes()
+        assert _row_min(rows).tobytes() == rows.min(axis=1).tobytes()
 
 
 def test_healthy_features_are_physical() -> None:

@@ -1,11 +1,13 @@
 """Bit-for-bit regression of the 12 kHz kernel: short flights hashed against recorded values.
 
-The hashes are sha256 of the kernel's float64 outputs as computed at commit b52df62 (before the
-kernel was split into subsystem functions). They must change only with a deliberate change of
-the physics, the controller, the sensors or the random draws; a refactor must leave them alone.
-After a deliberate change, re-record them with ``python tests/sim/test_kernel_regression.py``
-and say why in the commit. (The hashes also depend on the platform's libm for cos, sin and exp:
-a failure on a new kind of machine with no kernel change is that, not a physics change.)
+The hashes are sha256 of the kernel's float64 outputs, compiled with the kernel's fastmath flags
+(FMA contraction and reciprocals, see :mod:`sim_worker.kernel`). They must change only with a
+deliberate change of the physics, the controller, the sensors, the random draws or the
+compilation flags; a refactor must leave them alone. After a deliberate change, re-record them
+with ``python tests/sim/test_kernel_regression.py`` and say why in the commit. (The hashes also
+depend on the platform's libm for cos, sin and exp and, through FMA contraction, on whether the
+CPU has fused multiply-add: a failure on a new kind of machine with no kernel change is that,
+not a physics change.)
 """
 
 from __future__ import annotations
@@ -40,17 +42,17 @@ CASES: dict[str, tuple[str, str | None, float, WingletMode, int]] = {
 }
 
 EXPECTED: dict[str, str] = {
-    "healthy": "a0080e0434576f3d14320d879b205ad3a80c7998c648095d56f72240790d269e",
-    "TTS": "08d58219474aa6347e0f94143193d638d68ad4322ccbce6a3b4b691f46039afb",
-    "DMD": "4e4378d5d5cc1c3ad8acb682cb739a2c9bea1e177549335b55a7fc0bc2d33aa7",
-    "SE": "4e8bf36b995cc8ed7998763c9e7fe11fe6e8fac4a3588f2f0896dfc81d275e05",
-    "BDO": "517810565285da98ef7cb81ccfac1b70f54d981ab5635395986e47f18b5cee4c",
-    "MTEL": "c2ad72bf08af66fd02e3686a5022dbdff1e6eecfa331458acaed0b2d5986037e",
-    "MTWEAR": "dc8e75e5441a69e5e145bd4f453cf1930f59acaff02bc04b1188fd5343465d6c",
-    "REWEAR": "cd5db159d6549d158c06fd7c3060e26c0f6abfba8b648132482f27cebe0cddb1",
-    "standby healthy": "2f5f3465056bb42009fa2e4c7c69b22ffd00a76f8e276ae58844d29c6a69cdc8",
-    "standby TTS": "2d2d3dbe09eb79c9a50cbc7da7a68828c5e06cf21fa04ff761ea92da5f560a4b",
-    "standby REWEAR": "9d906192ffdf24c3eb53cdab1473e6b97624e467f55113b7ffc4a40274fe213c",
+    "healthy": "279e62b43d6a1bcf59c9d60a378a0c96f058e9ccbd957b7389b4b07a1b7e4d5f",
+    "TTS": "a7f899512f77302b28a48010a693b933a56b83e4483eb884d75e15a419535fbc",
+    "DMD": "52fd2a70c8482a6a2fdb0a72cd6070ffc5c82ae429efba4db438b2c71db6f5c6",
+    "SE": "120eb6cd03cf054b679f86f5e2bc0e37440080d8d11305919050c0c051f221ca",
+    "BDO": "34fb590a937c50ec888f4c6e4bd1ed60c3121f0e4fdd1a1d8962913a3d3294f4",
+    "MTEL": "5118634d36f1f18376b1bb0a3ba361d8a465b45acbfec0628fb08f194b8275a5",
+    "MTWEAR": "7fdaa7a14039630aed6a8a3b0b22f7a6394472615b3bf91fad5eb76caa3752ed",
+    "REWEAR": "11cba0a96bdc8830971142f55cd60cc5f37a5fb4cfee292ca19494c77ea52dff",
+    "standby healthy": "6b2ef7de7bf2bac7dcf426cc93c301c677ec89f2beca6bf1f11b8eea56d2c776",
+    "standby TTS": "247f3da079285da2b9675e181f0355429a33c5ad206b42637654c5e5587c77c5",
+    "standby REWEAR": "6a310181149f441c7dd8ad37ddcc3153f2e78c13e4a6db35290d3ad7752dac7d",
 }
 
 EXPECTED_MOTOR = "c0b0407ad9ed9f2c4e29c02ceb1a52c5722a824db545550d387eeaba00179815"
