@@ -72,7 +72,10 @@ class ScaleConfig:
     healthy_patterns: int  # number of healthy patterns (spread over the aircraft)
     healthy_flights: int  # flights per healthy pattern
     patterns_per_mode: int  # degradation patterns per fault mode
-    render_every: int  # render every k-th flight of a fault-to-failure run
+    #: render every k-th flight of a fault-to-failure run; odd, so the rendered flights take
+    #: both winglet roles (the active drive alternates by flight: an even step would read a
+    #: faulty winglet drive in one role only, never its motor features or never its play)
+    render_every: int
     apriori_flights: int  # flights per SE / BDO pattern
     apriori_onset: int  # index of the first faulty flight of an SE / BDO pattern
     #: healthy flights (all rendered) before a progressive fault starts: the actuator's
@@ -94,18 +97,18 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
     # flights on 10 aircraft, >= 3 patterns per mode), small enough for ~1 min per campaign.
     "quick": {
         "design": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=12,
-                              patterns_per_mode=6, render_every=20, apriori_flights=6,
+                              patterns_per_mode=6, render_every=21, apriori_flights=6,
                               apriori_onset=2),
         "verification": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=25,
-                                    patterns_per_mode=3, render_every=20, apriori_flights=6,
+                                    patterns_per_mode=3, render_every=21, apriori_flights=6,
                                     apriori_onset=2),
     },
     "paper": {
         "design": ScaleConfig(duration_s=120.0, healthy_patterns=10, healthy_flights=50,
-                              patterns_per_mode=10, render_every=10, apriori_flights=8,
+                              patterns_per_mode=10, render_every=11, apriori_flights=8,
                               apriori_onset=2),
         "verification": ScaleConfig(duration_s=120.0, healthy_patterns=25, healthy_flights=4,
-                                    patterns_per_mode=25, render_every=20, apriori_flights=8,
+                                    patterns_per_mode=25, render_every=21, apriori_flights=8,
                                     apriori_onset=2),
     },
     # The paper's protocol (section 4.3): every flight of every pattern rendered, 25 patterns
@@ -685,8 +688,10 @@ def _scale_config(scale: str, kind: str, render_every: int | None,
     cfg = SCALES[scale][kind]
     if render_every is not None:
         if isinstance(render_every, bool) or not isinstance(render_every, int) \
-                or render_every < 1:
-            raise ValueError("render_every must be a positive int")
+                or render_every < 1 or render_every % 2 == 0:
+            raise ValueError("render_every must be a positive odd int: the winglet's active "
+                             "drive alternates by flight, so an even step would render a "
+                             "faulty winglet drive in one role only")
         cfg = replace(cfg, render_every=render_every)
     if span_flights is not None:
         lo, hi = (float(v) for v in span_flights)

@@ -110,8 +110,9 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
                       "(e.g. tcp://host:8786) instead of local processes; its workers need "
                       "this package and write kept flight logs under --out")
     camp.add_argument("--render-every", type=int, default=None,
-                      help="render every k-th flight of a fault-to-failure run (default: the "
-                      "scale's; 1 renders every flight, as a fleet in service downloads them)")
+                      help="render every k-th flight of a fault-to-failure run, k odd (default: "
+                      "the scale's; 1 renders every flight, as a fleet in service downloads "
+                      "them)")
     camp.add_argument("--span-range", default=None, metavar="LOW,HIGH",
                       help="range of the expected fault-to-failure span drawn per pattern "
                       "[flights] (default: the scale's, 170,360)")

@@ -60,10 +60,13 @@ def test_unknown_base_is_refused(tmp_path) -> None:
         run_campaign("design", tmp_path, seed=1, bases=("Atlantis",), progress=False)
 
 
-@pytest.mark.parametrize("bad", [0, -3, 2.5, True])
-def test_render_every_must_be_a_positive_int(tmp_path, bad) -> None:
+@pytest.mark.parametrize("bad", [0, -3, 2.5, True, 20])
+def test_render_every_must_be_a_positive_odd_int(tmp_path, bad) -> None:
+    """Odd: the winglet's active drive alternates by flight, and an even step would render a
+    faulty winglet drive in one role only."""
     with pytest.raises(ValueError, match="render_every"):
         run_campaign("design", tmp_path, seed=1, render_every=bad, progress=False)
+    assert all(cfg.render_every % 2 == 1 for kinds in SCALES.values() for cfg in kinds.values())
 
 
 # ---- sensor faults: one sensor of one actuator degraded on every aircraft -------------------

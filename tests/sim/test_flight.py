@@ -97,14 +97,14 @@ def test_tiny_campaign_manifest(tmp_path, monkeypatch):
     from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
 
     cfg = ScaleConfig(duration_s=12.0, healthy_patterns=1, healthy_flights=2, patterns_per_mode=1,
-                      render_every=10_000, apriori_flights=2, apriori_onset=1, lead_flights=2)
+                      render_every=10_001, apriori_flights=2, apriori_onset=1, lead_flights=2)
     monkeypatch.setitem(SCALES, "tiny", {"design": cfg, "verification": cfg})
     # render_every overrides the scale's step (still only onset and failure rendered here)
     run_campaign("design", tmp_path, seed=5, scale="tiny", workers=1, progress=False,
-                 render_every=5_000)
+                 render_every=5_001)
     m = json.loads((tmp_path / "manifest.json").read_text())
     assert m["format"] == "ema-campaign/1" and m["kind"] == "design" and m["seed"] == 5
-    assert m["render_every"] == 5_000
+    assert m["render_every"] == 5_001
     assert {a["base"] for a in m["aircraft"]} == {"Turin", "Vancouver", "Abu Dhabi"}
     for p in m["patterns"]:
         assert {"id", "aircraft", "mode", "position", "threshold", "onset_flight",
