@@ -4,12 +4,13 @@ model read back from JSON behaves exactly as the trained one."""
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
 from server.campaigns import load_campaign, train_from_directory
 from server.phm.chain import PhmModel, analyze_flight
-from server.phm.prognosis import PrognoserConfig, PrognoserState
+from server.phm.prognosis import PrognoserState
 
 pytestmark = pytest.mark.slow
 
@@ -67,13 +68,13 @@ def test_a_model_of_an_older_chain_format_is_refused(trained_model, old: str) ->
 
 def test_precise_wear_replays_its_filter_from_the_growth_onset(design_campaign_dir,
                                                                trained_model) -> None:
-    """F_MTWEAR resolves severity to hundredths: its filter is replayed from the estimated
-    onset, so it fuses the flights between onset and alarm too; REWEAR's noisy feature and
-    the thermal modes start at the alarm."""
+    """F_MTWEAR and the standby drive's rod-end play F_REWEAR resolve severity to hundredths:
+    their filters are replayed from the estimated onset, so they fuse the flights between
+    onset and alarm too; the thermal modes start at the alarm."""
     model = PhmModel.from_dict(trained_model[0])
     flags = {m: s.replay_from_onset for m, s in model.measurement.items()}
     assert flags == {"TTS": False, "DMD": False, "MTEL": False, "MTWEAR": True,
-                     "REWEAR": False}
+                     "REWEAR": True}
     assert model.measurement["MTWEAR"].prognoser.rate_basis == "exponential"
     campaign = load_campaign(design_campaign_dir, jobs=2)
     pattern = next(p for p in campaign.patterns if p.mode == "MTWEAR")
@@ -99,11 +100,11 @@ def test_measurement_noise_grows_with_severity_where_the_design_runs_show_it(
     assert all(g >= 1.0 for g in growth.values())
 
 
-def test_winglet_wear_is_learned_to_slow_down(trained_model) -> None:
-    """The design runs' winglet wear slows down as the partner drive takes the load (the
-    simulator's measured load share); training must carry that into the filters: MTWEAR gets
-    one law per surface, the winglet's growing more slowly near failure than the wingtip's,
-    and REWEAR (all on the winglet) a negative slope that the prediction keeps."""
+def test_winglet_wear_is_learned_as_it_grows(trained_model) -> None:
+    """On the active-standby tab a worn drive keeps the load its role gives it, so its wear
+    follows the mode's law, growing with its severity towards failure, with no partner taking
+    the load: training learns one MTWEAR law per surface and both accelerate (the winglet's
+    and the wingtip's), and REWEAR (all on the winglet) an accelerating exponential law."""
     model = PhmModel.from_dict(trained_model[0])
     mtwear = model.measurement["MTWEAR"]
     assert set(mtwear.prognoser_by_surface) == {"WL", "WT"}
@@ -113,20 +114,20 @@ def test_winglet_wear_is_learned_to_slow_down(trained_model) -> None:
 
     wl = mtwear.config_for("WL1").growth_offset
     wt = mtwear.config_for("WT").growth_offset
-    assert late_over_early(wl) < 1.0 < late_over_early(wt), (wl, wt)
+    assert late_over_early(wl) > 1.0 and late_over_early(wt) > 1.0, (wl, wt)
     rewear = model.measurement["REWEAR"].config_for("WL2")
-    assert rewear.rate_basis == "affine" and rewear.initial_theta[1] < 0
-    assert rewear.monotone_rate is False
-    # its growth is floored at the slowest design run's rate near failure, not at 1e-5
-    assert rewear.min_rate > 10 * PrognoserConfig().min_rate
+    assert rewear.rate_basis == "exponential", rewear.rate_basis
+    assert late_over_early(rewear.growth_offset) > 1.0, rewear.growth_offset
 
 
 def test_noise_free_features_feed_the_prognosis_the_true_severity(design_campaign_dir,
                                                                   trained_model) -> None:
     """The evaluation's error budget: with ``noise_free`` the faulty actuator's filter sees
     h(true severity) from the onset (and stores it in its history), so its severity estimate
-    ends nearer the truth than with the measured feature; detection sees the real features,
-    so the alarm flight does not move."""
+    ends nearer the truth than with the measured feature on the flights that read it (a
+    winglet drive's motor features are read on the flights it drives; in between, both runs
+    propagate the same learned law); detection sees the real features, so the alarm flight
+    does not move."""
     from server.evaluation.core import run_pattern
 
     model = PhmModel.from_dict(trained_model[0])
@@ -134,9 +135,13 @@ def test_noise_free_features_feed_the_prognosis_the_true_severity(design_campaig
     pattern = next(p for p in campaign.patterns if p.mode == "DMD")
     spec = model.measurement["DMD"]
 
-    def errors(trace):  # |estimated - true severity| where there is a RUL
+    name = f"{pattern.position}.{spec.feature}"
+    read = {r.index for r in pattern.flights
+            if math.isfinite(r.features.summaries[name].value)}
+
+    def errors(trace):  # |estimated - true severity| where there is a RUL and a reading
         return [abs(f["rul"]["severity_mean"] - f["severity_norm"])
-                for f in trace["flights"] if f["rul"]]
+                for f in trace["flights"] if f["rul"] and f["index"] in read]
 
     real = run_pattern(model, pattern)
     free = run_pattern(model, pattern, noise_free=True)
