@@ -53,9 +53,8 @@ from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
 
 __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "read_manifest",
-           "read_flight_channels", "decode_log", "checked_log", "log_features",
-           "read_started_at",
-           "load_campaign", "train_from_directory"]
+           "decode_log", "checked_log", "log_features", "read_started_at", "load_campaign",
+           "train_from_directory"]
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
 FEATURE_CACHE = "phm_features.json"
@@ -75,12 +74,6 @@ def read_manifest(directory: str | os.PathLike[str]) -> dict[str, Any]:
     if not isinstance(manifest, dict) or manifest.get("format") != CAMPAIGN_FORMAT:
         raise CampaignError(f"{root}: not an {CAMPAIGN_FORMAT} manifest")
     return manifest
-
-
-def read_flight_channels(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
-    """All channels of a flight-log file as float64 arrays, after the same decoding and
-    coherence checks as an upload (the file's own serials stand for the installed ones)."""
-    return decode_channels(Path(path).read_bytes(), str(path))
 
 
 def decode_log(data: bytes, name: str) -> FlightLog:
@@ -106,21 +99,13 @@ def _checked(decode: Callable[[], FlightLog], name: str) -> FlightLog:
     return log
 
 
-def decode_channels(data: bytes, name: str) -> dict[str, np.ndarray]:
-    """All channels of a flight log's Parquet bytes as float64 arrays, decoded and checked as
-    an upload is."""
-    return float64_channels(decode_log(data, name))
-
-
-def float64_channels(log: FlightLog) -> dict[str, np.ndarray]:
-    return {n: np.asarray(v, dtype=np.float64) for n, v in log.channels.items()}
-
-
-def log_features(log: FlightLog, *, config: FeatureConfig,
-                 ground_temp_c: float | None) -> FlightFeatures:
-    """A decoded flight log's features, its drives' roles taken from its metadata (the
-    service's own computation, :func:`server.phm.features.flight_features`)."""
-    return flight_features(float64_channels(log), config=config, ground_temp_c=ground_temp_c,
+def log_features(log: FlightLog, *, config: FeatureConfig | None = None,
+                 ground_temp_c: float | None = None) -> FlightFeatures:
+    """A decoded flight log's features (:func:`server.phm.features.flight_features` on its
+    channels as float64), its drives' roles taken from its metadata: what the service computes
+    on an upload and a campaign on each flight."""
+    channels = {n: np.asarray(v, dtype=np.float64) for n, v in log.channels.items()}
+    return flight_features(channels, config=config, ground_temp_c=ground_temp_c,
                            active_channels=log.metadata.active_channels)
 
 

@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import hashlib
 
-import numpy as np
 from sqlalchemy.orm import Session
 
+from server.campaigns import log_features
 from server.flightlog import FlightLogError, bounded_reasons, read_flightlog
 from server.jobs.context import Deferred, JobContext
 from server.jobs.queue import ClaimedJob
-from server.phm.features import flight_features
 from server.services import analysis, retention
 from server.services import models as model_service
 
@@ -56,9 +55,7 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
             raise
         _reject(ctx, todo.flight_id, bounded_reasons((i.as_dict() for i in exc.issues), limits))
         return
-    features = flight_features({k: np.asarray(v, dtype=np.float64)
-                                for k, v in log.channels.items()},
-                               active_channels=log.metadata.active_channels)
+    features = log_features(log)
     with ctx.factory() as session:
         analysis.store_analysis(session=session, flight_id=todo.flight_id, features=features,
                                 model_id=model_id, model=model)
