@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -88,12 +88,28 @@ class TrainingConfig:
     rate_spread: float = 0.35
     #: [-] bounds of the RLS's initial covariance P0: the floor keeps some adaptation
     prior_weight_bounds: tuple[float, float] = (1e-2, 1.0)
+    #: [-] the mid-life rate bounds of a mode's filter are its slowest design run's rate over
+    #: this and its fastest run's times this: early increments, mostly noise, may not drive
+    #: the law beyond them
+    rate_bound_margin: float = 1.5
+
+    def __post_init__(self) -> None:
+        for name in ("rate_prior_inflation", "rate_spread", "rate_bound_margin"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        if self.rate_bound_margin < 1.0:
+            raise ValueError(f"rate_bound_margin must be >= 1, got {self.rate_bound_margin}")
+        if not 0.0 < self.level_forgetting <= 1.0:
+            raise ValueError(f"level_forgetting must be in (0, 1], got {self.level_forgetting}")
+        low, high = self.prior_weight_bounds
+        if not 0.0 < low <= high:
+            raise ValueError(f"prior_weight_bounds must be 0 < low <= high, got "
+                             f"{self.prior_weight_bounds}")
 
 
 #: the configuration every model is trained with
 TRAINING = TrainingConfig()
-_STRESS_BETAS_ARR = np.asarray(TRAINING.stress_betas)
-_GROWTH_OFFSETS_ARR = np.asarray(TRAINING.growth_offsets)
 
 
 def _faulty_history(model: PhmModel, p: Pattern
@@ -133,8 +149,8 @@ def training_rows(campaign: Campaign, model: PhmModel) -> dict[str, np.ndarray]:
             "severity": np.asarray(sev, dtype=np.float64)}
 
 
-def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, float] | None,
-                                                               dict[str, Any]]:
+def _degradation_prior(campaign: Campaign, mode: str, training: TrainingConfig
+                       ) -> tuple[tuple[float, float] | None, dict[str, Any]]:
     """First-trial parameters of the affine growth law dh/dk = a + b h of ``mode`` (paper 4.2:
     the RLS starts from first-trial values and tunes them online), from the true severity
     increments of the design fault-to-failure runs: a least-squares fit *per run*, then the
@@ -163,10 +179,11 @@ def _degradation_prior(campaign: Campaign, mode: str) -> tuple[tuple[float, floa
     a, b = (float(v) for v in np.median(np.asarray(fits), axis=0))
     a = max(a, 1e-5)
     mid = [f[0] + 0.5 * f[1] for f in fits]
-    bounds = (max(min(mid) / 1.5, 1e-5), max(mid) * 1.5)
+    margin = training.rate_bound_margin
+    bounds = (max(min(mid) / margin, 1e-5), max(mid) * margin)
     return (a, b), {"a_per_flight": a, "b_per_flight": b, "n_runs": len(fits),
                     "dk": float(np.median(gaps)), "mid_rate_bounds": list(bounds),
-                    "late_rate_floor": (max(min(late) / 1.5, 1e-5) if late else None)}
+                    "late_rate_floor": (max(min(late) / margin, 1e-5) if late else None)}
 
 
 def fit_climate(campaign: Campaign) -> SeasonalClimate | None:
@@ -198,19 +215,19 @@ def _fault_runs(campaign: Campaign, mode: str, surface: str | None = None) -> li
             and (surface is None or surface_of(str(p.position)) == surface)]
 
 
-def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | None
-                ) -> tuple[np.ndarray, np.ndarray]:
+def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | None,
+                betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(true normalised severity (n,), stress since the onset (betas, n)) of one run."""
     fl = _from_onset(run)
     k = np.array([r.index for r in fl], dtype=int)
     sn = np.array([r.severity_norm for r in fl], dtype=float)
-    stress = np.tile(k - k[0], (_STRESS_BETAS_ARR.size, 1)).astype(float)
+    stress = np.tile(k - k[0], (betas.size, 1)).astype(float)
     dated = [r for r in fl if r.started_at is not None]
     if climate is not None and climate.knows(run.base) and len(dated) >= 2:
         days = (dated[-1].started_at - dated[0].started_at).total_seconds() / 86400.0
         per_day = (dated[-1].index - dated[0].index) / days if days > 0 else None
         if per_day:
-            for j, beta in enumerate(_STRESS_BETAS_ARR):
+            for j, beta in enumerate(betas):
                 clock = StressClock(climate, str(run.base), float(beta), ref_c,
                                     dated[0].started_at, dated[0].index, per_day)
                 stress[j] = [clock.between(int(k[0]), int(i)) for i in k]
@@ -218,11 +235,12 @@ def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | No
 
 
 def _exponential_prior(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
-                       fleet_ref_c: float, surface: str | None = None) -> dict[str, Any] | None:
+                       fleet_ref_c: float, training: TrainingConfig,
+                       surface: str | None = None) -> dict[str, Any] | None:
     """:func:`_fit_exponential_law` with the stress referred to the fleet's mean temperature
     and to each base's own annual mean; the reference that leaves the smaller spread of rates
     between design runs (coefficient of variation) is kept: the prior on r is then tighter."""
-    fits = [_fit_exponential_law(campaign, mode, climate, ref, surface)
+    fits = [_fit_exponential_law(campaign, mode, climate, ref, training, surface)
             for ref in (fleet_ref_c, None)]
     fits = [f for f in fits if f is not None]
     if not fits:
@@ -235,8 +253,8 @@ def _exponential_prior(campaign: Campaign, mode: str, climate: SeasonalClimate |
 
 
 def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate | None,
-                         ref_c: float | None, surface: str | None = None
-                         ) -> dict[str, Any] | None:
+                         ref_c: float | None, training: TrainingConfig,
+                         surface: str | None = None) -> dict[str, Any] | None:
     """Shape c, temperature sensitivity beta and rate prior of dh/dtau = r (h + c), tau the
     stress clock (:mod:`server.phm.season`), from the design runs' true severities.
 
@@ -244,16 +262,18 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     over the runs (mean 1 - R^2 of a per-run fit: scale-free, so shapes and clocks compare
     fairly); each run's slope there is its rate r. The prior is the runs' median r and their
     standard deviation; the rate bounds are the slowest and fastest run's mid-life rate
-    r (0.5 + c) with a 50 % margin.
+    r (0.5 + c) widened by ``training.rate_bound_margin``.
     """
-    runs = [_run_clocks(p, climate, ref_c) for p in _fault_runs(campaign, mode, surface)]
+    betas = np.asarray(training.stress_betas)
+    offsets = np.asarray(training.growth_offsets)
+    runs = [_run_clocks(p, climate, ref_c, betas) for p in _fault_runs(campaign, mode, surface)]
     if len(runs) < 2:
         return None
-    misfit = np.zeros((_STRESS_BETAS_ARR.size, _GROWTH_OFFSETS_ARR.size))
+    misfit = np.zeros((betas.size, offsets.size))
     for sn, stress in runs:
-        U = np.maximum(sn, 0.0)[:, np.newaxis] + _GROWTH_OFFSETS_ARR  # (n, c grid)
+        U = np.maximum(sn, 0.0)[:, np.newaxis] + offsets  # (n, c grid)
         # a saturating shape must stay below its asymptote over the whole run
-        misfit[:, (_GROWTH_OFFSETS_ARR < 0) & (U.max(axis=0) > -MIN_LEVEL_GAP)] = np.inf
+        misfit[:, (offsets < 0) & (U.max(axis=0) > -MIN_LEVEL_GAP)] = np.inf
         Y = np.log(np.maximum(np.abs(U), MIN_LEVEL_GAP))
         Yc = Y - Y.mean(axis=0)
         for j, tau in enumerate(stress):
@@ -261,17 +281,18 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
             coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
             misfit[j] += ((Y - X @ coef) ** 2).sum(axis=0) / (Yc**2).sum(axis=0)
     jb, jc = np.unravel_index(int(np.argmin(misfit)), misfit.shape)
-    if misfit[jb, jc] > TRAINING.stress_gain * misfit[0].min():  # temperature explains little
+    if misfit[jb, jc] > training.stress_gain * misfit[0].min():  # temperature explains little
         jb, jc = 0, int(np.argmin(misfit[0]))
         ref_c = None
-    beta, c = float(_STRESS_BETAS_ARR[jb]), float(_GROWTH_OFFSETS_ARR[jc])
+    beta, c = float(betas[jb]), float(offsets[jc])
     rates = np.array([np.polyfit(stress[jb], np.log(np.abs(np.maximum(sn, 0.0) + c)), 1)[0]
                       for sn, stress in runs])
     sign = 1.0 if c > 0 else -1.0  # r < 0 for a saturating shape: dh/dk = r (h + c) > 0
     r0 = sign * float(max(sign * np.median(rates), 1e-6))
-    r_std = TRAINING.rate_prior_inflation * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
+    r_std = training.rate_prior_inflation * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
     mid = rates * (0.5 + c)
-    bounds = (max(float(mid.min()) / 1.5, 1e-5), max(float(mid.max()) * 1.5, 2e-5))
+    margin = training.rate_bound_margin
+    bounds = (max(float(mid.min()) / margin, 1e-5), max(float(mid.max()) * margin, 2e-5))
     return {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
             "rate": r0, "rate_std": r_std, "n_runs": len(runs),
             "mid_rate_bounds": list(bounds),
@@ -279,16 +300,18 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
             "misfit": float(misfit[jb, jc] / len(runs))}
 
 
-def _level_config(base: PrognoserConfig, law: dict[str, Any]) -> PrognoserConfig:
+def _level_config(base: PrognoserConfig, law: dict[str, Any], training: TrainingConfig
+                  ) -> PrognoserConfig:
     """The filter of a mode whose rate is tuned on the log-level of ``law`` (its shape c, rate
     prior and mid-life rate bounds, from :func:`_fit_exponential_law`)."""
     return replace(base, rate_basis="exponential", growth_offset=law["growth_offset"],
                    initial_theta=(0.0, law["rate"]), initial_rate_std=law["rate_std"],
-                   rls_forgetting=TRAINING.level_forgetting,
+                   rls_forgetting=training.level_forgetting,
                    rate_bounds=tuple(law["mid_rate_bounds"]))
 
 
-def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float) -> float:
+def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float,
+                  training: TrainingConfig) -> float:
     """Initial RLS covariance P0 that weighs the first-trial parameters against the data.
 
     The RLS regresses severity increments y = dh/dk on [1, h]; one increment over ``dk``
@@ -300,9 +323,9 @@ def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: floa
     than one measurement.
     """
     rate = theta[0] + 0.5 * theta[1]
-    sigma_theta = TRAINING.rate_spread * rate
+    sigma_theta = training.rate_spread * rate
     sigma_y = math.sqrt(2.0) * noise_in_severity / max(dk, 1.0)
-    low, high = TRAINING.prior_weight_bounds
+    low, high = training.prior_weight_bounds
     return float(np.clip(sigma_theta**2 / max(sigma_y**2, 1e-30), low, high))
 
 
@@ -317,11 +340,13 @@ def _reference_temperature(campaign: Campaign, climate: SeasonalClimate | None) 
 
 def fit_measurement_models(campaign: Campaign, phm: PhmModel,
                            base_config: PrognoserConfig | None = None,
-                           climate: SeasonalClimate | None = None) -> tuple[
+                           climate: SeasonalClimate | None = None,
+                           training: TrainingConfig = TRAINING) -> tuple[
         dict[str, MeasurementSpec], dict[str, Any]]:
     """Per progressive mode: h(severity) of the mode's own feature (paper Table 1), fitted on
     the physical-unit residuals of the faulty actuator, less its own offset, over its design
-    fault-to-failure runs (``phm`` supplies baseline and detector)."""
+    fault-to-failure runs (``phm`` supplies baseline and detector); each mode's filter from
+    ``training``'s constants."""
     base_config = base_config or PrognoserConfig()
     ref_c = _reference_temperature(campaign, climate)
     specs: dict[str, MeasurementSpec] = {}
@@ -339,55 +364,57 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         s = np.array([a for a, _ in pairs])
         v = np.array([b for _, b in pairs])
         try:
-            model = MeasurementModel.fit(s, v, noise=TRAINING.measurement_noise)
+            model = MeasurementModel.fit(s, v, noise=training.measurement_noise)
         except ValueError as exc:  # no monotone relation: no prognosis for this mode
             report[mode] = {"feature": feature, "error": str(exc)}
             continue
         by_surface = {}
         for surface in ("WL", "WT"):
             sub = [(sn, v) for sn, v, srf in triples if srf == surface]
-            if len(sub) >= TRAINING.min_surface_flights:
+            if len(sub) >= training.min_surface_flights:
                 try:
                     by_surface[surface] = MeasurementModel.fit(
-                        [a for a, _ in sub], [b for _, b in sub], noise=TRAINING.measurement_noise)
+                        [a for a, _ in sub], [b for _, b in sub], noise=training.measurement_noise)
                 except ValueError:
                     pass
         resid = v - model.predict(s)  # the residuals' sd over the whole life
         spread = float(np.sqrt(resid @ resid / (s.size - len(model.coefficients))))
         noise_sev = float(spread / max(abs(float(model.derivative(
             np.array([0.5]))[0])), 1e-12))
-        law = _exponential_prior(campaign, mode, climate, ref_c)
+        law = _exponential_prior(campaign, mode, climate, ref_c, training)
         thermal = law is not None and law["stress_beta_per_k"] > 0
-        precise_wear = law is not None and not thermal and noise_sev <= TRAINING.precise_wear_noise
+        precise_wear = law is not None and not thermal and noise_sev <= training.precise_wear_noise
         surface_configs: dict[str, PrognoserConfig] = {}
         if thermal or precise_wear:
             prior = law
             # dh/dtau = r (h + c), r tuned on the log-level: a thermally driven mode on the
             # season's stress clock, a precisely measured wear mode on flights (near-linear c)
-            config = _level_config(base_config, law)
+            config = _level_config(base_config, law, training)
             if precise_wear:
                 # a worn winglet drive hands its load to its partner and its wear slows down;
                 # the lone wingtip drive's does not: one shape per surface where runs allow
                 for surface in ("WL", "WT"):
-                    own = _exponential_prior(campaign, mode, climate, ref_c, surface)
+                    own = _exponential_prior(campaign, mode, climate, ref_c, training, surface)
                     if own is not None and own["stress_beta_per_k"] == 0.0:
-                        surface_configs[surface] = _level_config(base_config, own)
+                        surface_configs[surface] = _level_config(base_config, own, training)
                         prior.setdefault("by_surface", {})[surface] = {
                             k: own[k] for k in ("growth_offset", "rate", "rate_std", "n_runs",
                                                 "mid_rate_bounds")}
         else:
-            theta, prior = _degradation_prior(campaign, mode)
+            theta, prior = _degradation_prior(campaign, mode, training)
             prior["stress"] = law
             config = base_config
             if theta is not None:
                 # a growth that slows down (b < 0: a worn winglet drive hands its load to its
                 # partner) keeps its negative slope in the prediction's parameter draws, and
-                # never drops below the slowest design run's rate near failure (/ 1.5): draws
+                # never drops below the slowest design run's rate near failure (over the
+                # margin): draws
                 # whose slope stops short of the threshold would run to the horizon
                 floor = prior.get("late_rate_floor") if theta[1] < 0 else None
                 config = replace(base_config, initial_theta=theta, monotone_rate=theta[1] >= 0,
                                  min_rate=base_config.min_rate if floor is None else floor,
-                                 rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"]),
+                                 rls_initial_cov=_prior_weight(theta, noise_sev, prior["dk"],
+                                                                        training),
                                  rate_bounds=tuple(prior["mid_rate_bounds"]))
                 prior["rls_initial_cov"] = config.rls_initial_cov
         specs[mode] = MeasurementSpec(feature, model, config, by_surface,
@@ -433,10 +460,11 @@ def fault_spans(campaign: Campaign) -> dict[str, list[int]]:
     return {m: [min(v), max(v)] for m, v in sorted(spans.items())}
 
 
-def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | None = None
-                    ) -> tuple[PhmModel, dict[str, Any]]:
+def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | None = None,
+                    training: TrainingConfig = TRAINING) -> tuple[PhmModel, dict[str, Any]]:
     """Fit the whole chain on a design campaign whose features are computed; return the
-    model and a JSON-safe report."""
+    model and a JSON-safe report. ``training``: the constants the prognosis is derived with
+    (the default is every model's; others serve tuning, ``bench/adaptation.py``)."""
 
     def tick(stage: str, frac: float) -> None:
         if progress is not None:
@@ -456,7 +484,7 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
     tick("measurement", 0.9)
     climate = fit_climate(campaign)
     specs, meas_report = fit_measurement_models(
-        campaign, bare, PrognoserConfig(), climate)
+        campaign, bare, PrognoserConfig(), climate, training)
     study = sensor_study_pairs(campaign)
     sensors = fit_sensor_model([f for _, seq in healthy_flights(campaign) for f in seq],
                                study, detection.baseline)
@@ -471,6 +499,7 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
                      "aircraft": sorted({p.aircraft for p in campaign.patterns}),
                      "spans_flights": fault_spans(campaign)},
         "seed": seed,
+        "training": asdict(training),
         "classifier": clf_report,
         "measurement": meas_report,
         "sensors": {"fitted": sensors is not None, "study_pairs": len(study),

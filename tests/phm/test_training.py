@@ -158,3 +158,38 @@ def test_noise_free_features_feed_the_prognosis_the_true_severity(design_campaig
     assert health[str(pattern.position)].history[-1][1][spec.feature] == 0.123
     others = [p for p in health if p != pattern.position]
     assert all(health[p].history[-1][1].get(spec.feature) != 0.123 for p in others)
+
+
+def test_the_rate_bound_margin_sets_how_far_a_filter_may_leave_the_design_rates(
+        design_campaign_dir, trained_model) -> None:
+    """Each mode's mid-life rate bounds are its slowest and fastest design runs' rates over and
+    times ``TrainingConfig.rate_bound_margin``: tripling the margin from 1.5 to 4.5 widens
+    every bound by 3 about the same runs, and nothing else of the filter moves."""
+    from dataclasses import replace
+
+    from server.phm.training import TRAINING, train_phm_model
+
+    campaign = load_campaign(design_campaign_dir, jobs=2)
+    wide, report = train_phm_model(campaign, seed=0,
+                                   training=replace(TRAINING, rate_bound_margin=4.5))
+    assert report["training"]["rate_bound_margin"] == 4.5
+    base = PhmModel.from_dict(trained_model[0])
+    assert TRAINING.rate_bound_margin == 1.5
+    for mode, spec in base.measurement.items():
+        for position in ("WL1", "WT"):
+            b, w = spec.config_for(position), wide.measurement[mode].config_for(position)
+            assert w.rate_bounds[0] == pytest.approx(max(b.rate_bounds[0] / 3.0, 1e-5))
+            assert w.rate_bounds[1] == pytest.approx(b.rate_bounds[1] * 3.0)
+            assert replace(w, rate_bounds=b.rate_bounds, min_rate=b.min_rate) == b
+
+
+@pytest.mark.parametrize("field,value", [("rate_bound_margin", 0.9),
+                                         ("rate_bound_margin", float("nan")),
+                                         ("rate_prior_inflation", 0.0),
+                                         ("level_forgetting", 1.2),
+                                         ("prior_weight_bounds", (1.0, 0.1))])
+def test_training_constants_out_of_range_are_refused(field: str, value: object) -> None:
+    from server.phm.training import TrainingConfig
+
+    with pytest.raises(ValueError, match=field):
+        TrainingConfig(**{field: value})
