@@ -25,6 +25,7 @@ import json
 import math
 import os
 import shutil
+from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, replace
@@ -54,7 +55,8 @@ from .flight import (
     simulate_flight,
 )
 
-__all__ = ["ScaleConfig", "SCALES", "plan_campaign", "run_campaign", "run_pattern", "FORMAT",
+__all__ = ["ScaleConfig", "SCALES", "plan_campaign", "execution_order", "run_campaign",
+           "snapshot_campaign", "run_pattern", "FORMAT",
            "SETTINGS_FILE", "FlightSink", "ParquetSink", "PatternTask", "SensorFault",
            "fleet_for", "write_file"]
 
@@ -329,6 +331,21 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
     if kind == "design" and cfg.healthy_patterns:
         specs += _sensor_study(specs, cfg.healthy_patterns)
     return specs
+
+
+def execution_order(specs: list[PatternSpec]) -> list[PatternSpec]:
+    """The order patterns are simulated in (results are re-ordered by pattern number and do
+    not depend on it): the modes' k-th patterns together, round by round, so that a run
+    stopped part way (:func:`snapshot_campaign`) holds about the same share of every mode;
+    within a round the long fault-to-failure runs first, for load balance."""
+    seen: Counter[tuple[str, bool]] = Counter()
+    round_of: dict[int, int] = {}
+    for s in sorted(specs, key=lambda s: s.number):
+        group = (s.mode, s.sensor_study is not None)
+        round_of[s.number] = seen[group]
+        seen[group] += 1
+    return sorted(specs, key=lambda s: (s.sensor_study is not None, round_of[s.number],
+                                        s.mode not in PROGRESSIVE, s.number))
 
 
 def _flight_rng(spec: PatternSpec, index: int, stream: int) -> np.random.Generator:
@@ -641,10 +658,8 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     fleet = fleet_for(kind, seed, **options)
     store = _Progress(out, settings)
     results = {s.number: r for s in specs if (r := store.done(s)) is not None}
-    # longest tasks first improves load balance; results are re-ordered by pattern number
     todo = {s.number: PatternTask(str(out), kind, seed, cfg, s, options, sink)
-            for s in sorted(specs, key=lambda s: (s.mode not in PROGRESSIVE, s.number))
-            if s.number not in results}
+            for s in execution_order(specs) if s.number not in results}
     bar = tqdm(total=len(specs), initial=len(results), desc=f"{kind} campaign",
                unit="pattern", disable=not progress)
     for number, res in _completed(todo, workers or os.cpu_count() or 1, executor):
@@ -658,6 +673,48 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     write_file(out / "manifest.json", json.dumps(manifest, indent=1).encode())
     write_file(out / SETTINGS_FILE, json.dumps(settings, sort_keys=True).encode())
     store.remove()
+    return manifest
+
+
+def snapshot_campaign(out_dir: str | Path, snap_dir: str | Path, *,
+                      sink: FlightSink | None = None) -> dict[str, Any]:
+    """The patterns an unfinished campaign in ``out_dir`` has finished so far, written to
+    ``snap_dir`` as a campaign of their own, so that a run of hours can be scored before it
+    ends; returns its manifest. The run itself is not touched and resumes as before.
+
+    The manifest is the full campaign's for the finished patterns, in pattern order, plus
+    ``"partial": {"patterns": finished, "of": planned}``; ``sink`` (the run's, default
+    :class:`ParquetSink`) writes what it keeps of them, and ``snap_dir/flights`` links to the
+    run's kept logs. A finished campaign, or a sink other than the run's, is refused.
+    """
+    out, snap = Path(out_dir), Path(snap_dir)
+    sink = sink if sink is not None else ParquetSink()
+    if (out / SETTINGS_FILE).exists():
+        raise ValueError(f"{out} is a finished campaign: score it directly")
+    path = out / "progress" / "settings.json"
+    if not path.exists():
+        raise ValueError(f"{out}: no campaign in progress (no {path})")
+    settings = json.loads(path.read_text())
+    if settings["sink"] != sink.describe():
+        raise ValueError(f"{out} was run with the sink {settings['sink']}, not "
+                         f"{sink.describe()}")
+    cfg = ScaleConfig(**{k: tuple(v) if isinstance(v, list) else v
+                         for k, v in settings["config"].items()})
+    specs = plan_campaign(settings["kind"], settings["seed"], settings["scale"])
+    store = _Progress(out, settings)
+    done = [r for s in specs if (r := store.done(s)) is not None]
+    fleet = fleet_for(settings["kind"], settings["seed"],
+                      bases=tuple(settings["bases"]) if settings["bases"] else None,
+                      noise_scale=settings["noise_scale"],
+                      sensor_faults=_sensor_faults(settings.get("sensor_faults")))
+    snap.mkdir(parents=True, exist_ok=True)
+    flights = snap / "flights"
+    if not flights.exists():
+        flights.symlink_to((out / "flights").resolve(), target_is_directory=True)
+    sink.finish(snap, {fid: data for r in done for fid, data in r["stored"].items()})
+    manifest = _manifest(settings, cfg, fleet, [r["entry"] for r in done])
+    manifest["partial"] = {"patterns": len(done), "of": len(specs)}
+    write_file(snap / "manifest.json", json.dumps(manifest, indent=1).encode())
     return manifest
 
 

@@ -11,6 +11,12 @@ evaluates it on the verification one::
 Each step resumes where an interrupted run stopped (a finished pattern is never simulated
 again, a finished campaign never regenerated). ``--scale ci`` runs the same machinery reduced
 (a few patterns per mode, short recordings, fast faults) in a few minutes.
+
+``--score-finished`` scores a verification campaign still running (or interrupted) on the
+patterns it has finished, once the design campaign is complete: they are copied out as a
+campaign of their own (``OUT/partial/verification``, its manifest saying how many of how many)
+and evaluated into ``OUT/partial/evaluation``; the run itself goes on untouched. Patterns are
+simulated round by round over the modes, so a part holds about the same share of each.
 """
 
 from __future__ import annotations
@@ -19,8 +25,12 @@ import argparse
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from server.config import Settings
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from server.campaigns import FeatureSink
 
 __all__ = ["add_protocol_arguments", "run_protocol"]
 
@@ -42,6 +52,9 @@ def add_protocol_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
     parser.add_argument("--dask", default=None, metavar="ADDRESS",
                         help="simulate on a Dask distributed scheduler (tcp://host:8786)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    parser.add_argument("--score-finished", action="store_true",
+                        help="score the verification patterns finished so far (the design "
+                        "campaign must be complete); the run is not touched")
     return parser
 
 
@@ -53,10 +66,10 @@ def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
                               noise_scale=1.0, sensor_fault=None)
 
 
-def _evaluate_args(args: argparse.Namespace, root: Path) -> argparse.Namespace:
-    return argparse.Namespace(campaign=str(root / "verification"), design=str(root / "design"),
-                              model_json=None, model_id=None, seed=0,
-                              out=str(root / "evaluation"),
+def _evaluate_args(args: argparse.Namespace, root: Path, campaign: Path, out: Path
+                   ) -> argparse.Namespace:
+    return argparse.Namespace(campaign=str(campaign), design=str(root / "design"),
+                              model_json=None, model_id=None, seed=0, out=str(out),
                               jobs=args.workers or min(2, os.cpu_count() or 1),
                               timing_flights=6, no_latest=True, no_progress=args.no_progress,
                               point_estimate="median", noise_free_features=False)
@@ -70,6 +83,8 @@ def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
 
     root = Path(args.out)
     sink = FeatureSink(keep_raw_every=args.keep_raw_every)
+    if args.score_finished:
+        return _score_finished(args, settings, root, sink)
     t0 = time.perf_counter()
     for kind, seed, span in (("design", args.design_seed, None),
                              ("verification", args.verification_seed, args.span_range)):
@@ -78,7 +93,30 @@ def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
         n = sum(len(p["flights"]) for p in manifest["patterns"])
         print(f"{kind} campaign: {len(manifest['patterns'])} patterns, {n} flights "
               f"({time.perf_counter() - t0:.0f} s so far)", flush=True)
-    code = run_evaluate(_evaluate_args(args, root), settings)
+    code = run_evaluate(_evaluate_args(args, root, root / "verification", root / "evaluation"),
+                        settings)
     print(f"protocol run finished in {time.perf_counter() - t0:.0f} s: "
           f"{root / 'evaluation' / 'summary.json'}")
     return code
+
+
+def _score_finished(args: argparse.Namespace, settings: Settings, root: Path,
+                    sink: FeatureSink) -> int:
+    from sim_worker.campaign import SETTINGS_FILE, snapshot_campaign
+
+    from .cli import run_evaluate
+
+    if not (root / "design" / SETTINGS_FILE).exists():
+        raise ValueError(f"{root / 'design'}: the design campaign is not complete yet; "
+                         "--score-finished needs it to train")
+    if (root / "verification" / SETTINGS_FILE).exists():
+        raise ValueError(f"{root / 'verification'} is complete: run `hmsm protocol --out "
+                         f"{root}` to score all of it")
+    part = root / "partial"
+    manifest = snapshot_campaign(root / "verification", part / "verification", sink=sink)
+    done, planned = manifest["partial"]["patterns"], manifest["partial"]["of"]
+    if not done:
+        raise ValueError(f"{root / 'verification'}: no pattern finished yet")
+    print(f"scoring {done} of {planned} verification patterns", flush=True)
+    return run_evaluate(_evaluate_args(args, root, part / "verification", part / "evaluation"),
+                        settings)

@@ -84,3 +84,71 @@ def test_a_finished_campaign_is_never_overwritten(protocol_run: Path) -> None:
     # the raw-log runner is another sink: the finished streamed campaign is not overwritten
     assert proc.returncode == 2 and "other settings" in proc.stderr
     assert (protocol_run / "verification" / "phm_features.json").read_bytes() == before
+
+
+def _interrupted_verification(out: Path, patterns: int) -> list[str]:
+    """The ci verification campaign as a run stopped after its first ``patterns`` patterns
+    (in the order a run simulates them) leaves it: their results in ``out/progress``."""
+    from server.campaigns import FeatureSink
+    from sim_worker.campaign import (
+        SCALES,
+        PatternTask,
+        _Progress,
+        _settings,
+        execution_order,
+        plan_campaign,
+        run_pattern,
+    )
+
+    cfg, sink = SCALES["ci"]["verification"], FeatureSink(keep_raw_every=KEEP)
+    options = {"bases": None, "noise_scale": 1.0, "sensor_faults": ()}
+    store = _Progress(out, _settings("verification", 2, "ci", cfg, options, sink))
+    first = execution_order(plan_campaign("verification", 2, "ci"))[:patterns]
+    for spec in first:
+        store.save(spec, run_pattern(PatternTask(str(out), "verification", 2, cfg, spec,
+                                                 options, sink)))
+    return [s.id for s in first]
+
+
+def test_a_running_verification_is_scored_on_the_patterns_it_has_finished(
+        protocol_run: Path, tmp_path: Path) -> None:
+    """``hmsm protocol --score-finished`` copies out the finished patterns of a verification
+    still running, exactly as the whole run writes them, and scores them; the run's own
+    progress is left as it was. A run's first round holds one pattern of every mode."""
+    root = tmp_path / "run"
+    (root / "design").parent.mkdir(parents=True)
+    (root / "design").symlink_to(protocol_run / "design", target_is_directory=True)
+    ids = _interrupted_verification(root / "verification", 8)
+    assert sorted(i.split("-")[1] for i in ids) == sorted(
+        ["TTS", "DMD", "MTEL", "MTWEAR", "REWEAR", "healthy", "SE", "BDO"])
+    progress = sorted(p.name for p in (root / "verification" / "progress").iterdir())
+    proc = subprocess.run(
+        [sys.executable, "-m", "server.cli", "protocol", "--scale", "ci", "--out", str(root),
+         "--workers", "2", "--keep-raw-every", str(KEEP), "--no-progress", "--score-finished"],
+        capture_output=True, text=True, timeout=600,
+        env={**os.environ, "HMSM_DATA_DIR": str(tmp_path / "data")})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    full = _manifest(protocol_run, "verification")
+    assert f"scoring 8 of {len(full['patterns'])} verification patterns" in proc.stdout
+    assert sorted(p.name for p in (root / "verification" / "progress").iterdir()) == progress
+    part = json.loads((root / "partial" / "verification" / "manifest.json").read_text())
+    assert part["partial"] == {"patterns": 8, "of": len(full["patterns"])}
+    assert part["patterns"] == [p for p in full["patterns"] if p["id"] in ids]
+    stored = json.loads((root / "partial" / "verification" / "phm_features.json").read_text())
+    whole = json.loads((protocol_run / "verification" / "phm_features.json").read_text())
+    assert stored["flights"] == {f: v for f, v in whole["flights"].items() if f in
+                                 stored["flights"]}
+    summary = json.loads((root / "partial" / "evaluation" / "summary.json").read_text())
+    assert summary["campaign"]["patterns"] == 8
+    assert summary["campaign"]["partial"] == part["partial"]
+    assert {m: f["n_patterns"] for m, f in summary["prognosis"].items()} == \
+        {m: 1 for m in PROGRESSIVE}
+
+
+def test_scoring_a_part_needs_a_complete_design(tmp_path: Path) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "server.cli", "protocol", "--scale", "ci", "--out",
+         str(tmp_path), "--no-progress", "--score-finished"],
+        capture_output=True, text=True, timeout=120,
+        env={**os.environ, "HMSM_DATA_DIR": str(tmp_path / "data")})
+    assert proc.returncode == 2 and "design campaign is not complete" in proc.stderr
