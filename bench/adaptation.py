@@ -37,7 +37,7 @@ from server.phm.training import TrainingConfig, train_phm_model  # noqa: E402
 
 def parse_variant(text: str) -> tuple[str, TrainingConfig]:
     """``NAME:FIELD=VALUE,...`` -> (NAME, TrainingConfig with those fields); the values are
-    numbers, or tuples of numbers written ``a/b``."""
+    numbers, tuples of numbers written ``a/b``, or the word a text field takes."""
     name, _, body = text.partition(":")
     if not name:
         raise ValueError(f"variant {text!r}: NAME:FIELD=VALUE,... expected")
@@ -48,6 +48,9 @@ def parse_variant(text: str) -> tuple[str, TrainingConfig]:
         if not sep or key not in fields:
             raise ValueError(f"variant {name!r}: unknown field {key!r} (known: "
                              f"{', '.join(sorted(fields))})")
+        if isinstance(getattr(TrainingConfig, key, None), str):
+            changes[key] = value
+            continue
         parts = [float(v) for v in value.split("/")]
         changes[key] = tuple(parts) if len(parts) > 1 else parts[0]
     return name, TrainingConfig(**changes)

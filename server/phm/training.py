@@ -92,8 +92,14 @@ class TrainingConfig:
     #: this and its fastest run's times this: early increments, mostly noise, may not drive
     #: the law beyond them
     rate_bound_margin: float = 1.5
+    #: the long-term prediction's severity random walk: "filter", the filter's process noise;
+    #: "design", the design runs' own flight-to-flight scatter about their fitted laws
+    prediction_noise: str = "filter"
 
     def __post_init__(self) -> None:
+        if self.prediction_noise not in ("filter", "design"):
+            raise ValueError(f"prediction_noise must be 'filter' or 'design', got "
+                             f"{self.prediction_noise!r}")
         for name in ("rate_prior_inflation", "rate_spread", "rate_bound_margin"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
@@ -291,13 +297,30 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     r0 = sign * float(max(sign * np.median(rates), 1e-6))
     r_std = training.rate_prior_inflation * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
     mid = rates * (0.5 + c)
+    noise = _increment_noise(runs, int(jb), c, rates)
     margin = training.rate_bound_margin
     bounds = (max(float(mid.min()) / margin, 1e-5), max(float(mid.max()) * margin, 2e-5))
     return {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
             "rate": r0, "rate_std": r_std, "n_runs": len(runs),
-            "mid_rate_bounds": list(bounds),
+            "mid_rate_bounds": list(bounds), "increment_noise": noise,
             "misfit_flight_clock": float(misfit[0].min() / len(runs)),
             "misfit": float(misfit[jb, jc] / len(runs))}
+
+
+def _increment_noise(runs: list[tuple[np.ndarray, np.ndarray]], jb: int, c: float,
+                     rates: np.ndarray) -> float:
+    """The design runs' flight-to-flight scatter about their own laws [1/sqrt(clock unit)]:
+    the rms of (dh - r (h + c) dtau) / sqrt(dtau) over every run's consecutive flights, each
+    run with its own rate r (the spread of rates between runs is the prior's, not this)."""
+    terms = []
+    for (sn, stress), r in zip(runs, rates, strict=True):
+        h, tau = np.maximum(sn, 0.0), stress[jb]
+        dtau = np.diff(tau)
+        ok = dtau > 0
+        resid = np.diff(h)[ok] - r * (h[:-1][ok] + c) * dtau[ok]
+        terms.append(resid**2 / dtau[ok])
+    pooled = np.concatenate(terms) if terms else np.empty(0)
+    return float(np.sqrt(pooled.mean())) if pooled.size else math.nan
 
 
 def _level_config(base: PrognoserConfig, law: dict[str, Any], training: TrainingConfig
@@ -307,7 +330,17 @@ def _level_config(base: PrognoserConfig, law: dict[str, Any], training: Training
     return replace(base, rate_basis="exponential", growth_offset=law["growth_offset"],
                    initial_theta=(0.0, law["rate"]), initial_rate_std=law["rate_std"],
                    rls_forgetting=training.level_forgetting,
-                   rate_bounds=tuple(law["mid_rate_bounds"]))
+                   rate_bounds=tuple(law["mid_rate_bounds"]),
+                   prediction_noise_std=_prediction_noise(law, training))
+
+
+def _prediction_noise(law: dict[str, Any], training: TrainingConfig) -> float | None:
+    """The prediction's random walk of a mode: None (the filter's) unless training learns it
+    from the design runs."""
+    noise = law.get("increment_noise")
+    if training.prediction_noise != "design" or noise is None or not noise > 0:
+        return None
+    return float(noise)
 
 
 def _prior_weight(theta: tuple[float, float], noise_in_severity: float, dk: float,
@@ -399,7 +432,7 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
                         surface_configs[surface] = _level_config(base_config, own, training)
                         prior.setdefault("by_surface", {})[surface] = {
                             k: own[k] for k in ("growth_offset", "rate", "rate_std", "n_runs",
-                                                "mid_rate_bounds")}
+                                                "mid_rate_bounds", "increment_noise")}
         else:
             theta, prior = _degradation_prior(campaign, mode, training)
             prior["stress"] = law

@@ -644,3 +644,32 @@ def test_config_defaults_are_the_chain_and_the_synthetic_series_values() -> None
     assert PrognoserConfig().process_noise_std == 0.01
     assert GENERIC_CONFIG.process_noise_std == 0.004
     assert replace(GENERIC_CONFIG, process_noise_std=0.01) == PrognoserConfig()
+
+
+def test_the_prediction_may_walk_with_its_own_noise_and_documents_without_it_are_unchanged(
+        ) -> None:
+    """``prediction_noise_std`` (None: the filter's process noise) drives the long-term
+    prediction's random walk only: a config without it writes the same document, digest
+    included, as before the field existed; with it, the filter's updates are unchanged and the
+    RUL band narrows with a smaller walk."""
+    base = _config(process_noise_std=0.02, param_uncertainty_scale=0.0)  # the walk alone
+    assert "prediction_noise_std" not in base.to_dict()
+    assert base.prediction_noise == base.process_noise_std
+    quiet = replace(base, prediction_noise_std=1e-4)
+    assert PrognoserConfig.from_json(quiet.to_json()) == quiet
+    assert PrognoserConfig.from_json(base.to_json()) == base
+    with pytest.raises(ValueError, match="prediction_noise_std"):
+        replace(base, prediction_noise_std=0.0)
+    widths = []
+    for cfg in (base, quiet):
+        pf = ParticleFilterPrognoser(cfg, MODEL)
+        state = pf.initial_state(cfg, MODEL, 3)
+        for k in range(1, 41):
+            state = pf.update(state, float(MODEL.predict(np.array([0.01 * k]))[0]), k)
+        dist = pf.predict(state)
+        widths.append(dist.quantiles[0.95] - dist.quantiles[0.05])
+        if cfg is base:
+            first = state
+        else:
+            assert np.array_equal(state.severity, first.severity)
+    assert widths[1] < 0.6 * widths[0], widths

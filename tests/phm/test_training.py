@@ -193,3 +193,28 @@ def test_training_constants_out_of_range_are_refused(field: str, value: object) 
 
     with pytest.raises(ValueError, match=field):
         TrainingConfig(**{field: value})
+
+
+def test_training_can_learn_the_prediction_noise_from_the_design_runs(design_campaign_dir,
+                                                                      trained_model) -> None:
+    """With ``prediction_noise="design"`` every mode's prediction walks with its design runs'
+    own flight-to-flight scatter about their fitted laws (the training report carries it as
+    ``increment_noise``); by default the prediction keeps the filter's process noise and the
+    model document does not name one."""
+    from dataclasses import replace
+
+    from server.phm.training import TRAINING, train_phm_model
+
+    assert "prediction_noise_std" not in json.dumps(trained_model[0])
+    campaign = load_campaign(design_campaign_dir, jobs=2)
+    learned, report = train_phm_model(campaign, seed=0,
+                                      training=replace(TRAINING, prediction_noise="design"))
+    for mode, spec in learned.measurement.items():
+        law = report["measurement"][mode]["degradation_prior"]
+        for position in ("WL1", "WT"):
+            cfg = spec.config_for(position)
+            assert cfg.prediction_noise_std is not None and cfg.prediction_noise_std > 0, mode
+            assert cfg.process_noise_std == PhmModel.from_dict(trained_model[0]).measurement[
+                mode].config_for(position).process_noise_std
+        assert cfg.prediction_noise_std in {law["increment_noise"]} | {
+            s["increment_noise"] for s in law.get("by_surface", {}).values()}, mode

@@ -46,6 +46,13 @@ class PrognoserConfig:
         Default 0.01, the trained chain's: it lets the cloud follow a fault that grows faster
         or slower than the design prior (docs/TUNING.md, Prognosis). On smooth synthetic
         series the filter's tests and benchmark keep 0.004 (:data:`.generic.GENERIC_CONFIG`).
+    prediction_noise_std:
+        Standard deviation of the severity random walk of the long-term prediction
+        [1/sqrt(flight)], or None for ``process_noise_std``. The filter's process noise lets
+        the cloud follow the measurements; the prediction's is the fault's own
+        flight-to-flight randomness, which training can learn from the design runs
+        (``TrainingConfig.prediction_noise``). Left out of the config document when None, so
+        documents and filter states made before it read back unchanged.
     rate_basis:
         Growth-rate model ``dh/dk = theta . phi(h)`` [1/flight], one class of :mod:`.laws` each
         (:attr:`law`): ``"constant"`` phi = [1] (linear wear, Archard at constant load),
@@ -136,6 +143,7 @@ class PrognoserConfig:
     pof_horizons_flights: tuple[int, ...] = (10, 25, 50)
     histogram_bins: int = 30
     rate_bounds: tuple[float, float] | None = None
+    prediction_noise_std: float | None = None
     _version: int = field(default=_CONFIG_VERSION, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -146,6 +154,8 @@ class PrognoserConfig:
         if self.n_particles < 2:
             raise ValueError(f"n_particles must be >= 2, got {self.n_particles}")
         _positive("process_noise_std", self.process_noise_std)
+        if self.prediction_noise_std is not None:
+            _positive("prediction_noise_std", self.prediction_noise_std)
         n_params = law_for(self.rate_basis).n_params
         if self.initial_theta is not None:
             theta = tuple(float(v) for v in self.initial_theta)
@@ -205,6 +215,12 @@ class PrognoserConfig:
         return law_for(self.rate_basis).n_params
 
     @property
+    def prediction_noise(self) -> float:
+        """The long-term prediction's severity random walk [1/sqrt(flight)]."""
+        return self.process_noise_std if self.prediction_noise_std is None \
+            else self.prediction_noise_std
+
+    @property
     def theta0(self) -> tuple[float, ...]:
         """First-trial RLS parameter vector."""
         if self.initial_theta is not None:
@@ -223,6 +239,8 @@ class PrognoserConfig:
         data["quantile_levels"] = list(self.quantile_levels)
         data["pof_horizons_flights"] = list(self.pof_horizons_flights)
         data["rate_bounds"] = None if self.rate_bounds is None else list(self.rate_bounds)
+        if self.prediction_noise_std is None:
+            del data["prediction_noise_std"]
         return {"version": _CONFIG_VERSION, "kind": "pf_prognoser_config", **data}
 
     def to_json(self) -> str:

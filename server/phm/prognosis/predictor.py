@@ -238,7 +238,8 @@ def propagate_to_threshold(
 
     ``theta`` has shape (p,) or (N, p) (one vector of growth-rate coefficients per particle:
     every law is a polynomial in h here, :meth:`.laws.DegradationLaw.coefficients`). Euler steps of
-    ``step`` flights with process noise ``q sqrt(step)``; crossing time interpolated linearly.
+    ``step`` flights with the prediction's noise ``q sqrt(step)``
+    (:attr:`PrognoserConfig.prediction_noise`); crossing time interpolated linearly.
     Time is in the law's clock (flights, or stress units: :mod:`server.phm.season`);
     ``horizon`` defaults to ``config.max_horizon_flights``.
     """
@@ -260,7 +261,7 @@ def propagate_to_threshold(
     t_expected = min((threshold - h_ref) / rate_ref, horizon)
     step = max(1, int(math.ceil(t_expected / config.prediction_steps)))
     coefs = np.ascontiguousarray(np.broadcast_to(theta, (n, theta.shape[-1])), dtype=float)
-    q = config.process_noise_std
+    q = config.prediction_noise
     block = config.prediction_steps
     t = 0.0
     while True:  # blocks of ``block`` Euler steps; the step doubles from one block to the next
