@@ -89,9 +89,11 @@ class TrainingConfig:
     #: [-] bounds of the RLS's initial covariance P0: the floor keeps some adaptation
     prior_weight_bounds: tuple[float, float] = (1e-2, 1.0)
     #: [-] the mid-life rate bounds of a mode's filter are its slowest design run's rate over
-    #: this and its fastest run's times this: early increments, mostly noise, may not drive
-    #: the law beyond them
-    rate_bound_margin: float = 1.5
+    #: the slow margin and its fastest run's times the fast one: early increments, mostly
+    #: noise, may not drive the law beyond them. A law held too slow predicts too long a
+    #: life, the dangerous error, so the fast side has the room
+    slow_rate_margin: float = 1.5
+    fast_rate_margin: float = 4.0
     #: the long-term prediction's severity random walk: "filter", the filter's process noise;
     #: "design", the design runs' own flight-to-flight scatter about their fitted laws
     prediction_noise: str = "filter"
@@ -100,12 +102,14 @@ class TrainingConfig:
         if self.prediction_noise not in ("filter", "design"):
             raise ValueError(f"prediction_noise must be 'filter' or 'design', got "
                              f"{self.prediction_noise!r}")
-        for name in ("rate_prior_inflation", "rate_spread", "rate_bound_margin"):
+        for name in ("rate_prior_inflation", "rate_spread", "slow_rate_margin",
+                     "fast_rate_margin"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
-        if self.rate_bound_margin < 1.0:
-            raise ValueError(f"rate_bound_margin must be >= 1, got {self.rate_bound_margin}")
+        for name in ("slow_rate_margin", "fast_rate_margin"):
+            if getattr(self, name) < 1.0:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not 0.0 < self.level_forgetting <= 1.0:
             raise ValueError(f"level_forgetting must be in (0, 1], got {self.level_forgetting}")
         low, high = self.prior_weight_bounds
@@ -185,11 +189,11 @@ def _degradation_prior(campaign: Campaign, mode: str, training: TrainingConfig
     a, b = (float(v) for v in np.median(np.asarray(fits), axis=0))
     a = max(a, 1e-5)
     mid = [f[0] + 0.5 * f[1] for f in fits]
-    margin = training.rate_bound_margin
-    bounds = (max(min(mid) / margin, 1e-5), max(mid) * margin)
+    slow, fast = training.slow_rate_margin, training.fast_rate_margin
+    bounds = (max(min(mid) / slow, 1e-5), max(mid) * fast)
     return (a, b), {"a_per_flight": a, "b_per_flight": b, "n_runs": len(fits),
                     "dk": float(np.median(gaps)), "mid_rate_bounds": list(bounds),
-                    "late_rate_floor": (max(min(late) / margin, 1e-5) if late else None)}
+                    "late_rate_floor": (max(min(late) / slow, 1e-5) if late else None)}
 
 
 def fit_climate(campaign: Campaign) -> SeasonalClimate | None:
@@ -268,7 +272,7 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     over the runs (mean 1 - R^2 of a per-run fit: scale-free, so shapes and clocks compare
     fairly); each run's slope there is its rate r. The prior is the runs' median r and their
     standard deviation; the rate bounds are the slowest and fastest run's mid-life rate
-    r (0.5 + c) widened by ``training.rate_bound_margin``.
+    r (0.5 + c) widened by ``training.slow_rate_margin`` and ``fast_rate_margin``.
     """
     betas = np.asarray(training.stress_betas)
     offsets = np.asarray(training.growth_offsets)
@@ -298,8 +302,8 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     r_std = training.rate_prior_inflation * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
     mid = rates * (0.5 + c)
     noise = _increment_noise(runs, int(jb), c, rates)
-    margin = training.rate_bound_margin
-    bounds = (max(float(mid.min()) / margin, 1e-5), max(float(mid.max()) * margin, 2e-5))
+    bounds = (max(float(mid.min()) / training.slow_rate_margin, 1e-5),
+              max(float(mid.max()) * training.fast_rate_margin, 2e-5))
     return {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
             "rate": r0, "rate_std": r_std, "n_runs": len(runs),
             "mid_rate_bounds": list(bounds), "increment_noise": noise,

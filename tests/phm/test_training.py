@@ -160,21 +160,22 @@ def test_noise_free_features_feed_the_prognosis_the_true_severity(design_campaig
     assert all(health[p].history[-1][1].get(spec.feature) != 0.123 for p in others)
 
 
-def test_the_rate_bound_margin_sets_how_far_a_filter_may_leave_the_design_rates(
+def test_the_rate_margins_set_how_far_a_filter_may_leave_the_design_rates(
         design_campaign_dir, trained_model) -> None:
-    """Each mode's mid-life rate bounds are its slowest and fastest design runs' rates over and
-    times ``TrainingConfig.rate_bound_margin``: tripling the margin from 1.5 to 4.5 widens
-    every bound by 3 about the same runs, and nothing else of the filter moves."""
+    """Each mode's mid-life rate bounds are its slowest design run's rate over
+    ``TrainingConfig.slow_rate_margin`` and its fastest run's times ``fast_rate_margin``:
+    tripling both margins widens every bound by 3 about the same runs, and nothing else of
+    the filter moves."""
     from dataclasses import replace
 
     from server.phm.training import TRAINING, train_phm_model
 
     campaign = load_campaign(design_campaign_dir, jobs=2)
-    wide, report = train_phm_model(campaign, seed=0,
-                                   training=replace(TRAINING, rate_bound_margin=4.5))
-    assert report["training"]["rate_bound_margin"] == 4.5
+    wide, report = train_phm_model(
+        campaign, seed=0, training=replace(TRAINING, slow_rate_margin=3 * TRAINING.slow_rate_margin,
+                                           fast_rate_margin=3 * TRAINING.fast_rate_margin))
+    assert report["training"]["fast_rate_margin"] == 3 * TRAINING.fast_rate_margin
     base = PhmModel.from_dict(trained_model[0])
-    assert TRAINING.rate_bound_margin == 1.5
     for mode, spec in base.measurement.items():
         for position in ("WL1", "WT"):
             b, w = spec.config_for(position), wide.measurement[mode].config_for(position)
@@ -183,8 +184,8 @@ def test_the_rate_bound_margin_sets_how_far_a_filter_may_leave_the_design_rates(
             assert replace(w, rate_bounds=b.rate_bounds, min_rate=b.min_rate) == b
 
 
-@pytest.mark.parametrize("field,value", [("rate_bound_margin", 0.9),
-                                         ("rate_bound_margin", float("nan")),
+@pytest.mark.parametrize("field,value", [("slow_rate_margin", 0.9),
+                                         ("fast_rate_margin", float("nan")),
                                          ("rate_prior_inflation", 0.0),
                                          ("level_forgetting", 1.2),
                                          ("prior_weight_bounds", (1.0, 0.1))])

@@ -119,7 +119,8 @@ class PrognoserConfig:
         sample of the prediction) it is scaled into this range; the RLS estimate itself is left
         free. Early in a life the increments of the filtered severity are mostly noise and can
         drive the tuned law to an implausibly slow or fast rate (training sets the range from
-        the slowest and fastest design runs, widened by ``TrainingConfig.rate_bound_margin``).
+        the slowest and fastest design runs, widened by ``TrainingConfig.slow_rate_margin``
+        and ``fast_rate_margin``).
     """
 
     n_particles: int = 200
