@@ -164,22 +164,22 @@ def test_the_rate_margins_set_how_far_a_filter_may_leave_the_design_rates(
         design_campaign_dir, trained_model) -> None:
     """Each mode's mid-life rate bounds are its slowest design run's rate over
     ``TrainingConfig.slow_rate_margin`` and its fastest run's times ``fast_rate_margin``:
-    tripling both margins widens every bound by 3 about the same runs, and nothing else of
-    the filter moves."""
+    doubling the slow margin halves every lower bound, tripling the fast one triples every
+    upper bound, and nothing else of the filter moves."""
     from dataclasses import replace
 
     from server.phm.training import TRAINING, train_phm_model
 
     campaign = load_campaign(design_campaign_dir, jobs=2)
     wide, report = train_phm_model(
-        campaign, seed=0, training=replace(TRAINING, slow_rate_margin=3 * TRAINING.slow_rate_margin,
+        campaign, seed=0, training=replace(TRAINING, slow_rate_margin=2 * TRAINING.slow_rate_margin,
                                            fast_rate_margin=3 * TRAINING.fast_rate_margin))
     assert report["training"]["fast_rate_margin"] == 3 * TRAINING.fast_rate_margin
     base = PhmModel.from_dict(trained_model[0])
     for mode, spec in base.measurement.items():
         for position in ("WL1", "WT"):
             b, w = spec.config_for(position), wide.measurement[mode].config_for(position)
-            assert w.rate_bounds[0] == pytest.approx(max(b.rate_bounds[0] / 3.0, 1e-5))
+            assert w.rate_bounds[0] == pytest.approx(max(b.rate_bounds[0] / 2.0, 1e-5))
             assert w.rate_bounds[1] == pytest.approx(b.rate_bounds[1] * 3.0)
             assert replace(w, rate_bounds=b.rate_bounds, min_rate=b.min_rate) == b
 
