@@ -94,6 +94,9 @@ class TrainingConfig:
     #: life, the dangerous error, so the fast side has the room
     slow_rate_margin: float = 1.5
     fast_rate_margin: float = 4.0
+    #: [-] prior probability that a fault's rate lies off the design's range: the weight of
+    #: the rate prior's tail components (``PrognoserConfig.rate_prior_tail``)
+    rate_prior_tail: float = 0.2
     #: the long-term prediction's severity random walk: "filter", the filter's process noise;
     #: "design", the design runs' own flight-to-flight scatter about their fitted laws
     prediction_noise: str = "filter"
@@ -335,6 +338,7 @@ def _level_config(base: PrognoserConfig, law: dict[str, Any], training: Training
                    initial_theta=(0.0, law["rate"]), initial_rate_std=law["rate_std"],
                    rls_forgetting=training.level_forgetting,
                    rate_bounds=tuple(law["mid_rate_bounds"]),
+                   rate_prior_tail=training.rate_prior_tail,
                    prediction_noise_std=_prediction_noise(law, training))
 
 

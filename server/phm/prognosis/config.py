@@ -121,6 +121,17 @@ class PrognoserConfig:
         drive the tuned law to an implausibly slow or fast rate (training sets the range from
         the slowest and fastest design runs, widened by ``TrainingConfig.slow_rate_margin``
         and ``fast_rate_margin``).
+    rate_prior_tail:
+        Prior probability that the fault's rate lies off the design's range [-], in [0, 1);
+        ``"exponential"`` law only. 0: the rate prior is the normal N(r0, sd^2) of
+        ``initial_theta`` and ``initial_rate_std``. Above 0 it is a mixture: that normal with
+        weight 1 - tail, and the same normal scaled by each of
+        ``CONSTANTS.rate_tail_factors`` (3 times slower to 6.75 times faster) sharing the
+        tail. Each component is tuned by its own RLS and weighted by how well it predicted the
+        measurements (:mod:`.mixture`): a fault far faster or slower than any in design pulls
+        the rate within a few flights instead of fighting a light-tailed prior. Left out of
+        the config document when 0, so documents and states made before it read back
+        unchanged.
     """
 
     n_particles: int = 200
@@ -145,6 +156,7 @@ class PrognoserConfig:
     histogram_bins: int = 30
     rate_bounds: tuple[float, float] | None = None
     prediction_noise_std: float | None = None
+    rate_prior_tail: float = 0.0
     _version: int = field(default=_CONFIG_VERSION, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -202,6 +214,13 @@ class PrognoserConfig:
             if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi):
                 raise ValueError("rate_bounds must be finite with 0 < low < high")
             object.__setattr__(self, "rate_bounds", (lo, hi))
+        tail = self.rate_prior_tail
+        if isinstance(tail, bool) or not (isinstance(tail, int | float) and 0.0 <= tail < 1.0):
+            raise ValueError(f"rate_prior_tail must be in [0, 1), got {tail!r}")
+        if tail > 0.0 and self.rate_basis != "exponential":
+            raise ValueError("rate_prior_tail needs rate_basis 'exponential', got "
+                             f"{self.rate_basis!r}")
+        object.__setattr__(self, "rate_prior_tail", float(tail))
         if self._version != _CONFIG_VERSION:
             raise ValueError(f"unsupported config version {self._version}")
 
@@ -242,6 +261,8 @@ class PrognoserConfig:
         data["rate_bounds"] = None if self.rate_bounds is None else list(self.rate_bounds)
         if self.prediction_noise_std is None:
             del data["prediction_noise_std"]
+        if self.rate_prior_tail == 0.0:
+            del data["rate_prior_tail"]
         return {"version": _CONFIG_VERSION, "kind": "pf_prognoser_config", **data}
 
     def to_json(self) -> str:

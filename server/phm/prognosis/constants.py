@@ -38,6 +38,12 @@ class PrognosisConstants:
     short_series_noise:
         Noise standard deviation the generic interface assumes for a series too short
         (< 4 samples) to estimate it [severity, threshold distance = 1]: a fallback, not fitted.
+    rate_tail_factors:
+        Multiples of the prior rate at which the exponential law's rate prior puts its tail
+        components (``PrognoserConfig.rate_prior_tail``) [-]: steps of 1.5 from 3 times slower
+        to 6.75 times faster than the design median, so that a fault with a life of 50 flights
+        (5 times faster than the design's median of about 260) or of 800 (3 times slower)
+        lies within one prior standard deviation of a component.
     """
 
     rate_prior_spread: float = 0.35
@@ -46,6 +52,7 @@ class PrognosisConstants:
     inversion_grid: int = 513
     min_growth_points: int = 3
     short_series_noise: float = 0.05
+    rate_tail_factors: tuple[float, ...] = (1.0 / 3.0, 0.5, 2.0, 3.0, 4.5, 6.75)
 
 
 #: the engine's constants (one instance; every module reads its values from here)

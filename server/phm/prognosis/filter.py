@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 from .config import PrognoserConfig
 from .degradation import bound_mid_rate, growth_rate, rls_update
 from .measurement import MeasurementModel
+from .mixture import RateMixture
 from .predictor import RulDistribution, propagate_to_threshold, summarise_rul
 
 __all__ = [
@@ -87,7 +88,8 @@ class PrognoserState:
     log_weights:
         Normalised log-weights [-], shape (N,) (logsumexp = 0).
     theta, cov, resid_var:
-        RLS parameters (p,), normalised covariance (p, p), residual variance [1/flight^2].
+        RLS parameters (p,), normalised covariance (p, p), residual variance [1/flight^2];
+        with a mixture rate prior, the mixture's mean and covariance.
     rng_state:
         ``Generator.bit_generator.state`` (a dict) of the filter's generator.
     flight_index:
@@ -104,6 +106,9 @@ class PrognoserState:
         Sum of the flight hours given and the number of flights that had them.
     config_digest:
         Short hash of the config and measurement model the state belongs to.
+    mixture:
+        The components of a mixture rate prior (``PrognoserConfig.rate_prior_tail`` > 0),
+        else None.
     """
 
     severity: NDArray[np.float64]
@@ -121,6 +126,7 @@ class PrognoserState:
     resampled: bool = False
     hours_total: float = 0.0
     hours_flights: int = 0
+    mixture: RateMixture | None = None
     version: int = field(default=_STATE_VERSION)
 
     @property
@@ -139,7 +145,7 @@ class PrognoserState:
 
     # -- persistence ------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "version": _STATE_VERSION,
             "kind": "pf_prognoser_state",
             "config_digest": self.config_digest,
@@ -158,6 +164,9 @@ class PrognoserState:
             "hours_total": self.hours_total,
             "hours_flights": self.hours_flights,
         }
+        if self.mixture is not None:  # absent otherwise: states without one read as before
+            out["mixture"] = self.mixture.to_dict()
+        return out
 
     def to_json(self) -> str:
         """JSON text; floats are written with repr, so ``from_json`` restores them bit-exactly."""
@@ -189,6 +198,8 @@ class PrognoserState:
             resampled=bool(data["resampled"]),
             hours_total=float(data["hours_total"]),
             hours_flights=int(data["hours_flights"]),
+            mixture=None if data.get("mixture") is None
+            else RateMixture.from_dict(data["mixture"]),
         )
 
     @classmethod
@@ -272,6 +283,8 @@ class ParticleFilterPrognoser:
         self.measurement_model = measurement_model
         self.law = config.law
         self.digest = _digest(config, measurement_model)
+        self._prior_mixture = (self.law.prior_mixture(config)
+                               if config.rate_prior_tail > 0 else None)
 
     @classmethod
     def initial_state(
@@ -286,13 +299,20 @@ class ParticleFilterPrognoser:
         rng = np.random.Generator(np.random.PCG64(rng_seed))
         n = config.n_particles
         severity = rng.uniform(0.0, config.initial_severity_max, n)
-        cov, resid_var = config.law.prior(config)
+        law = config.law
+        cov, resid_var = law.prior(config)
+        theta = np.asarray(config.theta0, dtype=float)
+        mixture = (law.prior_mixture(config)
+                   if config.rate_prior_tail > 0 else None)
+        if mixture is not None:
+            theta, cov = mixture.moments()
         return PrognoserState(
             severity=severity,
             log_weights=np.full(n, -math.log(n)),
-            theta=np.asarray(config.theta0, dtype=float),
+            theta=theta,
             cov=cov,
             resid_var=resid_var,
+            mixture=mixture,
             rng_state=rng.bit_generator.state,
             config_digest=_digest(config, measurement_model),
         )
@@ -345,12 +365,20 @@ class ParticleFilterPrognoser:
             log_w = np.full(n, -math.log(n))
             estimate = float(h.mean())
             theta, cov = self.law.first_measurement(state.theta, state.cov, s0, spread)
+            mixture = state.mixture
+            if mixture is not None:
+                firsts = [self.law.first_measurement(t, c, s0, spread)
+                          for t, c in zip(mixture.theta, mixture.cov, strict=True)]
+                mixture = RateMixture(np.array([t for t, _ in firsts]),
+                                      np.array([c for _, c in firsts]), mixture.log_weights)
+                theta, cov = mixture.moments()
             return replace(
                 state,
                 severity=h,
                 log_weights=log_w,
                 theta=theta,
                 cov=cov,
+                mixture=mixture,
                 rng_state=rng.bit_generator.state,
                 flight_index=k,
                 last_estimate=estimate,
@@ -389,9 +417,7 @@ class ParticleFilterPrognoser:
             h = h[idx]
             log_w = np.full(n, -math.log(n))
         # 4. tune the degradation model: one RLS step on the law's measurement
-        step = self.law.rls_measurement(state, estimate, z, dk, mm, cfg)
-        theta, cov, resid_var = rls_update(step.theta, step.cov, state.resid_var, step.phi,
-                                           step.y, step.forgetting, cfg.rls_max_trace)
+        theta, cov, resid_var, mixture = self._tune(state, estimate, z, dk)
         return PrognoserState(
             severity=h,
             log_weights=log_w,
@@ -408,7 +434,27 @@ class ParticleFilterPrognoser:
             resampled=bool(resampled),
             hours_total=hours_total,
             hours_flights=hours_flights,
+            mixture=mixture,
         )
+
+    def _tune(self, state: PrognoserState, estimate: float, z: float, dk: float
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, RateMixture | None]:
+        """One RLS step on the law's measurement, per component of a mixture prior (then
+        theta and cov are the mixture's moments): (theta, cov, resid_var, mixture)."""
+        cfg, mm = self.config, self.measurement_model
+        if state.mixture is None or self._prior_mixture is None:
+            step = self.law.rls_measurement(state, estimate, z, dk, mm, cfg)
+            theta, cov, resid_var = rls_update(step.theta, step.cov, state.resid_var, step.phi,
+                                               step.y, step.forgetting, cfg.rls_max_trace)
+            return theta, cov, resid_var, None
+        mix = state.mixture
+        steps = [self.law.rls_measurement(replace(state, theta=t, cov=c), estimate, z, dk, mm,
+                                          cfg)
+                 for t, c in zip(mix.theta, mix.cov, strict=True)]
+        mix, resid_var = mix.update(steps, state.resid_var, cfg.rls_max_trace,
+                                    self._prior_mixture.log_weights)
+        theta, cov = mix.moments()
+        return theta, cov, resid_var, mix
 
     def parameter_samples(
         self, state: PrognoserState, rng: np.random.Generator

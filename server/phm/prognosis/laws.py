@@ -24,7 +24,6 @@ the per-particle parameter draws of the long-term prediction. :data:`LAWS` maps 
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, ClassVar, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
@@ -40,6 +39,7 @@ from .degradation import (
     log_level_observation,
     regressor,
 )
+from .mixture import RateMixture
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (config and filter import this module)
     from .config import PrognoserConfig
@@ -105,6 +105,10 @@ class DegradationLaw(Protocol):
         """Initial RLS covariance P0 and residual variance s2_0."""
         ...
 
+    def prior_mixture(self, config: PrognoserConfig) -> RateMixture:
+        """The rate prior as a mixture of components (``config.rate_prior_tail`` > 0)."""
+        ...
+
     def first_measurement(self, theta: NDArray[np.float64], cov: NDArray[np.float64],
                           severity: float, spread: float
                           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -161,6 +165,9 @@ class PolynomialLaw:
 
     def prior(self, config: PrognoserConfig) -> tuple[NDArray[np.float64], float]:
         return np.eye(self.n_params) * config.rls_initial_cov, config.process_noise_std**2
+
+    def prior_mixture(self, config: PrognoserConfig) -> RateMixture:
+        raise ValueError("a mixture rate prior needs rate_basis 'exponential'")
 
     def first_measurement(self, theta: NDArray[np.float64], cov: NDArray[np.float64],
                           severity: float, spread: float
@@ -287,13 +294,34 @@ class ExponentialLaw:
         return RlsMeasurement(*level_measurement(state.theta, state.cov, dk, y, sigma_y,
                                                  config.rls_forgetting))
 
+    def prior_mixture(self, config: PrognoserConfig) -> RateMixture:
+        """The rate prior as a mixture (``config.rate_prior_tail`` > 0): the normal of
+        :meth:`prior` with weight 1 - tail, and that normal with its mean and standard
+        deviation scaled by each of ``CONSTANTS.rate_tail_factors``, sharing the tail."""
+        cov0, _ = self.prior(config)
+        a0, r0 = config.theta0
+        factors = np.array((1.0,) + CONSTANTS.rate_tail_factors)
+        tail = config.rate_prior_tail
+        weights = np.r_[1.0 - tail, np.full(factors.size - 1, tail / (factors.size - 1))]
+        theta = np.column_stack([np.full(factors.size, a0), r0 * factors])
+        cov = np.repeat(cov0[np.newaxis], factors.size, axis=0)
+        cov[:, 1, 1] *= factors**2
+        return RateMixture(theta, cov, np.log(weights))
+
     def parameter_samples(self, state: PrognoserState, rng: np.random.Generator,
                           config: PrognoserConfig) -> NDArray[np.float64]:
         """r_i ~ N(r, c s2 P_rr) with s2 floored at 1 (the misfit factor inflates, never
-        shrinks, the whitened covariance), kept on the growth side (r has the sign of c)."""
+        shrinks, the whitened covariance), kept on the growth side (r has the sign of c).
+        With a mixture prior each particle first draws its component by the weights."""
         n = config.n_particles
-        var = config.param_uncertainty_scale * max(state.resid_var, 1.0) * state.cov[1, 1]
-        rate = state.theta[1] + math.sqrt(max(var, 0.0)) * rng.standard_normal(n)
+        scale = config.param_uncertainty_scale * max(state.resid_var, 1.0)
+        if state.mixture is None:
+            mean, var = state.theta[1], scale * state.cov[1, 1]
+        else:
+            mix = state.mixture
+            comp = rng.choice(mix.weights.size, size=n, p=mix.weights)
+            mean, var = mix.theta[comp, 1], scale * mix.cov[comp, 1, 1]
+        rate = mean + np.sqrt(np.maximum(var, 0.0)) * rng.standard_normal(n)
         rate = np.maximum(rate, 0.0) if self.offset > 0 else np.minimum(rate, 0.0)
         theta = np.column_stack([np.zeros(n), rate])
         return bound_mid_rate(self.coefficients(theta), config.rate_bounds)
