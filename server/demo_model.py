@@ -5,7 +5,7 @@ two cores before the URL appears. The demo instead starts on a model trained by 
 commands on a seeded design campaign -- the quick design campaign of seed ``DESIGN_SEED``,
 trained with seed ``TRAINING_SEED`` -- and ships the result. ``hmsm demo-model --out FILE``
 regenerates it; the test suite trains the same campaign with the same seed and checks that the
-shipped document is what that command produces (``tests/test_demo_model.py``).
+shipped document is what that command produces (``tests/test_demo.py``).
 
 The document: ``{"format": "ema-demo-model/1", "design": {...}, "training_seed": ...,
 "payload": <ema-phm-model document>, "training": <training report>}``; the report is stored
@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["DESIGN_SEED", "TRAINING_SEED", "FORMAT", "demo_model_document", "load_demo_model",
-           "portable_report", "write_demo_model"]
+           "portable_report", "trained_model_document", "write_demo_model"]
 
 DESIGN_SEED = 1
 TRAINING_SEED = 0
@@ -45,11 +45,18 @@ def portable_report(report: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def demo_model_document(payload: dict[str, Any], report: dict[str, Any]) -> dict[str, Any]:
-    return {"format": FORMAT,
-            "design": {"kind": "design", "scale": "quick", "seed": DESIGN_SEED},
-            "training_seed": TRAINING_SEED,
+def trained_model_document(fmt: str, design: dict[str, Any], training_seed: int,
+                           payload: dict[str, Any], report: dict[str, Any]) -> dict[str, Any]:
+    """A model document with where it was trained and its portable training report (the
+    shape of the demo's and of a protocol run's ``model.json``)."""
+    return {"format": fmt, "design": design, "training_seed": training_seed,
             "payload": json.loads(json.dumps(payload)), "training": portable_report(report)}
+
+
+def demo_model_document(payload: dict[str, Any], report: dict[str, Any]) -> dict[str, Any]:
+    return trained_model_document(
+        FORMAT, {"kind": "design", "scale": "quick", "seed": DESIGN_SEED}, TRAINING_SEED,
+        payload, report)
 
 
 def write_demo_model(out: str | Path, *, campaign: str | Path | None = None,

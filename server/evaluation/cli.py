@@ -5,9 +5,11 @@ Usage::
     hmsm evaluate --campaign DIR [--design DIR | --model-json FILE | --model-id N]
                   [--out DIR] [--jobs N] [--seed N] [--no-progress]
 
-Model: ``--model-json`` (a ``ema-phm-model/5`` document, or a model-version export with a
-``payload``), ``--model-id`` (a model version of the database), ``--design`` (train on a design
-campaign, seed ``--seed``), else the active model version of the database.
+Model: ``--model-json`` (a ``ema-phm-model/5`` document, or one wrapped in the ``payload`` of
+a model-version export, the demo's model or a protocol run's ``model.json``, whose
+``training`` report then goes into the evaluation), ``--model-id`` (a model version of the
+database), ``--design`` (train on a design campaign, seed ``--seed``), else the active model
+version of the database.
 
 Writes into ``--out`` (default ``<HMSM_DATA_DIR>/evaluation/<UTC timestamp>/``):
 ``evaluation.json`` (everything, with the per-flight traces), ``summary.json`` (every figure
@@ -78,19 +80,27 @@ def load_model(args: argparse.Namespace, settings: Settings
     """The model to evaluate and a description of where it came from."""
     if args.model_json:
         path = Path(args.model_json)
-        return read_model_document(json.loads(path.read_text())), {
-            "source": f"file {path.resolve()}"}
+        doc = json.loads(path.read_text())
+        return read_model_document(doc), {"source": f"file {path.resolve()}",
+                                           **_training_info(doc.get("training"))}
     if args.design:
         from server.campaigns import train_from_directory
 
         t0 = time.perf_counter()
         model, report = train_from_directory(args.design, seed=args.seed, jobs=args.jobs)
-        clf = report.get("classifier") or {}
         return model, {"source": f"trained on {Path(args.design).resolve()} (seed {args.seed})",
-                       "training_s": time.perf_counter() - t0,
-                       "classifier_accuracy": clf.get("accuracy"),
-                       "measurement": report.get("measurement")}
+                       "training_s": time.perf_counter() - t0, **_training_info(report)}
     return _model_from_db(settings, args.model_id)
+
+
+def _training_info(report: Any) -> dict[str, Any]:
+    """What the evaluation keeps of a training report (one beside a model file, as the demo's
+    and the protocol's model documents carry, or one just made): the classifier's accuracy on
+    its held-out design part and the measurement fits."""
+    if not isinstance(report, dict):
+        return {}
+    clf = report.get("classifier") or {}
+    return {"classifier_accuracy": clf.get("accuracy"), "measurement": report.get("measurement")}
 
 
 def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, dict[str, Any]]:

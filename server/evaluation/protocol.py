@@ -5,12 +5,16 @@ every pattern simulated, features kept, logs sampled), trains the chain on the d
 evaluates it on the verification one::
 
     OUT/design/          streamed design campaign (seed --design-seed)
+    OUT/model.json       the model trained on it (training seed 0), with its training report
     OUT/verification/    streamed verification campaign (seed --verification-seed)
     OUT/evaluation/      hmsm evaluate's outputs: summary.json, evaluation.json, report.html
 
 Each step resumes where an interrupted run stopped (a finished pattern is never simulated
-again, a finished campaign never regenerated). ``--scale ci`` runs the same machinery reduced
-(a few patterns per mode, short recordings, fast faults) in a few minutes.
+again, a finished campaign never regenerated, a trained model never retrained).
+``--model-json FILE`` takes a model such a run trained (its ``model.json``) instead of the
+design campaign and the training: the verification alone, the longer two thirds of the run.
+``--scale ci`` runs the same machinery reduced (a few patterns per mode, short recordings,
+fast faults) in a few minutes.
 
 ``--score-finished`` scores a verification campaign still running (or interrupted) on the
 patterns it has finished, once the design campaign is complete: they are copied out as a
@@ -22,6 +26,7 @@ simulated round by round over the modes, so a part holds about the same share of
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
 from pathlib import Path
@@ -32,7 +37,10 @@ from server.config import Settings
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from server.campaigns import FeatureSink
 
-__all__ = ["add_protocol_arguments", "run_protocol"]
+__all__ = ["MODEL_FILE", "MODEL_FORMAT", "add_protocol_arguments", "run_protocol"]
+
+MODEL_FILE = "model.json"
+MODEL_FORMAT = "ema-protocol-model/1"
 
 
 def add_protocol_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -52,6 +60,9 @@ def add_protocol_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
     parser.add_argument("--dask", default=None, metavar="ADDRESS",
                         help="simulate on a Dask distributed scheduler (tcp://host:8786)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    parser.add_argument("--model-json", default=None, metavar="FILE",
+                        help="score with this model (a protocol run's model.json) instead of "
+                        "streaming and training on a design campaign")
     parser.add_argument("--score-finished", action="store_true",
                         help="score the verification patterns finished so far (the design "
                         "campaign must be complete); the run is not touched")
@@ -66,10 +77,10 @@ def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
                               noise_scale=1.0, sensor_fault=None)
 
 
-def _evaluate_args(args: argparse.Namespace, root: Path, campaign: Path, out: Path
+def _evaluate_args(args: argparse.Namespace, model: Path, campaign: Path, out: Path
                    ) -> argparse.Namespace:
-    return argparse.Namespace(campaign=str(campaign), design=str(root / "design"),
-                              model_json=None, model_id=None, seed=0, out=str(out),
+    return argparse.Namespace(campaign=str(campaign), design=None,
+                              model_json=str(model), model_id=None, seed=0, out=str(out),
                               jobs=args.workers or min(2, os.cpu_count() or 1),
                               timing_flights=6, no_latest=True, no_progress=args.no_progress,
                               point_estimate="median", noise_free_features=False)
@@ -86,18 +97,47 @@ def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
     if args.score_finished:
         return _score_finished(args, settings, root, sink)
     t0 = time.perf_counter()
-    for kind, seed, span in (("design", args.design_seed, None),
-                             ("verification", args.verification_seed, args.span_range)):
+    kinds = [("verification", args.verification_seed, args.span_range)]
+    if args.model_json is None:
+        kinds.insert(0, ("design", args.design_seed, None))
+    for kind, seed, span in kinds:
         manifest = run_campaign_command(_campaign_args(args, kind, seed, root / kind, span),
                                         sink=sink)
         n = sum(len(p["flights"]) for p in manifest["patterns"])
         print(f"{kind} campaign: {len(manifest['patterns'])} patterns, {n} flights "
               f"({time.perf_counter() - t0:.0f} s so far)", flush=True)
-    code = run_evaluate(_evaluate_args(args, root, root / "verification", root / "evaluation"),
-                        settings)
+        if kind == "design":
+            _trained_model(args, root)
+    code = run_evaluate(_evaluate_args(args, _model_path(args, root), root / "verification",
+                                       root / "evaluation"), settings)
     print(f"protocol run finished in {time.perf_counter() - t0:.0f} s: "
           f"{root / 'evaluation' / 'summary.json'}")
     return code
+
+
+def _model_path(args: argparse.Namespace, root: Path) -> Path:
+    return Path(args.model_json) if args.model_json is not None else root / MODEL_FILE
+
+
+def _trained_model(args: argparse.Namespace, root: Path) -> Path:
+    """``OUT/model.json``: the model trained on the complete design campaign (seed 0), made
+    once; written whole or not at all, so an interrupted training is simply redone."""
+    from server.campaigns import train_from_directory
+    from server.demo_model import trained_model_document
+
+    path = root / MODEL_FILE
+    if path.exists():
+        return path
+    t0 = time.perf_counter()
+    model, report = train_from_directory(root / "design", seed=0, jobs=args.workers)
+    design = {"kind": "design", "scale": args.scale, "seed": args.design_seed}
+    doc = trained_model_document(MODEL_FORMAT, design, 0, model.to_dict(), report)
+    tmp = path.with_suffix(".part")
+    tmp.write_text(json.dumps(doc, sort_keys=True, separators=(",", ":")) + "\n")
+    tmp.replace(path)
+    print(f"model trained on {root / 'design'} in {time.perf_counter() - t0:.0f} s: {path}",
+          flush=True)
+    return path
 
 
 def _score_finished(args: argparse.Namespace, settings: Settings, root: Path,
@@ -106,7 +146,7 @@ def _score_finished(args: argparse.Namespace, settings: Settings, root: Path,
 
     from .cli import run_evaluate
 
-    if not (root / "design" / SETTINGS_FILE).exists():
+    if args.model_json is None and not (root / "design" / SETTINGS_FILE).exists():
         raise ValueError(f"{root / 'design'}: the design campaign is not complete yet; "
                          "--score-finished needs it to train")
     if (root / "verification" / SETTINGS_FILE).exists():
@@ -117,6 +157,7 @@ def _score_finished(args: argparse.Namespace, settings: Settings, root: Path,
     done, planned = manifest["partial"]["patterns"], manifest["partial"]["of"]
     if not done:
         raise ValueError(f"{root / 'verification'}: no pattern finished yet")
+    model = Path(args.model_json) if args.model_json is not None else _trained_model(args, root)
     print(f"scoring {done} of {planned} verification patterns", flush=True)
-    return run_evaluate(_evaluate_args(args, root, part / "verification", part / "evaluation"),
-                        settings)
+    return run_evaluate(_evaluate_args(args, model, part / "verification",
+                                       part / "evaluation"), settings)

@@ -152,3 +152,34 @@ def test_scoring_a_part_needs_a_complete_design(tmp_path: Path) -> None:
         capture_output=True, text=True, timeout=120,
         env={**os.environ, "HMSM_DATA_DIR": str(tmp_path / "data")})
     assert proc.returncode == 2 and "design campaign is not complete" in proc.stderr
+
+
+def test_the_trained_model_is_kept_and_scores_the_verification_alone(
+        protocol_run: Path, tmp_path: Path) -> None:
+    """The run keeps the model it trained (``OUT/model.json``, with where it was trained and
+    its training report); ``--model-json`` with it scores a verification without any design
+    campaign, to the same figures as the whole run."""
+    from server.evaluation.protocol import MODEL_FORMAT
+
+    doc = json.loads((protocol_run / "model.json").read_text())
+    assert doc["format"] == MODEL_FORMAT
+    assert doc["design"] == {"kind": "design", "scale": "ci", "seed": 1}
+    assert doc["payload"]["format"].startswith("ema-phm-model/")
+    assert "timings_s" not in json.dumps(doc["training"])
+    root = tmp_path / "run"
+    root.mkdir()
+    (root / "verification").symlink_to(protocol_run / "verification", target_is_directory=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "server.cli", "protocol", "--scale", "ci", "--out", str(root),
+         "--workers", "2", "--keep-raw-every", str(KEEP), "--no-progress",
+         "--model-json", str(protocol_run / "model.json")],
+        capture_output=True, text=True, timeout=600,
+        env={**os.environ, "HMSM_DATA_DIR": str(tmp_path / "data")})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert not (root / "design").exists() and not (root / "model.json").exists()
+    whole = json.loads((protocol_run / "evaluation" / "summary.json").read_text())
+    alone = json.loads((root / "evaluation" / "summary.json").read_text())
+    for key in ("prognosis", "detection", "classification"):
+        assert alone[key] == whole[key], key
+    assert alone["model"]["sha256"] == whole["model"]["sha256"]
+    assert alone["model"]["classifier_accuracy"] == whole["model"]["classifier_accuracy"]
