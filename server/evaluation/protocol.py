@@ -94,6 +94,8 @@ def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
 
     root = Path(args.out)
     sink = FeatureSink(keep_raw_every=args.keep_raw_every)
+    if args.model_json is not None:
+        _check_model(Path(args.model_json))  # before hours of simulation, not after
     if args.score_finished:
         return _score_finished(args, settings, root, sink)
     t0 = time.perf_counter()
@@ -113,6 +115,16 @@ def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
     print(f"protocol run finished in {time.perf_counter() - t0:.0f} s: "
           f"{root / 'evaluation' / 'summary.json'}")
     return code
+
+
+def _check_model(path: Path) -> None:
+    """ValueError, with the reason, unless ``path`` holds a model the chain reads."""
+    from server.phm.chain import read_model_document
+
+    try:
+        read_model_document(json.loads(path.read_text()))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise ValueError(f"--model-json {path}: not a model the chain reads ({exc})") from None
 
 
 def _model_path(args: argparse.Namespace, root: Path) -> Path:

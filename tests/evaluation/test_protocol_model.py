@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from server.evaluation.protocol import MODEL_FORMAT
 from server.phm.chain import read_model_document
 
@@ -18,3 +20,20 @@ def test_the_committed_protocol_model_is_read_by_the_chain() -> None:
     assert doc["design"] == {"kind": "design", "scale": "protocol", "seed": 1}
     model = read_model_document(doc)
     assert set(model.measurement) >= {"TTS", "DMD", "MTEL", "MTWEAR", "REWEAR"}
+
+
+def test_a_model_file_that_cannot_be_read_is_refused_before_any_simulation(
+        tmp_path: Path) -> None:
+    import argparse
+
+    from server.config import load_settings
+    from server.evaluation.protocol import add_protocol_arguments, run_protocol
+
+    bad = tmp_path / "model.json"
+    bad.write_text('{"format": "something else"}')
+    for path in (bad, tmp_path / "missing.json"):
+        args = add_protocol_arguments(argparse.ArgumentParser()).parse_args(
+            ["--out", str(tmp_path / "run"), "--scale", "ci", "--model-json", str(path)])
+        with pytest.raises(ValueError, match="not a model the chain reads"):
+            run_protocol(args, load_settings())
+        assert not (tmp_path / "run" / "verification").exists()
