@@ -41,6 +41,7 @@ __all__ = ["MODEL_FILE", "MODEL_FORMAT", "add_protocol_arguments", "run_protocol
 
 MODEL_FILE = "model.json"
 MODEL_FORMAT = "ema-protocol-model/1"
+TRAINING_SEED = 0  # the seed of the design's 70/30 split
 
 
 def add_protocol_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -108,9 +109,7 @@ def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
         n = sum(len(p["flights"]) for p in manifest["patterns"])
         print(f"{kind} campaign: {len(manifest['patterns'])} patterns, {n} flights "
               f"({time.perf_counter() - t0:.0f} s so far)", flush=True)
-        if kind == "design":
-            _trained_model(args, root)
-    code = run_evaluate(_evaluate_args(args, _model_path(args, root), root / "verification",
+    code = run_evaluate(_evaluate_args(args, _model(args, root), root / "verification",
                                        root / "evaluation"), settings)
     print(f"protocol run finished in {time.perf_counter() - t0:.0f} s: "
           f"{root / 'evaluation' / 'summary.json'}")
@@ -127,12 +126,13 @@ def _check_model(path: Path) -> None:
         raise ValueError(f"--model-json {path}: not a model the chain reads ({exc})") from None
 
 
-def _model_path(args: argparse.Namespace, root: Path) -> Path:
-    return Path(args.model_json) if args.model_json is not None else root / MODEL_FILE
+def _model(args: argparse.Namespace, root: Path) -> Path:
+    """The model to score with: ``--model-json``, else the run's own (trained if not yet)."""
+    return Path(args.model_json) if args.model_json is not None else _trained_model(args, root)
 
 
 def _trained_model(args: argparse.Namespace, root: Path) -> Path:
-    """``OUT/model.json``: the model trained on the complete design campaign (seed 0), made
+    """``OUT/model.json``: the model trained on the complete design campaign, made
     once; written whole or not at all, so an interrupted training is simply redone."""
     from server.campaigns import train_from_directory
     from server.demo_model import trained_model_document
@@ -141,9 +141,9 @@ def _trained_model(args: argparse.Namespace, root: Path) -> Path:
     if path.exists():
         return path
     t0 = time.perf_counter()
-    model, report = train_from_directory(root / "design", seed=0, jobs=args.workers)
+    model, report = train_from_directory(root / "design", seed=TRAINING_SEED, jobs=args.workers)
     design = {"kind": "design", "scale": args.scale, "seed": args.design_seed}
-    doc = trained_model_document(MODEL_FORMAT, design, 0, model.to_dict(), report)
+    doc = trained_model_document(MODEL_FORMAT, design, TRAINING_SEED, model.to_dict(), report)
     tmp = path.with_suffix(".part")
     tmp.write_text(json.dumps(doc, sort_keys=True, separators=(",", ":")) + "\n")
     tmp.replace(path)
@@ -169,7 +169,6 @@ def _score_finished(args: argparse.Namespace, settings: Settings, root: Path,
     done, planned = manifest["partial"]["patterns"], manifest["partial"]["of"]
     if not done:
         raise ValueError(f"{root / 'verification'}: no pattern finished yet")
-    model = Path(args.model_json) if args.model_json is not None else _trained_model(args, root)
     print(f"scoring {done} of {planned} verification patterns", flush=True)
-    return run_evaluate(_evaluate_args(args, model, part / "verification",
+    return run_evaluate(_evaluate_args(args, _model(args, root), part / "verification",
                                        part / "evaluation"), settings)
