@@ -17,6 +17,7 @@ from server.phm.prognosis import (
     PrognoserState,
     rls_update,
 )
+from server.phm.prognosis.degradation import rls_update_batch
 from server.phm.prognosis.laws import RlsMeasurement
 from server.phm.prognosis.mixture import RateMixture
 
@@ -111,14 +112,28 @@ def test_the_prior_mixture_is_the_normal_prior_and_its_scaled_copies() -> None:
 def test_identical_components_update_as_one_rls() -> None:
     """K copies of one component: the mixture's moments after the step are that RLS's."""
     theta, cov = np.array([0.2, 0.01]), np.diag([0.5, 1e-4])
-    step = RlsMeasurement(theta, cov, np.array([3.0, 0.0]), 0.9, 0.995)
     mix = RateMixture(np.tile(theta, (3, 1)), np.tile(cov, (3, 1, 1)), np.log(np.full(3, 1 / 3)))
-    new, resid_var = mix.update([step] * 3, 1.2, 10.0, mix.log_weights)
+    step = RlsMeasurement(mix.theta, mix.cov, np.array([3.0, 0.0]), 0.9, 0.995)
+    new, resid_var = mix.update(step, 1.2, 10.0, mix.log_weights)
     want = rls_update(theta, cov, 1.2, step.phi, step.y, step.forgetting, 10.0)
     got_theta, got_cov = new.moments()
     assert np.allclose(got_theta, want[0]) and np.allclose(got_cov, want[1])
     assert resid_var == pytest.approx(want[2])
     assert np.allclose(new.weights, 1 / 3)
+
+
+def test_the_components_update_together_as_each_would_alone() -> None:
+    """The batched step is one RLS per component, bit for bit, the trace bound included, on
+    the log-level law's regressor [1 / sigma_y, 0]."""
+    rng = np.random.default_rng(3)
+    theta = rng.normal(size=(5, 2))
+    cov = np.stack([np.diag(d) for d in rng.uniform(0.1, 4.0, size=(5, 2))])
+    phi, y, lam = np.array([2.5, 0.0]), 0.7, 0.98
+    got_theta, got_cov, got_var = rls_update_batch(theta, cov, 0.9, phi, y, lam, 3.0)
+    for k in range(5):
+        want = rls_update(theta[k], cov[k], 0.9, phi, y, lam, 3.0)
+        assert np.array_equal(got_theta[k], want[0]) and np.array_equal(got_cov[k], want[1])
+        assert got_var[k] == want[2]
 
 
 def test_a_mixture_state_restores_bit_for_bit(tmp_path: Path) -> None:

@@ -53,6 +53,7 @@ __all__ = [
     "log_level_observation",
     "regressor",
     "rls_update",
+    "rls_update_batch",
 ]
 
 
@@ -122,6 +123,33 @@ def rls_update(
     return theta_new, cov_new, resid_var_new
 
 
+def rls_update_batch(
+    theta: NDArray[np.float64],
+    cov: NDArray[np.float64],
+    resid_var: float,
+    phi: NDArray[np.float64],
+    y: float,
+    forgetting: float,
+    max_trace: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`rls_update` of K estimators at once, theta (K, p) and cov (K, p, p), on one
+    shared regressor and observation: the components of a mixture prior, in one set of
+    array operations instead of K small ones. Returns (theta, P, s2), s2 of shape (K,)."""
+    p_phi = cov @ phi
+    denom = forgetting + p_phi @ phi
+    gain = p_phi / denom[:, np.newaxis]
+    err = y - theta @ phi
+    theta_new = theta + gain * err[:, np.newaxis]
+    cov_new = (cov - gain[:, :, np.newaxis] * p_phi[:, np.newaxis, :]) / forgetting
+    cov_new = 0.5 * (cov_new + np.swapaxes(cov_new, 1, 2))
+    tr = np.trace(cov_new, axis1=1, axis2=2)
+    over = tr > max_trace
+    if over.any():
+        cov_new[over] *= (max_trace / tr[over])[:, np.newaxis, np.newaxis]
+    resid_var_new = forgetting * resid_var + (1.0 - forgetting) * err * err * forgetting / denom
+    return theta_new, cov_new, resid_var_new
+
+
 def exponential_law(theta: NDArray[np.float64], offset: float) -> NDArray[np.float64]:
     """Affine coefficients [r c, r] of dh/dk = r (h + c) from theta = (a, r), shape (2,) or
     (N, 2) (the intercept a plays no part in the growth rate)."""
@@ -152,9 +180,10 @@ def level_measurement(
     """The RLS step of the log-level line after ``dk`` units of the clock, before it is taken:
     (theta, P) moved to the latest flight (``a <- a + r dk``, ``P <- F P F'``), the whitened
     regressor [1 / sigma_y, 0] and observation y / sigma_y, and the forgetting ``lambda ** dk``
-    (memory counted in the clock, whatever the spacing of the measurements)."""
+    (memory counted in the clock, whatever the spacing of the measurements). theta (p,) or
+    (K, p) and cov (p, p) or (K, p, p): one line or the components of a mixture prior."""
     shift = np.array([[1.0, dk], [0.0, 1.0]])
-    theta = shift @ theta
+    theta = np.stack([theta[..., 0] + dk * theta[..., 1], theta[..., 1]], axis=-1)
     cov = shift @ cov @ shift.T
     phi = np.array([1.0 / sigma_y, 0.0])
     return theta, cov, phi, y / sigma_y, forgetting**dk

@@ -448,10 +448,10 @@ class ParticleFilterPrognoser:
                                                step.y, step.forgetting, cfg.rls_max_trace)
             return theta, cov, resid_var, None
         mix = state.mixture
-        steps = [self.law.rls_measurement(replace(state, theta=t, cov=c), estimate, z, dk, mm,
-                                          cfg)
-                 for t, c in zip(mix.theta, mix.cov, strict=True)]
-        mix, resid_var = mix.update(steps, state.resid_var, cfg.rls_max_trace,
+        # the components share the law's observation: one batched RLS step for all of them
+        step = self.law.rls_measurement(replace(state, theta=mix.theta, cov=mix.cov), estimate,
+                                        z, dk, mm, cfg)
+        mix, resid_var = mix.update(step, state.resid_var, cfg.rls_max_trace,
                                     self._prior_mixture.log_weights)
         theta, cov = mix.moments()
         return theta, cov, resid_var, mix

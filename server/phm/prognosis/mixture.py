@@ -20,14 +20,16 @@ particles with the mixture's mean and draws the prediction's rates from the mixt
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .degradation import rls_update
+from .degradation import rls_update_batch
+
+if TYPE_CHECKING:  # pragma: no cover - typing only (laws imports this module)
+    from .laws import RlsMeasurement
 
 __all__ = ["RateMixture"]
 
@@ -60,28 +62,29 @@ class RateMixture:
         cov = np.einsum("k,kij->ij", w, self.cov) + (dev * w[:, np.newaxis]).T @ dev
         return mean, 0.5 * (cov + cov.T)
 
-    def update(self, steps: Sequence[Any], resid_var: float, max_trace: float,
+    def update(self, step: RlsMeasurement, resid_var: float, max_trace: float,
                prior_log_weights: NDArray[np.float64]) -> tuple[RateMixture, float]:
-        """One RLS step per component (``steps``: its :class:`.laws.RlsMeasurement`), the
-        weights by their predictive likelihoods; returns the mixture and the new residual
-        variance (the components' own, averaged with the new weights)."""
-        thetas, covs, variances, log_lik = [], [], [], []
+        """One RLS step of every component at once (``step``: a :class:`.laws.RlsMeasurement`
+        whose theta (K, p) and cov (K, p, p) are the components' and whose regressor,
+        observation and forgetting they share), the weights by their predictive likelihoods;
+        returns the mixture and the new residual variance (the components' own, averaged
+        with the new weights)."""
         s2 = max(resid_var, 1e-300)
-        for step in steps:
-            spread = (step.forgetting + float(step.phi @ step.cov @ step.phi)) / step.forgetting
-            err = step.y - float(step.phi @ step.theta)
-            log_lik.append(-0.5 * (err * err / (s2 * spread) + math.log(s2 * spread)))
-            theta, cov, var = rls_update(step.theta, step.cov, resid_var, step.phi, step.y,
-                                         step.forgetting, max_trace)
-            thetas.append(theta)
-            covs.append(cov)
-            variances.append(var)
-        lam = steps[0].forgetting
-        log_w = lam * self.log_weights + (1.0 - lam) * prior_log_weights + np.asarray(log_lik)
+        lam = step.forgetting
+        # the predictive spread of each component, before its update
+        spread = (lam + (step.phi @ step.cov) @ step.phi) / lam
+        err = step.y - step.theta @ step.phi
+        # math.log, not np.log: numpy's vectorised log can differ in the last bit, and the
+        # weights are those of one RLS per component, bit for bit
+        var = s2 * spread
+        log_lik = -0.5 * (err * err / var + np.array([math.log(v) for v in var]))
+        theta, cov, variances = rls_update_batch(step.theta, step.cov, resid_var, step.phi,
+                                                 step.y, lam, max_trace)
+        log_w = lam * self.log_weights + (1.0 - lam) * prior_log_weights + log_lik
         log_w -= log_w.max()
         log_w -= math.log(np.exp(log_w).sum())
-        mix = RateMixture(np.asarray(thetas), np.asarray(covs), log_w)
-        return mix, float(mix.weights @ np.asarray(variances))
+        mix = RateMixture(theta, cov, log_w)
+        return mix, float(mix.weights @ variances)
 
     def to_dict(self) -> dict[str, Any]:
         return {"theta": self.theta.tolist(), "cov": self.cov.tolist(),
