@@ -32,6 +32,7 @@ import numpy as np
 from _report import replace_block
 
 from server.phm.prognosis import (
+    CONSTANTS,
     GENERIC_CONFIG,
     MeasurementModel,
     ParticleFilterPrognoser,
@@ -41,6 +42,7 @@ from server.phm.prognosis import (
     rls_update,
 )
 from server.phm.season import SeasonalClimate, StressClock
+from server.phm.training import TrainingConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "BENCHMARKS.md"
@@ -88,7 +90,8 @@ def _time(fn: Callable[[], object], *, min_time: float = 0.4, min_runs: int = 5)
 
 def _stress_config(n: int, clock: StressClock) -> PrognoserConfig:
     """Exponential law on ``clock``, as training configures a thermal mode: prior r the truth of
-    ``_series(clock=clock, c=C_EXP)``, mid-life rate bounds a factor 3 either side."""
+    ``_series(clock=clock, c=C_EXP)``, mid-life rate bounds a factor 3 either side, training's
+    mixture rate prior (one RLS per component)."""
     r = math.log((1 + C_EXP) / (H0 + C_EXP)) / float(clock.curve(0, LIFE)[-1])
     mid = r * (0.5 + C_EXP)
     return replace(
@@ -99,6 +102,7 @@ def _stress_config(n: int, clock: StressClock) -> PrognoserConfig:
         initial_theta=(0.0, r),
         rls_forgetting=0.995,
         rate_bounds=(mid / 3.0, mid * 3.0),
+        rate_prior_tail=TrainingConfig().rate_prior_tail,
     )
 
 
@@ -281,7 +285,9 @@ def render(ours: dict[str, object], theirs: dict[str, object]) -> str:
         "",
         f"Exponential law dh/dtau = r (h + c), c = {C_EXP}, on a seasonal stress clock (Turin, "
         "13 - 10 cos degC over the year; beta = ln 2 / 10 K; reference the annual mean; "
-        "2 flights a day from 1 January), data grown on the same clock, failure at flight 300:",
+        "2 flights a day from 1 January), data grown on the same clock, failure at flight 300; "
+        f"the mixture rate prior of training (tail {TrainingConfig().rate_prior_tail}, "
+        f"{1 + len(CONSTANTS.rate_tail_factors)} components):",
         "",
         "| what (200 particles, stress clock) | ours |",
         "|---|---|",
