@@ -123,8 +123,8 @@ def test_identical_components_update_as_one_rls() -> None:
 
 
 def test_the_components_update_together_as_each_would_alone() -> None:
-    """The batched step is one RLS per component, bit for bit, the trace bound included, on
-    the log-level law's regressor [1 / sigma_y, 0]."""
+    """The batched step of K components is K steps of one component each, bit for bit, the
+    trace bound included."""
     rng = np.random.default_rng(3)
     theta = rng.normal(size=(5, 2))
     cov = np.stack([np.diag(d) for d in rng.uniform(0.1, 4.0, size=(5, 2))])

@@ -106,21 +106,12 @@ def rls_update(
         P <- (P - k phi' P) / lambda,  then scaled down if trace(P) > max_trace (anti wind-up)
         s2 <- lambda s2 + (1 - lambda) e^2 / (1 + phi' P_old phi / lambda)
 
-    Returns new (theta, P, s2); the inputs are not modified.
+    Returns new (theta, P, s2); the inputs are not modified. One estimator of
+    :func:`rls_update_batch`.
     """
-    p_phi = cov @ phi
-    denom = forgetting + float(phi @ p_phi)
-    gain = p_phi / denom
-    err = y - float(phi @ theta)
-    theta_new = theta + gain * err
-    cov_new = (cov - np.outer(gain, p_phi)) / forgetting
-    cov_new = 0.5 * (cov_new + cov_new.T)
-    tr = float(np.trace(cov_new))
-    if tr > max_trace:
-        cov_new *= max_trace / tr
-    # a-posteriori-normalised squared error: unbiased estimate of the output noise variance
-    resid_var_new = forgetting * resid_var + (1.0 - forgetting) * err * err * forgetting / denom
-    return theta_new, cov_new, resid_var_new
+    theta_new, cov_new, resid_var_new = rls_update_batch(
+        theta[np.newaxis], cov[np.newaxis], resid_var, phi, y, forgetting, max_trace)
+    return theta_new[0], cov_new[0], float(resid_var_new[0])
 
 
 def rls_update_batch(
@@ -132,9 +123,10 @@ def rls_update_batch(
     forgetting: float,
     max_trace: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`rls_update` of K estimators at once, theta (K, p) and cov (K, p, p), on one
-    shared regressor and observation: the components of a mixture prior, in one set of
-    array operations instead of K small ones. Returns (theta, P, s2), s2 of shape (K,)."""
+    """:func:`rls_update` (its equations) of K estimators at once, theta (K, p) and cov
+    (K, p, p), on one shared regressor and observation: the components of a mixture prior, in
+    one set of array operations instead of K small ones. Returns (theta, P, s2), s2 of shape
+    (K,)."""
     p_phi = cov @ phi
     denom = forgetting + p_phi @ phi
     gain = p_phi / denom[:, np.newaxis]
@@ -146,6 +138,7 @@ def rls_update_batch(
     over = tr > max_trace
     if over.any():
         cov_new[over] *= (max_trace / tr[over])[:, np.newaxis, np.newaxis]
+    # a-posteriori-normalised squared error: unbiased estimate of the output noise variance
     resid_var_new = forgetting * resid_var + (1.0 - forgetting) * err * err * forgetting / denom
     return theta_new, cov_new, resid_var_new
 
