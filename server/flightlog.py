@@ -32,7 +32,7 @@ import zlib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -818,11 +818,16 @@ def read_mat(data: bytes, metadata: Mapping[str, Any],
 
     MATLAB identifiers cannot hold '.', so ``WL1.ia`` may also be stored as ``WL1_ia``.
     Character variables named like metadata keys fill metadata the form did not give. Every
-    variable's class and shape are checked from its header before anything is loaded.
+    variable's class and shape are checked from its header before anything is loaded, and a
+    compressed variable is inflated here, in steps, to no more than its header allows (a header
+    may lie about what its zlib stream holds); scipy then reads the inflated file.
     """
     import scipy.io
 
-    _check_mat_variables(_mat_variables(data, limits), limits)
+    elements = _mat_elements(data, limits)
+    _check_mat_variables([e.variable for e in elements], limits)
+    if any(e.compressed for e in elements):
+        data = _inflated_mat5(data, elements)
     try:
         contents = scipy.io.loadmat(io.BytesIO(data), squeeze_me=True, chars_as_strings=True)
     except MemoryError:
@@ -859,8 +864,18 @@ def read_mat(data: bytes, metadata: Mapping[str, Any],
 MatVariable = tuple[str, tuple[int, ...], str]  # name, shape, class as scipy.io.whosmat names it
 
 
-def _mat_variables(data: bytes, limits: DecodeLimits) -> list[MatVariable]:
-    """``(name, shape, class)`` of every variable, from the variable headers only.
+class _MatElement(NamedTuple):
+    """A variable of a MAT file and where its bytes are: ``data[start:end]`` is the zlib stream
+    of a compressed (version 5) variable, else the whole element (version 4: unused)."""
+
+    variable: MatVariable
+    start: int = 0
+    end: int = 0
+    compressed: bool = False
+
+
+def _mat_elements(data: bytes, limits: DecodeLimits) -> list[_MatElement]:
+    """Every variable, from its header only.
 
     Version 5 files are walked here, inflating a few hundred bytes of each compressed variable
     (``scipy.io.whosmat`` inflates 128 KiB of compressed input per variable, which a file of
@@ -870,8 +885,8 @@ def _mat_variables(data: bytes, limits: DecodeLimits) -> list[MatVariable]:
 
     try:
         if 0 not in data[:4]:  # scipy's test: a version 4 file starts with a zero byte
-            return _mat5_variables(data, limits)
-        return list(scipy.io.whosmat(io.BytesIO(data)))
+            return _mat5_elements(data, limits)
+        return [_MatElement(v) for v in scipy.io.whosmat(io.BytesIO(data))]
     except (MemoryError, FlightLogError):
         raise
     except Exception as exc:  # scipy raises many types on corrupt input
@@ -883,9 +898,11 @@ _MAT_CLASSES = {1: "cell", 2: "struct", 3: "object", 4: "char", 5: "sparse", 6: 
                 13: "uint32", 14: "int64", 15: "uint64", 16: "function", 17: "opaque"}
 _MI_MATRIX, _MI_COMPRESSED = 14, 15
 _MAT_HEAD_BYTES = 512  # of a variable: its tag, array flags, dimensions and name
+_MAT_CHAR_BYTES = 4  # a character stored as miUTF32, the widest a file may use
+_INFLATE_STEP = 1 << 16  # compressed bytes fed to zlib at a time
 
 
-def _mat5_variables(data: bytes, limits: DecodeLimits) -> list[MatVariable]:
+def _mat5_elements(data: bytes, limits: DecodeLimits) -> list[_MatElement]:
     order = {b"IM": "<", b"MI": ">"}.get(data[126:128])
     if len(data) < 128 or order is None:
         raise _unreadable_mat("no MATLAB 5 header")
@@ -898,15 +915,55 @@ def _mat5_variables(data: bytes, limits: DecodeLimits) -> list[MatVariable]:
             raise _unreadable_mat("truncated variable")
         if kind == _MI_COMPRESSED:
             head, after = _inflated_head(view[body:body + size]), body + size
+            found.append(_MatElement(_mat_matrix_header(head, order), body, after, True))
         elif kind == _MI_MATRIX:
             head = bytes(view[at:at + _MAT_HEAD_BYTES])
+            found.append(_MatElement(_mat_matrix_header(head, order), at, min(after, len(data))))
         else:
             raise _unreadable_mat(f"unexpected data element type {kind}")
-        found.append(_mat_matrix_header(head, order))
         if len(found) > limits.max_columns:
             raise _too_large("max_columns", limits.max_columns, None, "Variables")
         at = after
     return found
+
+
+def _inflated_mat5(data: bytes, elements: list[_MatElement]) -> bytes:
+    """The version 5 file ``data`` with its compressed variables inflated in place.
+
+    Each is inflated in steps to at most what its header allows (its head, then one data
+    element of its stated shape at its class's width; headers already checked against the
+    limits): past that, 413 ``flight_too_large`` at once, whatever the stream holds."""
+    parts, view = [data[:128]], memoryview(data)
+    for (name, shape, mclass), start, end, compressed in elements:
+        if not compressed:
+            parts.append(view[start:end])
+            continue
+        width = _MAT_NUMERIC.get(mclass, _MAT_CHAR_BYTES)
+        cap = _MAT_HEAD_BYTES + 16 + math.prod(shape) * width
+        inflated = _inflate_at_most(view[start:end], cap)
+        if inflated is None:
+            shown = "x".join(map(str, shape))
+            raise _too_large("max_decoded_bytes", cap, None, f"Inflated bytes of variable "
+                             f"'{name}', whose header states {shown} {mclass}")
+        parts += [inflated, bytes(-len(inflated) % 8)]
+    return b"".join(parts)
+
+
+def _inflate_at_most(compressed: memoryview, cap: int) -> bytearray | None:
+    """The zlib stream ``compressed`` inflated, or None as soon as it yields more than ``cap``
+    bytes (never more than ``cap`` + 1 of them in memory)."""
+    inflater, out, fed = zlib.decompressobj(), bytearray(), 0
+    pending: bytes | memoryview = b""
+    while not inflater.eof:
+        if not pending:
+            if fed >= len(compressed):
+                break  # a truncated stream: scipy reports the variable cut short
+            pending, fed = compressed[fed:fed + _INFLATE_STEP], fed + _INFLATE_STEP
+        out += inflater.decompress(pending, cap + 1 - len(out))
+        if len(out) > cap:
+            return None
+        pending = inflater.unconsumed_tail
+    return out
 
 
 def _mat_tag(buf: Any, at: int, order: str) -> tuple[int, int, int, int]:

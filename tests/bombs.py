@@ -48,17 +48,19 @@ def parquet_bomb(metadata: Mapping[str, str], names: list[str], rows: int) -> by
     return sink.getvalue()
 
 
-def mat_bomb(name: str, n: int) -> bytes:
+def mat_bomb(name: str, n: int, declared: int | None = None, level: int = 1) -> bytes:
     """A MATLAB v5 file holding one zlib-compressed double vector of ``n`` zeros, written by
-    hand so that the vector is never in memory."""
+    hand so that the vector is never in memory. ``declared``: the length its header states
+    (1 x ``declared``) when that is a lie; the element sizes still tell the truth, as a
+    reader that trusts them would need. ``level``: zlib's (9 packs the zeros ~1000:1)."""
     header = (b"MATLAB 5.0 MAT-file, written by tests/bombs.py".ljust(116, b" ") + b"\0" * 8
               + struct.pack("<H", 0x0100) + b"IM")
     label = name.encode()
     body = (struct.pack("<IIII", 6, 8, 6, 0)  # array flags (miUINT32): class mxDOUBLE
-            + struct.pack("<IIii", 5, 8, 1, n)  # dimensions (miINT32): 1 x n
+            + struct.pack("<IIii", 5, 8, 1, n if declared is None else declared)  # 1 x n
             + struct.pack("<II", 1, len(label)) + label + b"\0" * (-len(label) % 8)
             + struct.pack("<II", 9, 8 * n))  # real part (miDOUBLE), its data follows
-    packer = zlib.compressobj(1)
+    packer = zlib.compressobj(level)
     parts = [packer.compress(struct.pack("<II", 14, len(body) + 8 * n) + body)]
     chunk = bytes(8 * _MIB)
     left = 8 * n

@@ -217,6 +217,15 @@ def test_mat_variables_are_checked_from_their_headers_before_loading() -> None:
     assert _peak_bytes(lambda: read_mat(bomb, META)) < 4 << 20
 
 
+def test_mat_variable_inflating_past_its_header_is_refused_while_inflating() -> None:
+    """A header stating 1 x 10 over a zlib stream of 10^8 doubles (760 KiB sent): scipy
+    trusted the element sizes and inflated 800 MB before failing to reshape."""
+    liar = mat_bomb("t", 100_000_000, declared=10, level=9)
+    _too_large(lambda: read_mat(liar, META), "max_decoded_bytes")
+    assert _refused(lambda: read_mat(liar, META)).details["maximum"] < 1024  # 1 x 10 doubles
+    assert _peak_bytes(lambda: read_mat(liar, META)) < 4 << 20
+
+
 @pytest.mark.parametrize("variable,code", [
     (np.array([[1, 2]], dtype=object), "wrong_dtype"),  # a cell array: never loaded
     (np.array([1 + 2j]), "wrong_dtype"),
