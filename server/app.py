@@ -25,6 +25,7 @@ from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.errors import BodyOverLimit, BodyTimeout, install_error_handlers
 from server.migrate import ensure_schema
+from server.ratelimit import AuthFailureLimitMiddleware
 
 __all__ = ["create_app"]
 
@@ -169,6 +170,8 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
               name="docs-assets")
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
     app.add_middleware(BodyIdleTimeoutMiddleware, idle_s=settings.body_idle_timeout_s)
+    app.add_middleware(AuthFailureLimitMiddleware, per_minute=settings.auth_failures_per_minute,
+                       max_clients=settings.auth_failure_clients)
     app.add_middleware(SecurityHeadersMiddleware)
 
     return app

@@ -62,6 +62,13 @@ class Settings(BaseSettings):
         "what slow clients can hold (uvicorn has no header timeout)."))
     body_idle_timeout_s: float = Field(30.0, gt=0, le=3600, description=(
         "A request body that sends nothing for this long is cut with 408 [s]."))
+    auth_failures_per_minute: int = Field(20, ge=0, description=(
+        "Failed authentications (wrong or revoked key, API or sign-in form) a client address "
+        "may make in a burst, and again each minute; past that 429 with Retry-After. 0: no "
+        "limit."))
+    auth_failure_clients: int = Field(10_000, ge=1, description=(
+        "Most client addresses whose failed authentications are tracked; past that the one "
+        "that failed least recently is forgotten."))
     raw_retention_healthy: int | None = Field(None, ge=0, description=(
         "Keep the raw logs of only this many most recent healthy flights per aircraft (analysed, "
         "no actuator in alarm); older ones are removed after each analysis, their features and "
