@@ -55,6 +55,8 @@ __all__ = [
     "ALARM_RESOLUTIONS",
     "MAINTENANCE_KINDS",
     "MaintenanceAction",
+    "AlarmEvent",
+    "ALARM_EVENT_KINDS",
     "FAULT_MODES",
 ]
 
@@ -91,6 +93,11 @@ def _stored_upload_key(context: Any) -> str:
     kind = row["content_kind"]
     outside = {} if kind == "parquet" else dict(row.get("flight_metadata") or {})
     return upload_key_of(kind, row["sha256"], outside)
+
+
+def _class_at_insert(context: Any) -> str | None:
+    """An alarm's class at raising is its class when the row is written."""
+    return context.get_current_parameters().get("fault_mode")
 
 
 class UTCDateTime(TypeDecorator[datetime]):
@@ -340,7 +347,12 @@ class Alarm(Base):
     flight_id: Mapped[int] = mapped_column(ForeignKey("flights.id"))
     status: Mapped[str] = mapped_column(String(16), default="open", index=True)
     confidence: Mapped[float] = mapped_column(Float)
+    #: the leading class now (it follows the evidence while the alarm is not closed)
     fault_mode: Mapped[str | None] = mapped_column(String(16))
+    #: the leading class when the alarm was raised (never rewritten; later changes are
+    #: :class:`AlarmEvent` rows)
+    raised_fault_mode: Mapped[str | None] = mapped_column(String(16),
+                                                          default=_class_at_insert)
     class_probability: Mapped[float | None] = mapped_column(Float)
     features: Mapped[list[str]] = mapped_column(JSON, default=list)
     rul_median_flights: Mapped[float | None] = mapped_column(Float)
@@ -356,6 +368,27 @@ class Alarm(Base):
     #: a deferral holds until the actuator has seen this many flights, or until this time
     deferred_until_flight: Mapped[int | None] = mapped_column(Integer)
     deferred_until: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+#: what can happen to an alarm after it was raised, each recorded as its own row:
+#: ``class_change``: the leading fault class changed (``from_mode`` -> ``to_mode``)
+ALARM_EVENT_KINDS = ("class_change",)
+
+
+class AlarmEvent(Base):
+    """Something that happened to an alarm after it was raised, on the flight that said so
+    (the alarm's timeline): its leading class changing, for one."""
+
+    __tablename__ = "alarm_events"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    alarm_id: Mapped[int] = mapped_column(ForeignKey("alarms.id"), index=True)
+    flight_id: Mapped[int | None] = mapped_column(ForeignKey("flights.id"))
+    flight_index: Mapped[int | None] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(16))
+    from_mode: Mapped[str | None] = mapped_column(String(16))
+    to_mode: Mapped[str | None] = mapped_column(String(16))
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 
 class MaintenanceAction(Base):

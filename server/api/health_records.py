@@ -64,16 +64,22 @@ class AlarmRead(BaseModel):
     actuator_id: int
     flight_id: int
     status: str
-    urgency: str = Field(description="replace_now | act_within | monitor | deferred | healthy "
-                         "(closed); the inbox order (server/services/urgency.py)")
-    urgency_label: str
+    urgency: str | None = Field(description="replace_now | act_within | monitor | deferred; "
+                                "the inbox order (server/services/urgency.py); null once the "
+                                "alarm is closed (a closed alarm claims no live urgency)")
+    urgency_label: str | None
     act_within_flights: int | None
     confidence: float
-    fault_mode: str | None
+    fault_mode: str | None = Field(description="the leading class now (it follows the "
+                                   "evidence while the alarm is not closed)")
+    raised_fault_mode: str | None = Field(description="the leading class when the alarm was "
+                                          "raised; later changes are its events")
     class_probability: float | None
     features: list[str]
-    rul_median_flights: float | None
-    rul_low_flights: float | None = Field(description="5 % quantile of the latest RUL")
+    rul_median_flights: float | None = Field(description="median of the latest RUL; 0 once "
+                                             "the unit has failed")
+    rul_low_flights: float | None = Field(description="5 % quantile of the latest RUL; 0 once "
+                                          "the unit has failed")
     created_at: datetime
     acknowledged_by: str | None
     acknowledged_at: datetime | None
@@ -84,6 +90,18 @@ class AlarmRead(BaseModel):
     deferred_until_flight: int | None
     deferred_until: datetime | None
     deferral_expired: bool
+
+
+class AlarmEventRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    alarm_id: int
+    kind: str = Field(description="class_change: the leading class went from from_mode to "
+                      "to_mode on this flight")
+    flight_id: int | None
+    flight_index: int | None
+    from_mode: str | None
+    to_mode: str | None
+    created_at: datetime
 
 
 class AlarmAction(BaseModel):
@@ -135,15 +153,17 @@ class GridCellRead(BaseModel):
 
 
 def alarm_read(row: service.AlarmRow) -> AlarmRead:
-    alarm, actuator = row.alarm, row.actuator
+    alarm, actuator, u = row.alarm, row.actuator, row.urgency
     return AlarmRead(id=alarm.id, aircraft=row.tail, position=actuator.position,
                      actuator_id=actuator.id, flight_id=alarm.flight_id, status=alarm.status,
-                     urgency=row.urgency.bucket, urgency_label=row.urgency.label,
-                     act_within_flights=row.urgency.within_flights,
+                     urgency=None if u is None else u.bucket,
+                     urgency_label=None if u is None else u.label,
+                     act_within_flights=None if u is None else u.within_flights,
                      confidence=alarm.confidence, fault_mode=alarm.fault_mode,
+                     raised_fault_mode=alarm.raised_fault_mode,
                      class_probability=alarm.class_probability, features=alarm.features,
-                     rul_median_flights=alarm.rul_median_flights,
-                     rul_low_flights=alarm.rul_low_flights, created_at=alarm.created_at,
+                     rul_median_flights=row.rul_median, rul_low_flights=row.rul_low,
+                     created_at=alarm.created_at,
                      acknowledged_by=alarm.acknowledged_by,
                      acknowledged_at=alarm.acknowledged_at, closed_by=alarm.closed_by,
                      closed_at=alarm.closed_at, note=alarm.note, resolution=alarm.resolution,
@@ -205,6 +225,15 @@ def _one(session: SessionDep, alarm_id: int) -> AlarmRead:
     u, expired = service.alarm_urgency(alarm, actuator, state.flights_seen if state else 0)  # type: ignore[arg-type]
     tail = session.get(Aircraft, actuator.aircraft_id).tail  # type: ignore[union-attr]
     return alarm_read(service.AlarmRow(alarm, actuator, tail, u, expired))  # type: ignore[arg-type]
+
+
+@router.get("/alarms/{alarm_id}/events", response_model=list[AlarmEventRead],
+            responses=errors(404),
+            summary="What happened to an alarm after it was raised (leading-class changes)")
+def alarm_events(alarm_id: int, session: SessionDep, _: Reader) -> list[AlarmEventRead]:
+    service.get_alarm(session=session, alarm_id=alarm_id)  # 404 for an unknown one
+    return [AlarmEventRead.model_validate(e)
+            for e in service.alarm_events(session=session, alarm_ids=[alarm_id])]
 
 
 @router.post("/alarms/{alarm_id}/acknowledge", response_model=AlarmRead, responses=errors(409),

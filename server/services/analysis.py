@@ -23,6 +23,7 @@ from server.models import (
     ActuatorState,
     Aircraft,
     Alarm,
+    AlarmEvent,
     Flight,
     HealthRecord,
     Job,
@@ -229,7 +230,8 @@ def _store_prognosis(session: Session, flight: Flight, act: Actuator, out: Actua
 
 def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome,
                  rul: RulDistribution | None) -> None:
-    """A new alarm is opened; an open one follows the actuator's latest class and RUL."""
+    """A new alarm is opened (its class at raising kept: ``Alarm.raised_fault_mode``); an open one follows the actuator's
+    latest class and RUL, each change of its leading class recorded as an alarm event."""
     prob = (out.class_probabilities or {}).get(out.fault_mode or "")
     median = None if rul is None or not math.isfinite(rul.median) else float(rul.median)
     low = None if rul is None else _finite(rul.quantiles.get(RUL_LOW_QUANTILE))
@@ -242,6 +244,11 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
         open_alarm = session.scalar(select(Alarm).where(
             Alarm.actuator_id == act.id, Alarm.status != "closed").order_by(Alarm.id.desc()))
         if open_alarm is not None:
+            if open_alarm.fault_mode != out.fault_mode:
+                session.add(AlarmEvent(alarm_id=open_alarm.id, flight_id=flight.id,
+                                       flight_index=out.flight_index, kind="class_change",
+                                       from_mode=open_alarm.fault_mode,
+                                       to_mode=out.fault_mode))
             open_alarm.fault_mode = out.fault_mode
             open_alarm.class_probability = prob
             open_alarm.confidence = max(open_alarm.confidence, out.max_confidence)

@@ -9,7 +9,7 @@ from typing import Any
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from server.models import Alarm, HealthRecord, Injection, ModelVersion, Prognosis
+from server.models import Alarm, AlarmEvent, HealthRecord, Injection, ModelVersion, Prognosis
 
 __all__ = ["snapshot"]
 
@@ -20,6 +20,8 @@ def snapshot(session: Session) -> dict[str, Any]:
                                    func.max(Alarm.closed_at))).one()
     alarm_status = sorted(session.execute(select(Alarm.status, func.count())
                                           .group_by(Alarm.status)).all())
+    # a change of an open alarm's leading class is an event of its own (the inbox shows it)
+    alarm_events = session.scalar(select(func.max(AlarmEvent.id))) or 0
     injection = session.execute(select(func.max(Injection.id),
                                        func.max(Injection.cancelled_at))).one()
     injection_status = sorted(session.execute(select(Injection.status, func.count())
@@ -30,7 +32,8 @@ def snapshot(session: Session) -> dict[str, Any]:
         ModelVersion.active.is_(True)))
     return {
         "alarm": alarm[0] or 0,
-        "alarm-status": json.dumps([str(alarm[1]), str(alarm[2]), alarm_status], default=str),
+        "alarm-status": json.dumps([str(alarm[1]), str(alarm[2]), alarm_status, alarm_events],
+                                   default=str),
         "flight": session.scalar(select(func.max(HealthRecord.id))) or 0,
         "prognosis": session.scalar(select(func.max(Prognosis.id))) or 0,
         "injection": json.dumps([injection[0], str(injection[1]), injection_status],

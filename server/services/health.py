@@ -14,13 +14,29 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
-from server.models import Actuator, ActuatorState, Aircraft, Alarm, HealthRecord, Prognosis, utcnow
+from server.models import (
+    Actuator,
+    ActuatorState,
+    Aircraft,
+    Alarm,
+    AlarmEvent,
+    HealthRecord,
+    Prognosis,
+    utcnow,
+)
 from server.services.urgency import Urgency, deferral_active, sort_key, urgency
 from server.vocabulary import WINGLET_PAIR
 
 __all__ = ["alarm_urgency", "list_alarms", "acknowledge_alarm", "close_alarm",
            "health_records", "prognoses", "fleet_grid", "GridCell", "close_alarms_of",
-           "AlarmRow", "actuator_urgency", "pair_winglet_alarms", "winglet_partner_alarm"]
+           "AlarmRow", "actuator_urgency", "pair_winglet_alarms", "winglet_partner_alarm",
+           "remaining_life", "current_prognoses", "alarm_events", "get_alarm"]
+
+
+def remaining_life(actuator: Actuator, rul_flights: float | None) -> float | None:
+    """An RUL read-out of a unit: none left (0 flights) once it has failed, whatever its last
+    prediction said; otherwise the prediction."""
+    return 0.0 if actuator.failed_at_flight is not None else rul_flights
 
 
 @dataclass(frozen=True)
@@ -28,22 +44,43 @@ class AlarmRow:
     alarm: Alarm
     actuator: Actuator
     tail: str
-    urgency: Urgency
+    urgency: Urgency | None  # None once the alarm is closed: it claims no live urgency
     deferral_expired: bool  # a deferral was set and has run out
+
+    @property
+    def rul_median(self) -> float | None:
+        return remaining_life(self.actuator, self.alarm.rul_median_flights)
+
+    @property
+    def rul_low(self) -> float | None:
+        return remaining_life(self.actuator, self.alarm.rul_low_flights)
 
 
 def alarm_urgency(alarm: Alarm, actuator: Actuator, flights_seen: int,
-                  now: datetime | None = None) -> tuple[Urgency, bool]:
-    """(the alarm's bucket, whether a deferral it had has expired)."""
-    is_open = alarm.status != "closed"
+                  now: datetime | None = None) -> tuple[Urgency | None, bool]:
+    """(the alarm's bucket, None once it is closed; whether a deferral it had has expired)."""
+    if alarm.status == "closed":
+        return None, False
+    return _open_alarm_urgency(alarm, actuator, flights_seen, now)
+
+
+def _open_alarm_urgency(alarm: Alarm, actuator: Actuator, flights_seen: int,
+                        now: datetime | None = None) -> tuple[Urgency, bool]:
     had = alarm.deferred_until_flight is not None or alarm.deferred_until is not None
-    active = is_open and deferral_active(
+    active = deferral_active(
         until_flight=alarm.deferred_until_flight, until=alarm.deferred_until,
         flights_seen=flights_seen, now=now or utcnow())
-    u = urgency(failed_at_flight=actuator.failed_at_flight, alarm_open=is_open,
+    u = urgency(failed_at_flight=actuator.failed_at_flight, alarm_open=True,
                 fault_mode=alarm.fault_mode, rul_low_flights=alarm.rul_low_flights,
                 deferred=active)
-    return u, is_open and had and not active
+    return u, had and not active
+
+
+def _inbox_order(row: AlarmRow) -> tuple[bool, int, float, float, int]:
+    """Not closed first, most urgent first (the urgency rule); closed ones newest first."""
+    if row.urgency is None:
+        return (True, 0, 0.0, 0.0, -row.alarm.id)
+    return (False, *sort_key(row.urgency, row.alarm.confidence), -row.alarm.id)
 
 
 def list_alarms(*, session: Session, status: str | None, tail: str | None, limit: int,
@@ -62,9 +99,7 @@ def list_alarms(*, session: Session, status: str | None, tail: str | None, limit
     for a, act, t, seen in session.execute(query).all():
         u, expired = alarm_urgency(a, act, seen or 0, now)
         rows.append(AlarmRow(a, act, t, u, expired))
-    rows.sort(key=lambda r: (r.alarm.status == "closed", *sort_key(r.urgency,
-                                                                    r.alarm.confidence),
-                             -r.alarm.id))
+    rows.sort(key=_inbox_order)
     return rows[offset:offset + limit], total
 
 
@@ -111,11 +146,15 @@ def winglet_partner_alarm(*, session: Session, alarm_id: int) -> tuple[Alarm, Ac
     return None if found is None else (found[0], found[1])
 
 
-def _alarm(session: Session, alarm_id: int) -> Alarm:
+def get_alarm(*, session: Session, alarm_id: int) -> Alarm:
     row = session.get(Alarm, alarm_id)
     if row is None:
         raise NotFound(f"Alarm {alarm_id} does not exist.")
     return row
+
+
+def _alarm(session: Session, alarm_id: int) -> Alarm:
+    return get_alarm(session=session, alarm_id=alarm_id)
 
 
 def acknowledge_alarm(*, session: Session, alarm_id: int, by: str, note: str | None) -> Alarm:
@@ -201,6 +240,29 @@ def prognoses(*, session: Session, actuator_id: int, limit: int) -> list[Prognos
     return list(reversed(rows))
 
 
+def current_prognoses(*, session: Session, actuator_id: int, limit: int) -> list[Prognosis]:
+    """The prognoses that speak for the unit now: those made since its latest alarm was
+    raised; none when that alarm was closed as no fault found (until a new alarm)."""
+    latest = session.scalar(select(Alarm).where(Alarm.actuator_id == actuator_id)
+                            .order_by(Alarm.id.desc()).limit(1))
+    if latest is None or latest.resolution == "no_fault_found":
+        _actuator(session, actuator_id)
+        return []
+    since = session.scalar(select(HealthRecord.flight_index).where(
+        HealthRecord.actuator_id == actuator_id, HealthRecord.flight_id == latest.flight_id))
+    rows = prognoses(session=session, actuator_id=actuator_id, limit=limit)
+    return [p for p in rows if since is None or p.flight_index >= since]
+
+
+def alarm_events(*, session: Session, alarm_ids: list[int]) -> list[AlarmEvent]:
+    """What happened to these alarms after they were raised (leading-class changes), oldest
+    first."""
+    if not alarm_ids:
+        return []
+    return list(session.scalars(select(AlarmEvent).where(AlarmEvent.alarm_id.in_(alarm_ids))
+                                .order_by(AlarmEvent.id)))
+
+
 @dataclass(frozen=True)
 class GridCell:
     tail: str
@@ -233,7 +295,7 @@ def actuator_urgency(*, session: Session, actuator: Actuator) -> tuple[Urgency, 
     if alarm is None:
         return urgency(failed_at_flight=actuator.failed_at_flight, alarm_open=False,
                        fault_mode=None, rul_low_flights=None), None, False
-    u, expired = alarm_urgency(alarm, actuator, state.flights_seen if state else 0)
+    u, expired = _open_alarm_urgency(alarm, actuator, state.flights_seen if state else 0)
     return u, alarm, expired
 
 
@@ -259,7 +321,7 @@ def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCell]:
             u = urgency(failed_at_flight=act.failed_at_flight, alarm_open=False,
                         fault_mode=None, rul_low_flights=None)
         else:
-            u, _ = alarm_urgency(alarm, act, seen, now)
+            u, _ = _open_alarm_urgency(alarm, act, seen, now)
         cells.append(GridCell(tail=tail, base=base_name, position=act.position,
                               actuator_id=act.id, serial=act.serial, status=u.colour,
                               urgency=u.bucket, urgency_label=u.label,
@@ -267,8 +329,10 @@ def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCell]:
                               failed_at_flight=act.failed_at_flight,
                               confidence=float(det.get("confidence", 0.0)),
                               fault_mode=alarm.fault_mode if alarm else None,
-                              rul_median=alarm.rul_median_flights if alarm else None,
-                              rul_low=alarm.rul_low_flights if alarm else None,
+                              rul_median=remaining_life(
+                                  act, alarm.rul_median_flights if alarm else None),
+                              rul_low=remaining_life(
+                                  act, alarm.rul_low_flights if alarm else None),
                               open_alarm_id=alarm.id if alarm else None,
                               flights_seen=seen,
                               sensor_findings=list(det.get("sensor_findings") or [])))

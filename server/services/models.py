@@ -6,7 +6,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
@@ -18,7 +18,8 @@ from server.phm.detection import FaultDetector
 
 __all__ = ["create_version", "finish_version", "fail_version", "activate", "get_version",
            "active_version", "list_versions", "metrics_of", "store_trained", "active_model",
-           "decoded_model", "detector_levels", "request_training", "campaign_dir"]
+           "decoded_model", "DetectorLevels", "detector_levels", "request_training",
+           "campaign_dir"]
 
 #: decoded models, keyed by (database URL, model version id): a version id alone names
 #: another model in another database served by the same process
@@ -116,12 +117,18 @@ def active_model(*, session: Session) -> tuple[int, PhmModel] | None:
     return int(version_id), decoded_model(session=session, version_id=int(version_id))
 
 
+class DetectorLevels(NamedTuple):
+    band: float  # healthy band [standard errors]
+    threshold: float  # single-flight alarm threshold [standard errors]
+    alarm_confidence: float  # the detection confidence at which the unit alarms
+
+
 def detector_levels(*, session: Session, version_id: int | None, features: Sequence[str]
-                    ) -> tuple[float, float]:
-    """(healthy band, single-flight alarm threshold) in standard errors for the plotted
-    features: the detector's one-flight band (median over the features) and that band plus
-    the standard errors at which the alarm confidence is reached. Without a usable model,
-    the detector's defaults."""
+                    ) -> DetectorLevels:
+    """The levels of a model version's detector for the plotted features: the one-flight
+    band (median over the features), that band plus the standard errors at which the alarm
+    confidence is reached, and that confidence. Without a usable model, the detector's
+    defaults."""
     detector = FaultDetector()
     if version_id is not None:
         try:
@@ -131,7 +138,7 @@ def detector_levels(*, session: Session, version_id: int | None, features: Seque
     bands = detector.bands() if hasattr(detector, "band_") else {}
     values = sorted(bands[f][0] for f in features if f in bands and bands[f])
     band = values[len(values) // 2] if values else detector.band_floor
-    return band, band + detector.z_alarm
+    return DetectorLevels(band, band + detector.z_alarm, detector.alarm_confidence)
 
 
 def request_training(*, session: Session, version_id: int, payload: dict[str, Any]) -> Job:

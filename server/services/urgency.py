@@ -26,7 +26,7 @@ from server.vocabulary import ABRUPT
 
 __all__ = ["REPLACE_NOW", "ACT_WITHIN", "MONITOR", "DEFERRED", "HEALTHY", "BUCKETS", "COLOUR",
            "RUL_LOW_QUANTILE", "ACT_WITHIN_MAX_FLIGHTS", "Urgency", "urgency", "deferral_active",
-           "sort_key"]
+           "sort_key", "flights"]
 
 REPLACE_NOW = "replace_now"
 ACT_WITHIN = "act_within"
@@ -62,8 +62,13 @@ class Urgency:
     @property
     def label(self) -> str:
         if self.bucket == ACT_WITHIN:
-            return f"act within {self.within_flights} flights"
+            return f"act within {flights(self.within_flights)}"
         return self.bucket.replace("_", " ")
+
+
+def flights(n: int | None) -> str:
+    """``"1 flight"``, ``"12 flights"``."""
+    return f"{n} flight" if n == 1 else f"{n} flights"
 
 
 def deferral_active(*, until_flight: int | None, until: datetime | None, flights_seen: int,
@@ -90,7 +95,7 @@ def urgency(*, failed_at_flight: int | None, alarm_open: bool, fault_mode: str |
     if rul_low_flights is not None and rul_low_flights <= ACT_WITHIN_MAX_FLIGHTS:
         n = max(int(rul_low_flights), 0)
         return Urgency(ACT_WITHIN, within_flights=n,
-                       reason=f"RUL {RUL_LOW_QUANTILE:.0%} quantile {n} flights")
+                       reason=f"RUL {RUL_LOW_QUANTILE:.0%} quantile {flights(n)}")
     return Urgency(MONITOR, reason="alarm open; RUL not short")
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -81,18 +82,29 @@ def _failure_reason(reasons: list[dict[str, Any]]) -> str:
 
 
 def alarms_view(*, session: Session, status: str | None, limit: int = 200) -> dict[str, Any]:
-    rows, total = health_service.list_alarms(session=session, status=status, tail=None,
-                                             limit=limit, offset=0)
-    items = [{**_alarm_item(r), "partner": None if p is None else _alarm_item(p)}
-             for r, p in health_service.pair_winglet_alarms(rows)]
-    return {"items": items, "total": total, "status": status or "",
-            "shown": sum(1 + (it["partner"] is not None) for it in items),
+    """The inbox's rows (a winglet pair's two alarms are one row) and how many there are:
+    the count is of rows, as shown."""
+    # every alarm (the service orders them all in memory anyway), paired, then cut
+    rows, _ = health_service.list_alarms(session=session, status=status, tail=None,
+                                         limit=sys.maxsize, offset=0)
+    paired = health_service.pair_winglet_alarms(rows)
+    items = [{**_alarm_item(r), "partner": None if p is None else _alarm_item(p),
+              "failed_drive": _failed_drive(r, p)} for r, p in paired[:limit]]
+    return {"items": items, "total": len(paired), "status": status or "",
+            "shown": len(items), "n_pairs": sum(1 for _, p in paired if p is not None),
             "rule": urgency_rule_view()}
 
 
 def _alarm_item(r: Any) -> dict[str, Any]:
     return {"alarm": r.alarm, "actuator": r.actuator, "tail": r.tail, "urgency": r.urgency,
-            "deferral_expired": r.deferral_expired}
+            "deferral_expired": r.deferral_expired, "rul_median": r.rul_median}
+
+
+def _failed_drive(row: Any, partner: Any) -> Any:
+    """The failed unit of an inbox row, if any; on a winglet-pair row, the failure record
+    names the drive the pair's evidence could not."""
+    return next((x.actuator for x in (row, partner)
+                 if x is not None and x.actuator.failed_at_flight is not None), None)
 
 
 def urgency_rule_view() -> dict[str, Any]:
@@ -154,8 +166,9 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     tail = actuator.aircraft.tail
     records = [health_dict(r) for r in health_service.health_records(
         session=session, actuator_id=actuator_id, limit=limit)]
-    progs_rows = health_service.prognoses(session=session, actuator_id=actuator_id, limit=limit)
-    progs = [prognosis_dict(p) for p in progs_rows]
+    # the prognoses of the unit's current alarm only: none after a no-fault-found
+    progs = [prognosis_dict(p) for p in health_service.current_prognoses(
+        session=session, actuator_id=actuator_id, limit=limit)]
     history, _ = fleet_service.list_actuators(session=session, tail=tail,
                                               position=actuator.position, installed=None,
                                               limit=100, offset=0)
@@ -169,7 +182,11 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
         health_service.winglet_partner_alarm(session=session, alarm_id=open_alarm.id)
     pair_alarm = None if pair is None else {
         "alarm_id": pair[0].id, "fault_mode": pair[0].fault_mode,
-        "actuator_id": pair[1].id, "position": pair[1].position}
+        "actuator_id": pair[1].id, "position": pair[1].position,
+        "failed_drive": next((a for a in (actuator, pair[1])
+                              if a.failed_at_flight is not None), None)}
+    events = health_service.alarm_events(session=session,
+                                         alarm_ids=[r.alarm.id for r in own_alarms])
     trail = maintenance_service.position_trail(
         session=session, actuator_ids=[a.id for a in history])
 
@@ -207,13 +224,15 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     if model_id is None:
         active = model_service.active_version(session=session)
         model_id = None if active is None else active.id
-    band, threshold = model_service.detector_levels(session=session, version_id=model_id,
-                                                    features=z_names)
+    levels = model_service.detector_levels(session=session, version_id=model_id,
+                                           features=z_names)
     latest = records[-1] if records else None
     return {"actuator": actuator, "tail": tail, "records": records, "prognoses": progs,
             "truth": truth, "truth_planned": planned, "previous": previous,
-            "alarms": own_alarms, "band": band,
-            "threshold": threshold, "latest": latest, "latest_prognosis":
+            "alarms": own_alarms, "alarm_events": events,
+            "alarms_by_id": {r.alarm.id: r.alarm for r in alarms}, "band": levels.band,
+            "threshold": levels.threshold, "alarm_confidence": levels.alarm_confidence,
+            "latest": latest, "latest_prognosis":
             progs[-1] if progs else None, "urgency": state_urgency, "open_alarm": open_alarm,
             "deferral_expired": deferral_expired, "trail": trail, "pair_alarm": pair_alarm,
             "rule": urgency_rule_view(),

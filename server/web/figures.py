@@ -113,9 +113,10 @@ def feature_trends(records: Sequence[Mapping[str, Any]], *, band: float, thresho
     return _layout(fig, "Feature trends (standardised residual z)", "flight index", "z")
 
 
-def detection_confidence(records: Sequence[Mapping[str, Any]], *, alarm_level: float = 0.98
+def detection_confidence(records: Sequence[Mapping[str, Any]], *, alarm_level: float
                          ) -> go.Figure:
-    """Detection confidence per flight (max over features) with the alarm level."""
+    """Detection confidence per flight (max over features) with the alarm level (the model's
+    ``alarm_confidence``)."""
     xs = [int(r["flight_index"]) for r in records]
     ys = [_finite(r.get("confidence")) for r in records]
     alarms = [(x, y) for x, y, r in zip(xs, ys, records, strict=True) if r.get("alarm")]
@@ -210,8 +211,10 @@ def rul_cone(prognoses: Sequence[Mapping[str, Any]],
     return _layout(fig, "RUL cone", "flight index", "RUL [flights]", yaxis_rangemode="tozero")
 
 
-def rul_histogram(prognosis: Mapping[str, Any] | None) -> go.Figure:
-    """The latest RUL distribution (probability mass per bin of RUL in flights)."""
+def rul_histogram(prognosis: Mapping[str, Any] | None, *, failed_at_flight: int | None = None
+                  ) -> go.Figure:
+    """The latest RUL distribution (probability mass per bin of RUL in flights); for a unit
+    that has failed since, titled as the last prediction before the failure."""
     fig = go.Figure()
     if prognosis:
         doc = prognosis.get("distribution") or {}
@@ -231,6 +234,10 @@ def rul_histogram(prognosis: Mapping[str, Any] | None) -> go.Figure:
     title = "Latest RUL distribution"
     if prognosis and "flight_index" in prognosis:
         title += f" (flight {int(prognosis['flight_index'])})"
+    if failed_at_flight is not None:
+        title = f"Failed at flight {failed_at_flight}: no life left"
+        if prognosis and "flight_index" in prognosis:
+            title += f" (last prediction, flight {int(prognosis['flight_index'])})"
     return _layout(fig, title, "RUL [flights]", "probability", hovermode="closest",
                    bargap=0)
 

@@ -82,7 +82,7 @@ def test_confidence_and_class_probabilities() -> None:
     records = [{"flight_index": i, "confidence": 0.1 * i, "alarm": i > 8,
                 "class_probabilities": {"DMD": 0.9, "TTS": 0.1} if i > 8 else None}
                for i in range(1, 11)]
-    conf = figures.detection_confidence(records)
+    conf = figures.detection_confidence(records, alarm_level=0.98)
     assert list(conf.data[0].y)[:2] == [0.1, 0.2]
     assert list(conf.data[1].x) == [9, 10]  # in-alarm markers
     classes = figures.class_probabilities(records)
@@ -108,8 +108,9 @@ def test_figure_json_is_safe_inside_a_script_element() -> None:
 
 def test_an_empty_plot_says_no_data_yet_instead_of_bare_axes() -> None:
     for fig in (figures.rul_cone([], None), figures.feature_trends([], band=3.0, threshold=5.05),
-                figures.detection_confidence([])):
+                figures.detection_confidence([], alarm_level=0.98)):
         assert [a.text for a in fig.layout.annotations] == ["no data yet"]
         assert fig.layout.xaxis.visible is False and fig.layout.yaxis.visible is False
-    full = figures.detection_confidence([{"flight_index": 1, "confidence": 0.2, "alarm": False}])
+    full = figures.detection_confidence([{"flight_index": 1, "confidence": 0.2, "alarm": False}],
+                                        alarm_level=0.98)
     assert not full.layout.annotations and full.layout.xaxis.visible is not False
