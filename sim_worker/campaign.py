@@ -72,7 +72,10 @@ _MAX_SPAN = 1500.0  # largest expected span a user may ask for [flights], under 
 class ScaleConfig:
     duration_s: float  # s of reference actuator activity per recording
     healthy_patterns: int  # number of healthy patterns (spread over the aircraft)
-    healthy_flights: int  # flights per healthy pattern
+    #: flights per healthy pattern: a number, or a (low, high) range each pattern draws its
+    #: length from (uniform integers, from the pattern's seed): the paper's healthy cycles
+    #: ran as long as its degradation patterns (section 5.1)
+    healthy_flights: int | tuple[int, int]
     patterns_per_mode: int  # degradation patterns per fault mode
     #: render every k-th flight of a fault-to-failure run; odd, so the rendered flights take
     #: both winglet roles (the active drive alternates by flight: an even step would read a
@@ -93,6 +96,9 @@ class ScaleConfig:
 #: noisier sensor does to each feature, loops included (server.phm.sensor_health)
 SENSOR_STUDY_PATTERNS = 2
 SENSOR_STUDY_NOISE = 2.0
+#: a study pattern flies the first this many flights of its twin: the pairs measure a noise
+#: ratio, which a few thousand paired flights pin down; a long healthy life adds no more
+SENSOR_STUDY_FLIGHTS = 50
 
 SCALES: dict[str, dict[str, ScaleConfig]] = {
     # Quick scale: big enough for honest statistics in CI (>= 250 healthy verification
@@ -115,11 +121,17 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
     },
     # The paper's protocol (section 4.3): every flight of every pattern rendered, 25 patterns
     # per mode on 10 unseen aircraft; meant to be streamed (features kept, raw logs sampled).
+    # Healthy cycles as long as the fault runs (150-400 flights, section 5.1): two flights a
+    # day, so a cycle spans 2.5-7 months of one base's seasons; the design's ten run half a
+    # year each (300-400 flights), starting in different months, so training sees every
+    # season at every base and both winglet roles over months of service.
     "protocol": {
-        "design": ScaleConfig(duration_s=120.0, healthy_patterns=10, healthy_flights=50,
+        "design": ScaleConfig(duration_s=120.0, healthy_patterns=10,
+                              healthy_flights=(300, 400),
                               patterns_per_mode=10, render_every=1, apriori_flights=8,
                               apriori_onset=2),
-        "verification": ScaleConfig(duration_s=120.0, healthy_patterns=25, healthy_flights=4,
+        "verification": ScaleConfig(duration_s=120.0, healthy_patterns=25,
+                                    healthy_flights=(150, 400),
                                     patterns_per_mode=25, render_every=1, apriori_flights=8,
                                     apriori_onset=2),
     },
@@ -297,12 +309,25 @@ def _sensor_study(specs: list[PatternSpec], healthy_patterns: int) -> list[Patte
             twin = specs[(si * SENSOR_STUDY_PATTERNS + j) % healthy_patterns]
             out.append(replace(twin, id=f"D-sensor-{sensor}-{j + 1:02d}",
                                number=len(specs) + len(out), sensor_study=sensor,
-                               twin=twin.id))
+                               twin=twin.id,
+                               n_flights=min(twin.n_flights, SENSOR_STUDY_FLIGHTS)))
     return out
 
 
-def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
-    """All patterns of the campaign, in manifest order."""
+def _healthy_length(cfg: ScaleConfig, seed: int, code: int, j: int) -> int:
+    """Flights of the ``j``-th healthy pattern: the scale's number, or a draw from its range
+    that depends on the campaign's seed and kind and the pattern alone."""
+    if isinstance(cfg.healthy_flights, int):
+        return cfg.healthy_flights
+    lo, hi = (int(v) for v in cfg.healthy_flights)
+    return int(np.random.default_rng(_seed(seed, code, 3000 + j)).integers(lo, hi + 1))
+
+
+def plan_campaign(kind: str, seed: int, scale: str, *,
+                  per_mode: int | None = None) -> list[PatternSpec]:
+    """All patterns of the campaign, in manifest order. ``per_mode``: every healthy pattern
+    but only the first ``per_mode`` patterns of each fault mode (0: the healthy ones alone),
+    each numbered and seeded as in the whole campaign, so they fly the same flights."""
     if kind not in _KIND_CODE:
         raise ValueError(f"kind must be one of {sorted(_KIND_CODE)}")
     cfg = SCALES[scale][kind]
@@ -317,7 +342,7 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
                                  _seed(seed, code, 1000 + number), day_offset=37.0 * number % 365))
 
     for j in range(cfg.healthy_patterns):
-        add("healthy", None, j % n_air, cfg.healthy_flights, 0, j)
+        add("healthy", None, j % n_air, _healthy_length(cfg, seed, code, j), 0, j)
     for m_i, mode in enumerate(MODES):
         for j in range(cfg.patterns_per_mode):
             ai = (j * 3 + m_i) % n_air
@@ -330,6 +355,11 @@ def plan_campaign(kind: str, seed: int, scale: str) -> list[PatternSpec]:
                 add(mode, pos, ai, 0, cfg.lead_flights, j)
     if kind == "design" and cfg.healthy_patterns:
         specs += _sensor_study(specs, cfg.healthy_patterns)
+    if per_mode is not None:
+        # the sensor study belongs to the fault-pattern part of a design campaign
+        specs = [s for s in specs if (s.mode == "healthy" and not (s.sensor_study and
+                                                                  per_mode == 0))
+                 or (s.mode != "healthy" and int(s.id.rsplit("-", 1)[1]) <= per_mode)]
     return specs
 
 
@@ -602,7 +632,8 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                  render_every: int | None = None,
                  span_flights: tuple[float, float] | None = None,
                  sink: FlightSink | None = None,
-                 executor: Executor | None = None) -> dict[str, Any]:
+                 executor: Executor | None = None,
+                 per_mode: int | None = None) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
@@ -626,6 +657,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     downloads every one); ``span_flights`` the range of expected fault-to-failure spans. The
     winglet tab flies active-standby (``fleet.DEFAULT_WINGLET_MODE``, recorded in the manifest
     as ``"winglet_mode"``).
+    ``per_mode`` flies every healthy pattern and only the first ``per_mode`` patterns of each
+    fault mode (0: the healthy ones alone, for false alarms over long healthy lives), the
+    same flights as in the whole campaign.
     ``sink`` decides what is kept of a rendered flight (default: its Parquet file). Patterns
     run on ``executor`` (any ``concurrent.futures.Executor``, e.g. a Dask client's) if given,
     else on a local pool of ``workers`` processes; the output does not depend on either. An
@@ -650,11 +684,13 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale),
                "sensor_faults": faults}
     settings = _settings(kind, seed, scale, cfg, options, sink)
+    if per_mode is not None:
+        settings["per_mode"] = int(per_mode)  # only when given, as sensor_faults
     finished = _finished_manifest(out, settings)
     if finished is not None:
         return finished
     warm_up()  # compile (or load the cache) once before forking workers
-    specs = plan_campaign(kind, seed, scale)
+    specs = plan_campaign(kind, seed, scale, per_mode=per_mode)
     fleet = fleet_for(kind, seed, **options)
     store = _Progress(out, settings)
     results = {s.number: r for s in specs if (r := store.done(s)) is not None}
@@ -700,7 +736,8 @@ def snapshot_campaign(out_dir: str | Path, snap_dir: str | Path, *,
                          f"{sink.describe()}")
     cfg = ScaleConfig(**{k: tuple(v) if isinstance(v, list) else v
                          for k, v in settings["config"].items()})
-    specs = plan_campaign(settings["kind"], settings["seed"], settings["scale"])
+    specs = plan_campaign(settings["kind"], settings["seed"], settings["scale"],
+                          per_mode=settings.get("per_mode"))
     store = _Progress(out, settings)
     done = [r for s in specs if (r := store.done(s)) is not None]
     fleet = fleet_for(settings["kind"], settings["seed"],

@@ -116,6 +116,10 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
     camp.add_argument("--span-range", default=None, metavar="LOW,HIGH",
                       help="range of the expected fault-to-failure span drawn per pattern "
                       "[flights] (default: the scale's, 170,360)")
+    camp.add_argument("--per-mode", type=int, default=None, metavar="N",
+                      help="fly every healthy pattern but only the first N patterns of each "
+                      "fault mode (0: the healthy ones alone), the same flights as in the "
+                      "whole campaign")
     camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     camp.add_argument("--bases", default=None, help="robustness: comma-separated bases to fly "
                       "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
@@ -188,7 +192,8 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None
                             sensor_faults=tuple(args.sensor_fault or ()),
                             render_every=args.render_every,
                             span_flights=parse_span_range(args.span_range),
-                            sink=sink, executor=executor)  # type: ignore[arg-type]
+                            sink=sink, executor=executor,  # type: ignore[arg-type]
+                            per_mode=args.per_mode)
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:

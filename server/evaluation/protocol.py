@@ -75,7 +75,7 @@ def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
     return argparse.Namespace(kind=kind, out=str(out), seed=seed, scale=args.scale,
                               workers=args.workers, dask=args.dask, render_every=None,
                               span_range=span_range, no_progress=args.no_progress, bases=None,
-                              noise_scale=1.0, sensor_fault=None)
+                              noise_scale=1.0, sensor_fault=None, per_mode=None)
 
 
 def _evaluate_args(args: argparse.Namespace, model: Path, campaign: Path, out: Path

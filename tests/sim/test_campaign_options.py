@@ -12,6 +12,7 @@ from server.flightlog import FlightLog
 from server.vocabulary import POSITIONS, SENSORS
 from sim_worker.campaign import (
     SCALES,
+    SENSOR_STUDY_FLIGHTS,
     SENSOR_STUDY_NOISE,
     ParquetSink,
     SensorFault,
@@ -238,10 +239,39 @@ def test_the_design_sensor_study_repeats_healthy_patterns_with_one_sensor_noisie
     for s in study:
         twin = by_id[s.twin]
         assert twin.mode == "healthy" and twin.sensor_study is None
-        assert (s.seed, s.aircraft_index, s.n_flights, s.day_offset) == (
-            twin.seed, twin.aircraft_index, twin.n_flights, twin.day_offset)
+        assert (s.seed, s.aircraft_index, s.day_offset) == (
+            twin.seed, twin.aircraft_index, twin.day_offset)
+        assert s.n_flights == min(twin.n_flights, SENSOR_STUDY_FLIGHTS)
     assert [s.number for s in plan] == list(range(len(plan)))
     assert not any(s.sensor_study for s in plan_campaign("verification", 1, "ci"))
+
+
+def test_protocol_healthy_cycles_run_as_long_as_the_faults() -> None:
+    """The paper's healthy cycles lasted as long as its fault runs (150-400 flights); the
+    design's run half a year each; lengths depend on the seed, not on the run."""
+    ver = [s for s in plan_campaign("verification", 2, "protocol") if s.mode == "healthy"]
+    des = [s for s in plan_campaign("design", 1, "protocol")
+           if s.mode == "healthy" and not s.sensor_study]
+    assert len(ver) == 25 and all(150 <= s.n_flights <= 400 for s in ver)
+    assert len({s.n_flights for s in ver}) > 10  # drawn, not one length
+    assert len(des) == 10 and all(300 <= s.n_flights <= 400 for s in des)
+    again = [s for s in plan_campaign("verification", 2, "protocol") if s.mode == "healthy"]
+    assert [s.n_flights for s in again] == [s.n_flights for s in ver]
+    other = [s for s in plan_campaign("verification", 3, "protocol") if s.mode == "healthy"]
+    assert [s.n_flights for s in other] != [s.n_flights for s in ver]
+    study = [s for s in plan_campaign("design", 1, "protocol") if s.sensor_study]
+    assert all(s.n_flights == SENSOR_STUDY_FLIGHTS for s in study)
+
+
+@pytest.mark.parametrize("per_mode", [0, 1, 3])
+def test_a_part_of_a_campaign_flies_the_same_patterns_as_the_whole(per_mode: int) -> None:
+    whole = {s.id: s for s in plan_campaign("design", 1, "protocol")}
+    part = plan_campaign("design", 1, "protocol", per_mode=per_mode)
+    assert all(whole[s.id] == s for s in part)  # numbers, seeds and lengths unchanged
+    faults = [s for s in part if s.mode != "healthy"]
+    assert len(faults) == per_mode * 7
+    assert sum(s.mode == "healthy" and not s.sensor_study for s in part) == 10
+    assert any(s.sensor_study for s in part) == (per_mode > 0)
 
 
 def test_a_study_flight_is_its_twin_with_one_sensor_noisier(tmp_path) -> None:
