@@ -111,3 +111,11 @@ def test_config_counts_accept_whole_floats_and_refuse_the_rest() -> None:
         LawAverageConfig(n_samples=2000.5)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="memory_spans"):
         LawAverageConfig(memory_spans=0.0)
+
+
+@pytest.mark.parametrize("bad", [np.ones((20, 2)), np.ones((1, 20)), 3.0])
+def test_a_series_that_is_not_one_dimensional_is_refused(bad) -> None:
+    with pytest.raises(ValueError, match="one-dimensional"):
+        forecast_rul(bad, 5.0, baseline=0.0)
+    with pytest.raises(ValueError, match="one-dimensional"):
+        forecast_rul(np.linspace(0, 1, 20), 5.0, baseline=0.0, time=np.ones((20, 1)))

@@ -64,10 +64,20 @@ class RulForecast:
         return self.quantile(tail), self.quantile(1.0 - tail)
 
 
+def _one_dimensional(values: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``values`` as a 1-D float array; a 2-D (or 0-D) one is refused, not flattened: a
+    flattened table would read as one series of its rows laid end to end."""
+    a = np.asarray(values, dtype=float)
+    if a.ndim != 1:
+        raise ValueError(f"{name} must be one-dimensional (one value per sample), got shape "
+                         f"{a.shape}")
+    return a
+
+
 def _times(time: ArrayLike | None, n: int) -> NDArray[np.float64]:
     if time is None:
         return np.arange(n, dtype=float)
-    t = np.asarray(time, dtype=float).ravel()
+    t = _one_dimensional(time, "time")
     if t.size != n:
         raise ValueError(f"time has {t.size} values for {n} samples: give one per sample")
     if not np.all(np.isfinite(t)):
@@ -88,7 +98,7 @@ def forecast_rul(series: ArrayLike, threshold: float, *, time: ArrayLike | None 
     Fewer than ``MIN_INFORMATIVE_SAMPLES`` samples warn (:class:`PriorDominatedWarning`)
     and set ``prior_dominated``. ``rng``: a Generator, an (numpy) integer seed or None (0).
     """
-    x = np.asarray(series, dtype=float).ravel()
+    x = _one_dimensional(series, "series")
     if x.size < 2 or not np.all(np.isfinite(x)):
         raise ValueError("series must hold at least 2 finite samples")
     t = _times(time, x.size)
@@ -116,7 +126,7 @@ def backtest_forecasts(series: ArrayLike, threshold: float, at: Sequence[float],
                        config: LawAverageConfig | None = None) -> list[RulForecast]:
     """The forecast at each time in ``at`` from the samples up to it only (the baseline,
     when not given, and the noise come from that prefix too)."""
-    x = np.asarray(series, dtype=float).ravel()
+    x = _one_dimensional(series, "series")
     t = _times(time, x.size)
     out = []
     for when in at:
