@@ -230,8 +230,9 @@ def _store_prognosis(session: Session, flight: Flight, act: Actuator, out: Actua
 
 def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome,
                  rul: RulDistribution | None) -> None:
-    """A new alarm is opened (its class at raising kept: ``Alarm.raised_fault_mode``); an open one follows the actuator's
-    latest class and RUL, each change of its leading class recorded as an alarm event."""
+    """A new alarm is opened (its class at raising kept: ``Alarm.raised_fault_mode``); an
+    open one follows the actuator's latest class and RUL, each change of its leading class
+    recorded as an alarm event."""
     prob = (out.class_probabilities or {}).get(out.fault_mode or "")
     median = None if rul is None or not math.isfinite(rul.median) else float(rul.median)
     low = None if rul is None else _finite(rul.quantiles.get(RUL_LOW_QUANTILE))

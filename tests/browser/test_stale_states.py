@@ -29,7 +29,7 @@ from tests.browser.test_dashboard import (  # noqa: F401  (fixtures of this modu
 from tests.web.seed import add_alarm, seed_results
 
 
-def test_a_failed_unit_shows_no_life_and_the_pair_row_names_it(live: Live, browser) -> None:  # type: ignore[no-untyped-def]
+def test_a_failed_unit_shows_no_life_and_the_pair_row_names_it(live: Live, browser) -> None:  # type: ignore[no-untyped-def]  # noqa: F811
     """Issues 7, 8, 12: WL1 failed at flight 71 while WL2 alarms in the same mode."""
     tail = live.tails[1]
     seed = seed_results(live.factory, tail=tail, position="WL1")  # type: ignore[arg-type]
@@ -69,7 +69,7 @@ def test_a_failed_unit_shows_no_life_and_the_pair_row_names_it(live: Live, brows
 
 
 def test_no_fault_found_leaves_no_stale_fault_and_keeps_the_class_at_raising(  # type: ignore[no-untyped-def]
-        live: Live, browser) -> None:
+        live: Live, browser) -> None:  # noqa: F811  (the imported fixtures)
     """Issues 9, 10, 12: an alarm raised as MTEL, its leading class DMD since flight 25, closed
     as no fault found from the actuator page; the model's alarm confidence is 0.95."""
     tail = live.tails[2]
@@ -119,7 +119,7 @@ def test_no_fault_found_leaves_no_stale_fault_and_keeps_the_class_at_raising(  #
     assert "no fault found" in page.locator("#no-prognosis").inner_text()
     page.wait_for_selector("#fig-cone .main-svg", timeout=15_000)
     assert max(_plot_points(page, "fig-cone") or [0]) == 0  # no cone: "no data yet"
-    assert "no data yet" in page.locator("#fig-cone").inner_text()
+    assert "no data yet" in (page.locator("#fig-cone").text_content() or "")
     own = page.locator(f"#own-alarm-{seed.alarm_id}").inner_text()
     assert "no fault found" in own and "raised as MTEL" in own, own
     trail = page.locator("#maintenance-trail tbody tr").first.inner_text()
