@@ -23,11 +23,13 @@ from server.errors import NotFound
 from server.models import ROLES, ApiKey, utcnow
 
 __all__ = ["KEY_PREFIX", "hash_key", "create_key", "authenticate", "revoke_key", "ALLOWED",
-           "may", "SESSION_COOKIE", "CSRF_HEADER", "SAFE_METHODS", "csrf_token",
+           "may", "SESSION_COOKIE", "SIGNIN_COOKIE", "CSRF_HEADER", "SAFE_METHODS", "csrf_token",
            "session_write_refusal"]
 
 KEY_PREFIX = "hmsm_"
 SESSION_COOKIE = "hmsm_session"
+#: the sign-in form's pre-session cookie: random, its CSRF token in the form (login CSRF)
+SIGNIN_COOKIE = "hmsm_signin"
 #: the header that carries the CSRF token on API writes authenticated by the session cookie
 CSRF_HEADER = "X-CSRF-Token"
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
@@ -90,12 +92,19 @@ def csrf_token(session_cookie: str) -> str:
 
 
 def session_write_refusal(*, session_cookie: str, presented_token: str | None,
-                          origin: str | None, own_origin: str) -> str | None:
-    """Why a write authenticated by the session cookie is refused (``cross_origin``,
-    ``csrf_mismatch``), or None. ``Origin: null`` (sent on form posts under
-    ``Referrer-Policy: no-referrer``) proves nothing either way: the token decides."""
+                          origin: str | None, own_origin: str,
+                          fetch_site: str | None = None) -> str | None:
+    """Why a write authenticated by the session cookie (or the sign-in form's pre-session
+    cookie) is refused (``cross_origin``, ``csrf_mismatch``), or None. ``Origin: null`` (sent
+    on form posts under ``Referrer-Policy: no-referrer``, ours or a page's that chose it) proves
+    nothing either way: the token decides; ``Sec-Fetch-Site`` (``fetch_site``, which no page
+    can set) must say ``same-origin`` when the browser sends it."""
     if origin is not None and origin != "null" and origin != own_origin:
         return "cross_origin"
+    if fetch_site is not None and fetch_site != "same-origin":
+        return "cross_origin"
+    if not session_cookie:
+        return "csrf_mismatch"
     expected = csrf_token(session_cookie).encode()
     if not presented_token or not hmac.compare_digest(presented_token.encode(), expected):
         return "csrf_mismatch"

@@ -1,7 +1,8 @@
 """The error responses of each operation in the OpenAPI schema, all in the one error shape
 ``{"error": {"code", "message", "details"}}`` (``server.errors``).
 
-Most follow from the operation itself (:func:`document_errors`): 401 where a key is needed, 403
+Most follow from the operation itself (:func:`document_errors`): 401 and 429 (too many failed
+authentications, ``server.ratelimit``) where a key is needed, 403
 on a write (a role below the route's, or the session cookie without its CSRF token), 404 with a
 path parameter, 400, 408 and 413 with a request body (unreadable, stalled, over the limit),
 422 where anything is validated. The rest (a 409, a 403 on a read, a 404 without path
@@ -30,6 +31,8 @@ DESCRIPTIONS = {
          "are kept).",
     413: "The request body exceeds the size limit.",
     422: "The request is not valid.",
+    429: "Too many failed authentications from this client address; try again after "
+         "Retry-After seconds.",
 }
 WRITE_METHODS = {"post", "put", "patch", "delete"}
 ERROR_SCHEMA: dict[str, Any] = {
@@ -71,7 +74,7 @@ def document_errors(app: FastAPI) -> None:
 def _add_inferred(path: str, method: str, operation: dict[str, Any]) -> None:
     codes = set()
     if operation.get("security"):
-        codes.add(401)
+        codes.update((401, 429))
         if method in WRITE_METHODS:
             codes.add(403)
     if "{" in path:

@@ -99,6 +99,7 @@ from server.phm.dataset import Campaign, Pattern, reads_rod_ends_as_pair
 from server.phm.prognosis.document import rul_point, rul_quantile
 from server.vocabulary import PAPER_TABLE2, POSITIONS, PROGRESSIVE, alarming_positions
 
+from .false_alarms import summarise_false_alarms
 from .timing import ChainTimer, feature_timing
 
 __all__ = [
@@ -279,11 +280,13 @@ def summarise_sensors(traces: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
             "by_channel": dict(sorted(per.items()))}
 
 
-def summarise_detection(traces: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+def summarise_detection(traces: Sequence[Mapping[str, Any]],
+                        design_rate: float | None = None) -> dict[str, Any]:
     """False alarms on healthy cycles, detection rate and time per mode, with bootstrap
     intervals: the false-alarm rate per healthy flight resampled over the patterns that have
     healthy flights (each pattern's flights a cluster), the per-mode figures over the mode's
-    patterns."""
+    patterns; and the false alarms per unit-flight of every unit without a fault, beside the
+    detector's ``design_rate`` (:mod:`server.evaluation.false_alarms`)."""
     dets = [(t, detection_of(t)) for t in traces]
     healthy = [(t, d) for t, d in dets if t["mode"] == "healthy"]
     fa_events = sum(d["false_alarms"] for _, d in dets)
@@ -303,7 +306,9 @@ def summarise_detection(traces: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     for mode in sorted({t["mode"] for t, _ in dets if t["mode"] != "healthy"}):
         rows = [(t, d) for t, d in dets if t["mode"] == mode]
         per_mode[mode] = _mode_detection(rows)
-    return {"false_alarms": fa, "per_mode": per_mode}
+    return {"false_alarms": fa,
+            "per_unit_flight": summarise_false_alarms(traces, design_rate),
+            "per_mode": per_mode}
 
 
 def _mode_detection(rows: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]]
@@ -754,7 +759,7 @@ def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, 
                                    "seed": BOOTSTRAP_SEED, "unit": "pattern",
                                    "interval": "percentile"},
                      "jobs": jobs},
-        "detection": summarise_detection(traces),
+        "detection": summarise_detection(traces, model.detector.false_alarm_rate),
         "classification": classification_summary(traces, classes),
         "prognosis": summarise_prognosis(traces, point_estimate=point_estimate),
         "sensors": summarise_sensors(traces),

@@ -176,6 +176,37 @@ def _get_ci(r: Mapping[str, Any], key: str, spec: str = ".2f", scale: float = 1.
     return _ci(r.get(key), r.get(f"{key}_ci"), spec, scale)
 
 
+def _rate_text(r: Mapping[str, Any]) -> str:
+    if r.get("rate") is None:
+        return f"{r['events']} on 0 unit-flights"
+    lo, hi = r["interval"]
+    return (f"{r['events']} on {r['unit_flights']} unit-flights, {r['rate']:.1e} "
+            f"[{lo:.1e}, {hi:.1e}]")
+
+
+def _per_unit_flight(det: Mapping[str, Any]) -> list[str]:
+    """The false alarms per unit-flight of every unit without a fault, with their interval
+    beside the detector's design rate, by cause and reference age."""
+    pu = det.get("per_unit_flight")
+    if not pu:
+        return []
+    design = pu.get("design_rate")
+    beside = ("" if design is None else
+              f"; design rate {design:.1e}, "
+              f"{'inside' if pu.get('design_rate_inside') else 'outside'} the interval")
+    lines = ["", f"False alarms per unit-flight, every actuator without a fault: "
+                 f"{_rate_text(pu)} ({pu['level']:.0%} exact interval){beside}.", "",
+             "| cause | alarm events | unit-flights | rate [90 % interval] |", "|---|---|---|---|"]
+    for cause, r in pu["by_cause"].items():
+        rate = "-" if r["rate"] is None else (f"{r['rate']:.1e} [{r['interval'][0]:.1e}, "
+                                              f"{r['interval'][1]:.1e}]")
+        lines.append(f"| {cause} | {r['events']} | {r['unit_flights']} | {rate} |")
+    ages = ", ".join(f"{k}: {v}" for k, v in pu["events_by_reference_age"].items())
+    lines += ["", f"Alarm events by age of the unit's reference [flights since installation]: "
+                  f"{ages or 'none'}."]
+    return lines
+
+
 def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
     """Markdown tables: detection, confusion (first alarm, last flight), prognosis (median
     and most probable RUL), timing. Means as "mean [lo, hi]", the 90 % bootstrap interval
@@ -188,7 +219,7 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
              f"{fa['healthy_flights']} healthy flights (incl. pre-onset flights of fault "
              f"patterns), rate per healthy flight "
              f"{_ci(rate, fa.get('rate_per_flight_ci'), '.4f')} "
-             "(paper: 0 on 25 healthy cycles).", "",
+             "(paper: 0 on 25 healthy cycles).", *_per_unit_flight(det), "",
              "| mode | patterns | detected | detection rate | detection time mean [% life] | "
              "max [% life] | flights after onset mean | max | alarms on other actuators |",
              "|---|---|---|---|---|---|---|---|---|"]

@@ -11,6 +11,17 @@ outliers). The residual scale is a robust standard deviation (1.4826 x MAD). A f
 *standardised residual* ``z = (value - expected(conditions)) / scale`` is what detection uses,
 so that hot and cold aircraft, heavy and light flights share one healthy distribution.
 
+The condition coefficients are learned **within units** (fixed effects): each actuator's
+flights are centred on their own means before the fit, so only how one unit's value moves with
+its conditions sets a slope; the intercept is the fleet's mean. Production tolerances give every
+unit its own offset, up to eight times the flight scatter (``F_MTWEAR``, ``F_DMD``:
+docs/TUNING.md, Detection), and a pooled fit reads any chance correlation of those offsets
+with the bases' climates as a temperature slope: on the protocol's design campaign the pooled
+fit missed a winglet drive's ``F_MTWEAR`` temperature slope by about 0.045 z per K, so a
+unit whose reference was learned in January stood 4 flight-scatter units off by June
+(docs/RESULTS.md, "Long healthy lives"). A unit's own offset is the detector's business
+(:mod:`server.phm.detection`).
+
 A flight value resting on fewer than ``min_evidence`` (25 %) of the median number of valid
 windows of the healthy design flights gets no residual (NaN): its sampling noise is at least
 twice the usual (variance ~ 1 / windows), and such flights carried most of the far healthy
@@ -67,6 +78,13 @@ class BaselineConfig:
     min_evidence:
         Fraction of the healthy median number of valid windows a flight value needs to get a
         residual [-]: below a quarter its sampling noise is at least twice the usual.
+    log_features:
+        Generic features modelled on the log of their value: ratios of a noise-driven spread
+        to a mean (``F_BDO`` the phase voltages' imbalance, ``F_SE`` the flux's 1/rev
+        modulation) are positive and right-skewed on healthy flights (values 0.0017-0.0095
+        and single flights at 0.025 on one long design life), so a normal band on the value
+        itself takes their ordinary upper tail for a fault; on the log scale that tail is
+        symmetric. A fault multiplies them, which the log keeps.
     """
 
     covariates: tuple[str, ...] = ("temp_ground_c", "temp_mean_c", "load_rms_n",
@@ -75,6 +93,7 @@ class BaselineConfig:
     ridge: float = 1.0
     outlier_k: float = 6.0
     min_evidence: float = 0.25
+    log_features: tuple[str, ...] = ("F_SE", "F_BDO")
 
 
 #: the tuned baselines (``FleetBaseline()``)
@@ -121,12 +140,22 @@ class LinearBaseline:
         C = np.where(np.isfinite(C), C, self.cov_mean_[np.newaxis, :])
         return (C - self.cov_mean_) / self.cov_scale_
 
-    def fit(self, C: np.ndarray, y: np.ndarray) -> LinearBaseline:
-        """Fit on healthy flights: ``C`` (n_flights, n_covariates), ``y`` (n_flights,)."""
+    def fit(self, C: np.ndarray, y: np.ndarray, units: Sequence[str] | None = None
+            ) -> LinearBaseline:
+        """Fit on healthy flights: ``C`` (n_flights, n_covariates), ``y`` (n_flights,).
+
+        ``units`` (one label per flight, e.g. the aircraft's tail for a position's feature):
+        the slopes come from the variation within each unit, the intercept is the mean over
+        all flights (module docstring); None: one pooled fit, as if every flight were one
+        unit's."""
         C = np.asarray(C, dtype=np.float64).reshape(-1, len(self.covariates))
         y = np.asarray(y, dtype=np.float64)
         keep = np.isfinite(y)
-        C, y = C[keep], y[keep]
+        groups = (np.zeros(y.size, dtype=np.int64) if units is None
+                  else np.unique(np.asarray(units, dtype=str), return_inverse=True)[1])
+        if groups.size != y.size:
+            raise ValueError("units must give one label per flight")
+        C, y, groups = C[keep], y[keep], groups[keep]
         if y.size < 3:
             raise ValueError("need at least three healthy flights with a finite value")
         with np.errstate(invalid="ignore"):
@@ -138,7 +167,7 @@ class LinearBaseline:
         X = self._prep(C)
         w = np.ones(y.size, dtype=bool)
         for _ in range(2):
-            self._solve(X[w], y[w])
+            self._solve(X[w], y[w], groups[w])
             r = y - self._raw_predict(X)
             s = _robust_scale(r[w])
             if not np.isfinite(s) or s <= 0:
@@ -153,14 +182,16 @@ class LinearBaseline:
         self.n_samples_ = int(y.size)
         return self
 
-    def _solve(self, X: np.ndarray, y: np.ndarray) -> None:
-        n, k = X.shape
-        xm, ym = X.mean(axis=0), y.mean()
-        Xc = X - xm
+    def _solve(self, X: np.ndarray, y: np.ndarray, groups: np.ndarray) -> None:
+        """Ridge slopes on the deviations from each group's means; intercept from the overall
+        means (one group: the ordinary pooled ridge fit)."""
+        k = X.shape[1]
+        Xc = X - _group_means(X, groups)
+        yc = y - _group_means(y[:, np.newaxis], groups)[:, 0]
         A = Xc.T @ Xc + self.ridge * np.eye(k)
-        coef = np.linalg.solve(A, Xc.T @ (y - ym)) if k else np.zeros(0)
+        coef = np.linalg.solve(A, Xc.T @ yc) if k else np.zeros(0)
         self.coef_ = coef
-        self.intercept_ = float(ym - xm @ coef)
+        self.intercept_ = float(y.mean() - X.mean(axis=0) @ coef)
 
     def _raw_predict(self, X: np.ndarray) -> np.ndarray:
         return self.intercept_ + X @ self.coef_
@@ -200,6 +231,14 @@ class LinearBaseline:
         return b
 
 
+def _group_means(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Each row's group mean of ``X`` (n, k), by integer group labels (n,)."""
+    counts = np.bincount(groups)
+    sums = np.zeros((counts.size, X.shape[1]))
+    np.add.at(sums, groups, X)
+    return (sums / np.maximum(counts, 1)[:, np.newaxis])[groups]
+
+
 def _covariates_for(name: str, base: Sequence[str]) -> tuple[str, ...]:
     feat = name.split(".", 1)[1]
     extra = (("temp_winding_est_c",) if feat in BASELINE_DEFAULTS.winding_temp_features
@@ -222,7 +261,8 @@ class FleetBaseline:
     def __init__(self, covariates: Sequence[str] = BASELINE_DEFAULTS.covariates, *,
                  ridge: float = BASELINE_DEFAULTS.ridge,
                  outlier_k: float = BASELINE_DEFAULTS.outlier_k,
-                 min_evidence: float = BASELINE_DEFAULTS.min_evidence) -> None:
+                 min_evidence: float = BASELINE_DEFAULTS.min_evidence,
+                 log_features: Sequence[str] = BASELINE_DEFAULTS.log_features) -> None:
         unknown = set(covariates) - set(CONDITION_NAMES)
         if unknown:
             raise ValueError(f"unknown covariates {sorted(unknown)}")
@@ -230,12 +270,18 @@ class FleetBaseline:
         self.ridge = ridge
         self.outlier_k = outlier_k
         self.min_evidence = float(min_evidence)
+        self.log_features = tuple(log_features)
 
     def _values(self, flights: Sequence[FlightFeatures], name: str) -> np.ndarray:
-        """Feature values, NaN where the flight has too little evidence."""
+        """Feature values (their log for ``log_features``), NaN where the flight has too
+        little evidence or a log feature no positive value."""
         need = self.min_valid_.get(name, 0.0) if hasattr(self, "min_valid_") else 0.0
-        return np.array([f.summaries[name].value if f.summaries[name].n_valid >= need
-                         else np.nan for f in flights], dtype=np.float64)
+        v = np.array([f.summaries[name].value if f.summaries[name].n_valid >= need
+                      else np.nan for f in flights], dtype=np.float64)
+        if name.split(".", 1)[1] in self.log_features:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                v = np.where(v > 0, np.log(np.where(v > 0, v, 1.0)), np.nan)
+        return v
 
     @staticmethod
     def _cond_matrix(flights: Sequence[FlightFeatures], name: str,
@@ -244,10 +290,15 @@ class FleetBaseline:
         return np.array([[f.conditions[pos].get(c, np.nan) for c in cov] for f in flights],
                         dtype=np.float64).reshape(len(flights), len(cov))
 
-    def fit(self, flights: Sequence[FlightFeatures]) -> FleetBaseline:
-        """Fit every feature's baseline on healthy ``flights``."""
+    def fit(self, flights: Sequence[FlightFeatures],
+            units: Sequence[str] | None = None) -> FleetBaseline:
+        """Fit every feature's baseline on healthy ``flights``; ``units`` labels each flight
+        with its aircraft (every feature belongs to one position, so the aircraft names the
+        unit): the slopes are then learned within units (module docstring)."""
         if len(flights) < 3:
             raise ValueError("need at least three healthy flights")
+        if units is not None and len(units) != len(flights):
+            raise ValueError("units must give one label per flight")
         self.models_: dict[str, LinearBaseline] = {}
         self.min_valid_: dict[str, float] = {}
         for name in AIRCRAFT_FEATURES:
@@ -259,7 +310,7 @@ class FleetBaseline:
             y = self._values(flights, name)
             C = self._cond_matrix(flights, name, cov)
             self.models_[name] = LinearBaseline(cov, ridge=self.ridge,
-                                                outlier_k=self.outlier_k).fit(C, y)
+                                                outlier_k=self.outlier_k).fit(C, y, units)
         self.feature_names_ = AIRCRAFT_FEATURES
         self.n_flights_ = len(flights)
         return self
@@ -279,7 +330,8 @@ class FleetBaseline:
 
     def to_physical(self, z: Mapping[str, float]) -> dict[str, float]:
         """Standardised residuals (or offsets) back in each feature's physical unit,
-        ``value - expected(conditions)``: comparable across positions, unlike ``zscores``."""
+        ``value - expected(conditions)`` (of the log value for ``log_features``): comparable
+        across positions, unlike ``zscores``."""
         self._check()
         return {name: v * self.models_[name].scale_ for name, v in z.items()
                 if name in self.models_}
@@ -299,14 +351,17 @@ class FleetBaseline:
         return {"format": BASELINE_FORMAT, "covariates": list(self.covariates),
                 "ridge": self.ridge, "outlier_k": self.outlier_k, "n_flights": self.n_flights_,
                 "min_evidence": self.min_evidence, "min_valid": dict(self.min_valid_),
+                "log_features": list(self.log_features),
                 "models": {k: m.to_dict() for k, m in self.models_.items()}}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> FleetBaseline:
         if d.get("format") != BASELINE_FORMAT:
             raise ValueError(f"not a {BASELINE_FORMAT} document")
+        # a document without log features modelled every value as it is
         b = cls(d["covariates"], ridge=float(d["ridge"]), outlier_k=float(d["outlier_k"]),
-                min_evidence=float(d.get("min_evidence", 0.0)))
+                min_evidence=float(d.get("min_evidence", 0.0)),
+                log_features=tuple(d.get("log_features", ())))
         b.min_valid_ = {k: float(v) for k, v in (d.get("min_valid") or {}).items()}
         b.models_ = {k: LinearBaseline.from_dict(v) for k, v in d["models"].items()}
         b.feature_names_ = tuple(b.models_)

@@ -32,6 +32,7 @@ __all__ = [
     "Campaign",
     "healthy_flights",
     "fit_detection",
+    "healthy_alarm_rate",
     "DetectionModel",
     "PatternOutcome",
     "evaluate",
@@ -42,10 +43,13 @@ __all__ = [
 
 @dataclass
 class DetectionModel:
-    """What detection needs at run time: the baseline and the detector (JSON together)."""
+    """What detection needs at run time: the baseline and the detector (JSON together);
+    ``design_false_alarms``: the alarms its bands raised on the design's healthy lives
+    (:func:`healthy_alarm_rate`, not part of the document)."""
 
     baseline: FleetBaseline
     detector: FaultDetector
+    design_false_alarms: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": "ema-detection-model/1", "baseline": self.baseline.to_dict(),
@@ -66,9 +70,11 @@ def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
     """Baselines on all healthy design flights; detector bands on out-of-fold residuals."""
     seqs = healthy_flights(design)
     all_flights = [f for _, s in seqs for f in s]
+    tails_of = [a for a, s in seqs for _ in s]  # each flight's aircraft: its units
     proto = baseline or FleetBaseline()
     final = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence).fit(all_flights)
+                          min_evidence=proto.min_evidence,
+                          log_features=proto.log_features).fit(all_flights, tails_of)
     tails = sorted({a for a, _ in seqs})
     oof: list[np.ndarray] = []
     for tail in tails:
@@ -76,12 +82,38 @@ def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
         if len(train) < 3:
             continue
         b = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence)
-        b.fit(train)
+                          min_evidence=proto.min_evidence,
+                          log_features=proto.log_features)
+        b.fit(train, [a for a, s in seqs if a != tail for _ in s])
         oof += [b.zscore_matrix(s) for a, s in seqs if a == tail]
     det = detector or FaultDetector()
-    det.fit(oof if oof else [final.zscore_matrix(s) for _, s in seqs], AIRCRAFT_FEATURES)
-    return DetectionModel(final, det)
+    sequences = oof if oof else [final.zscore_matrix(s) for _, s in seqs]
+    det.fit(sequences, AIRCRAFT_FEATURES)
+    return DetectionModel(final, det, healthy_alarm_rate(det, sequences))
+
+
+def healthy_alarm_rate(detector: FaultDetector, sequences: Sequence[np.ndarray],
+                       level: float = 0.90) -> dict[str, Any]:
+    """Alarm events per unit-flight on healthy sequences (n_flights, AIRCRAFT_FEATURES) of
+    residuals, each unit at risk until its first alarm: the realised rate beside the stated
+    ``false_alarm_rate``, with its exact ``level`` interval."""
+    from scipy.stats import binomtest
+
+    events = unit_flights = 0
+    for seq in sequences:
+        for unit in UNITS:
+            names = [n for n in AIRCRAFT_FEATURES if n.split(".", 1)[0] == unit
+                     and n in detector.feature_names_]
+            cols = [AIRCRAFT_FEATURES.index(n) for n in names]
+            conf = detector.confidence_sequence(seq[:, cols], names).max(axis=1)
+            hits = np.flatnonzero(conf >= detector.alarm_confidence)
+            events += int(hits.size > 0)
+            unit_flights += int(hits[0]) + 1 if hits.size else seq.shape[0]
+    ci = binomtest(events, max(unit_flights, 1)).proportion_ci(level, method="exact")
+    return {"events": events, "unit_flights": unit_flights,
+            "rate": events / unit_flights if unit_flights else None,
+            "interval": [float(ci.low), float(ci.high)], "level": level,
+            "stated_rate": detector.false_alarm_rate}
 
 
 @dataclass

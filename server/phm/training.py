@@ -546,7 +546,9 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
         "sensors": {"fitted": sensors is not None, "study_pairs": len(study),
                     "sensitivity": sensors is not None and sensors.sensitivity is not None},
         "detector": {"windows": list(detection.detector.windows),
-                     "alarm_confidence": detection.detector.alarm_confidence},
+                     "alarm_confidence": detection.detector.alarm_confidence,
+                     "false_alarm_rate": detection.detector.false_alarm_rate,
+                     "design_false_alarms": detection.design_false_alarms},
         "timings_s": {"detection": t_det - t_feat, "classifier": t_clf - t_det,
                       "measurement": t_end - t_clf, "total": t_end - t_feat},
     }

@@ -15,6 +15,7 @@ Security:
 
 from __future__ import annotations
 
+import secrets
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -27,7 +28,14 @@ from fastapi.templating import Jinja2Templates
 from pydantic import ValidationError
 
 import web
-from server.auth import SESSION_COOKIE, authenticate, csrf_token, may, session_write_refusal
+from server.auth import (
+    SESSION_COOKIE,
+    SIGNIN_COOKIE,
+    authenticate,
+    csrf_token,
+    may,
+    session_write_refusal,
+)
 from server.dependencies import SessionDep, SettingsDep, own_origin
 from server.errors import DomainError
 from server.models import ApiKey
@@ -142,19 +150,47 @@ def plotly_js() -> FileResponse:
                         headers={"Cache-Control": "public, max-age=86400"})
 
 
+def _signin_page(request: Request, key: ApiKey | None, next: str | None, *,
+                 status_code: int = 200, error: str | None = None) -> Response:
+    """The sign-in form with the CSRF token of the pre-session cookie (set when absent)."""
+    pre = request.cookies.get(SIGNIN_COOKIE, "")
+    fresh = len(pre) < 32
+    pre = secrets.token_urlsafe(32) if fresh else pre
+    response = _render(request, "signin.html", key, status_code=status_code,
+                       next=_safe_next(next), error=error, signin_csrf=csrf_token(pre))
+    if fresh:
+        response.set_cookie(SIGNIN_COOKIE, pre, httponly=True, samesite="strict",
+                            path="/signin", secure=request.url.scheme == "https")
+    return response
+
+
+def _form_refusal(request: Request, cookie: str, csrf: str) -> str | None:
+    return session_write_refusal(session_cookie=cookie, presented_token=csrf,
+                                 origin=request.headers.get("origin"),
+                                 own_origin=own_origin(request),
+                                 fetch_site=request.headers.get("sec-fetch-site"))
+
+
 @router.get("/signin", response_class=HTMLResponse)
 def signin_form(request: Request, session: SessionDep, next: str | None = None) -> Response:
-    return _render(request, "signin.html", _key(request, session), next=_safe_next(next),
-                   error=None)
+    return _signin_page(request, _key(request, session), next)
 
 
 @router.post("/signin", response_class=HTMLResponse)
 def signin(request: Request, session: SessionDep, key: str = Form(""),
-           next: str = Form("/fleet")) -> Response:
+           next: str = Form("/fleet"), csrf: str = Form("")) -> Response:
+    """Login CSRF: only this site's own sign-in form may sign a browser in (the pre-session
+    cookie's token, a same-origin ``Origin`` / ``Sec-Fetch-Site``), so that no other page can
+    sign a victim in under a key of its choosing."""
+    refusal = _form_refusal(request, request.cookies.get(SIGNIN_COOKIE, ""), csrf)
+    if refusal is not None:
+        return _signin_page(request, None, next, status_code=403, error=(
+            "Sign-in refused: it did not come from this site's sign-in form "
+            f"({refusal.replace('_', ' ')}). Paste your key here."))
     row = authenticate(session=session, plaintext=key.strip())
     if row is None:
-        return _render(request, "signin.html", None, status_code=401, next=_safe_next(next),
-                       error="That key is unknown or revoked.")
+        return _signin_page(request, None, next, status_code=401,
+                            error="That key is unknown or revoked.")
     response = RedirectResponse(_safe_next(next), status_code=303)
     response.set_cookie(COOKIE, key.strip(), httponly=True, samesite="strict", path="/",
                         secure=request.url.scheme == "https", max_age=12 * 3600)
@@ -162,7 +198,12 @@ def signin(request: Request, session: SessionDep, key: str = Form(""),
 
 
 @router.post("/signout")
-def signout(request: Request) -> Response:
+def signout(request: Request, csrf: str = Form("")) -> Response:
+    """Needs the session's CSRF token, like every form post (no other page may sign us out)."""
+    cookie = request.cookies.get(COOKIE, "")
+    if cookie and _form_refusal(request, cookie, csrf) is not None:
+        return _problem(request, None, 403, "Sign-out refused: it did not come from this "
+                        "dashboard (CSRF token mismatch); reload the page and try again.")
     response = RedirectResponse("/signin", status_code=303)
     response.delete_cookie(COOKIE, path="/", httponly=True, samesite="strict",
                            secure=request.url.scheme == "https")

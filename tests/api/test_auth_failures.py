@@ -8,6 +8,7 @@ from fastapi.testclient import TestClient
 
 from server.ratelimit import FailureBudget
 from tests.api.conftest import auth
+from tests.signin import sign_in, signin_token
 
 WRONG = "hmsm_" + "x" * 43
 BUDGET = 20  # the default HMSM_AUTH_FAILURES_PER_MINUTE
@@ -43,12 +44,13 @@ def test_signin_form_and_session_cookie_share_the_budget(app, client: TestClient
     guessed = TestClient(app, cookies={"hmsm_session": WRONG})  # the same address
     for i in range(BUDGET):
         if i % 2:
-            r = client.post("/signin", data={"key": WRONG, "next": "/fleet"})
+            r = sign_in(client, WRONG)
             assert r.status_code == 401, r.text
         else:  # a guessed cookie on a dashboard page: sent to the sign-in page
             r = guessed.get("/fleet", follow_redirects=False)
             assert r.status_code == 303 and r.headers["location"].startswith("/signin?next=")
-    r = client.post("/signin", data={"key": keys["viewer"], "next": "/fleet"})
+    r = client.post("/signin", data={"key": keys["viewer"], "next": "/fleet",
+                                     "csrf": signin_token(client)})
     assert r.status_code == 429 and r.headers["Retry-After"]
     assert "set-cookie" not in r.headers
 

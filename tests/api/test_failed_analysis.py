@@ -17,6 +17,7 @@ from server.jobs.worker import Worker
 from server.models import Job, utcnow
 from tests.api.conftest import auth
 from tests.flightlog_factory import make_parquet
+from tests.signin import sign_in
 
 PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
 
@@ -69,8 +70,7 @@ def test_analysis_abandoned_on_its_last_attempt_fails_and_an_admin_retries_it(
     listed = client.get("/api/v1/flights?status=failed", headers=auth(keys["viewer"])).json()
     assert [f["id"] for f in listed["items"]] == [flight_id]
 
-    client.post("/signin", data={"key": keys["viewer"], "next": "/fleet"},
-                follow_redirects=False)
+    assert sign_in(client, keys["viewer"]).status_code == 303
     page = client.get("/fleet").text
     assert 'id="failed-flights"' in page and queue.ABANDONED.split(";")[0] in page
 

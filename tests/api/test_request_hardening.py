@@ -19,13 +19,15 @@ from server.auth import csrf_token
 from server.config import Settings
 from tests.api.conftest import auth
 from tests.flightlog_factory import make_parquet, serials_for
+from tests.signin import sign_in as sign_in_form
+from tests.signin import signin_token
 
 PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
 OWN_ORIGIN = "http://testserver"
 
 
 def sign_in(client: TestClient, key: str) -> None:
-    r = client.post("/signin", data={"key": key, "next": "/fleet"}, follow_redirects=False)
+    r = sign_in_form(client, key)
     assert r.status_code == 303, r.text
 
 
@@ -78,6 +80,45 @@ def test_bearer_writes_need_no_csrf_token_even_beside_a_cookie(
     assert r.status_code == 202, r.text
 
 
+def test_signin_and_signout_come_only_from_this_sites_forms(app, client: TestClient,
+                                                           keys: dict[str, str]) -> None:
+    """Login CSRF: a page on another port of the host posts the sign-in form with a key of
+    its choosing, so that the victim works (and uploads, acknowledges...) under it."""
+    attacker = TestClient(app)  # its own pre-session cookie, so its own valid token
+    attacker_token = signin_token(attacker)
+    token = signin_token(client)
+    form = {"key": keys["viewer"], "next": "/fleet"}
+    for fields, headers in (
+            ({}, {}),  # no token (the victim never loaded the form)
+            ({"csrf": attacker_token}, {}),  # a token of another pre-session cookie
+            ({"csrf": token}, {"Origin": "http://testserver:9999"}),  # the right one, elsewhere
+            ({"csrf": token}, {"Origin": "null", "Sec-Fetch-Site": "same-site"}),
+            ({"csrf": token}, {"Sec-Fetch-Site": "cross-site"})):
+        r = client.post("/signin", data={**form, **fields}, headers=headers,
+                        follow_redirects=False)
+        assert r.status_code == 403, (fields, headers, r.status_code)
+        assert "Sign-in refused" in r.text and "hmsm_session" not in r.headers.get(
+            "set-cookie", "")
+        assert "hmsm_session" not in client.cookies
+    fresh = TestClient(app)  # a victim without the pre-session cookie: not even a token helps
+    r = fresh.post("/signin", data={**form, "csrf": token}, follow_redirects=False)
+    assert r.status_code == 403 and "hmsm_session" not in r.headers.get("set-cookie", "")
+
+    # the form as a browser posts it: Origin null (Referrer-Policy: no-referrer), same-origin
+    r = client.post("/signin", data={**form, "csrf": token}, follow_redirects=False,
+                    headers={"Origin": "null", "Sec-Fetch-Site": "same-origin"})
+    assert r.status_code == 303 and client.cookies.get("hmsm_session") == keys["viewer"]
+
+    for fields, headers in (({}, {}), ({"csrf": csrf_token(keys["viewer"])},
+                                       {"Sec-Fetch-Site": "same-site"})):
+        r = client.post("/signout", data=fields, headers=headers, follow_redirects=False)
+        assert r.status_code == 403 and "set-cookie" not in r.headers
+    r = client.post("/signout", data={"csrf": csrf_token(keys["viewer"])},
+                    headers={"Origin": OWN_ORIGIN, "Sec-Fetch-Site": "same-origin"},
+                    follow_redirects=False)
+    assert r.status_code == 303 and 'hmsm_session=""' in r.headers["set-cookie"]
+
+
 # ------------------------------------------------------------------------------------------
 # API documentation
 # ------------------------------------------------------------------------------------------
@@ -121,7 +162,9 @@ def small_client(settings: Settings) -> Iterator[tuple[TestClient, dict[str, str
     from server.auth import create_key
     from server.db import session_scope
 
-    app = create_app(settings.model_copy(update={"max_upload_bytes": LIMIT}))
+    # many wrong keys: no limit on failed authentications, which would answer 429 to the rest
+    app = create_app(settings.model_copy(update={"max_upload_bytes": LIMIT,
+                                                 "auth_failures_per_minute": 0}))
     with session_scope(app.state.session_factory) as s:
         keys = {r: create_key(session=s, name=r, role=r)[1] for r in ("viewer", "admin")}
     with TestClient(app, raise_server_exceptions=False) as client:
@@ -298,3 +341,4 @@ def test_stale_temporary_uploads_are_swept_at_start(settings: Settings) -> None:
     app.state.engine.dispose()
     assert not any(p.exists() for p in stale)
     assert live.exists()  # maybe another API process's upload
+

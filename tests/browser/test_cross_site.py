@@ -64,6 +64,7 @@ class Site:
     attacker: str
     admin: str
     victims: dict[str, int]  # key name -> id: the keys the requests try to revoke
+    pages: dict[str, bytes]  # the attacker's pages by path (a test may add one)
 
     def _bearer(self) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.admin}"}
@@ -112,12 +113,13 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
         form = (f'<!doctype html><title>prize</title><form method="post" '
                 f'action="{url}/api/v1/keys/{victims["form-victim"]}/revoke">'
                 '<button type="submit">Claim your prize</button></form>').encode()
-        attacker = _attacker_server({"/prize": form})
+        pages = {"/prize": form}
+        attacker = _attacker_server(pages)
         thread = threading.Thread(target=attacker.serve_forever, daemon=True)
         thread.start()
         try:
             yield Site(url=url, attacker=f"http://127.0.0.1:{attacker.server_port}",
-                       admin=admin, victims=victims)
+                       admin=admin, victims=victims, pages=pages)
         finally:
             attacker.shutdown()
             attacker.server_close()
@@ -150,6 +152,31 @@ def test_forged_form_post_and_fetch_from_another_port_are_refused(site: Site, br
     page.evaluate(FORGED_UPLOAD, site.url)
     assert not site.revoked("fetch-victim")
     assert site.flights() == 0
+    context.close()
+
+
+def test_forged_signin_from_another_port_is_refused(site: Site, browser) -> None:  # type: ignore[no-untyped-def]
+    """Login CSRF: the attacker's page posts the sign-in form with its own key (and hides its
+    origin: Origin null); the browser stays signed out, and the real form still signs in."""
+    made = httpx.post(f"{site.url}/api/v1/keys", headers=site._bearer(),
+                      json={"name": "attacker", "role": "viewer"})
+    assert made.status_code == 201, made.text
+    site.pages["/welcome"] = (
+        '<!doctype html><title>welcome</title><meta name="referrer" content="no-referrer">'
+        f'<form method="post" action="{site.url}/signin">'
+        f'<input type="hidden" name="key" value="{made.json()["key"]}">'
+        '<input type="hidden" name="next" value="/fleet">'
+        '<button type="submit">Continue</button></form>').encode()
+    context = browser.new_context()
+    page = context.new_page()
+    page.goto(f"{site.url}/signin")  # the victim's pre-session cookie is there
+    page.goto(f"{site.attacker}/welcome")
+    with page.expect_navigation():
+        page.get_by_role("button", name="Continue").click()
+    assert page.url.startswith(site.url) and "Sign-in refused" in page.content()
+    assert "hmsm_session" not in {c["name"] for c in context.cookies()}
+    _sign_in(page, site.url, site.admin)  # the real form, right after
+    assert "browser-admin" in page.content()
     context.close()
 
 

@@ -48,6 +48,35 @@ def test_linear_baseline_is_robust_to_outliers() -> None:
     assert b.scale_ == pytest.approx(0.05, rel=0.3)
 
 
+def test_linear_baseline_learns_slopes_within_units() -> None:
+    """Ten units whose offsets (8 flight-scatter units apart) happen to fall with their base's
+    temperature: the pooled fit reads that as a slope, the within-unit fit finds the true one,
+    and each unit's residual then stays flat through its seasons."""
+    rng = np.random.default_rng(3)
+    slope, scatter = 0.02, 0.1
+    units, temps, values = [], [], []
+    for g in range(10):
+        base_temp = -5.0 + 3.5 * g  # colder to hotter bases
+        offset = -0.08 * (base_temp - 10.0) + 0.1 * rng.standard_normal()
+        t = base_temp + rng.uniform(-12, 12, 150)  # one unit's seasons
+        units += [f"U{g}"] * t.size
+        temps.append(t)
+        values.append(offset + slope * t + scatter * rng.standard_normal(t.size))
+    C, y = np.concatenate(temps)[:, None], np.concatenate(values)
+    pooled = LinearBaseline(("temp_ground_c",), ridge=1e-6).fit(C, y)
+    within = LinearBaseline(("temp_ground_c",), ridge=1e-6).fit(C, y, units)
+    per_k = within.cov_scale_[0]  # the slope is on the standardised covariate
+    assert within.coef_[0] / per_k == pytest.approx(slope, rel=0.1)
+    assert abs(pooled.coef_[0] / per_k - slope) > 0.05  # the offsets' trend taken for a slope
+    # a unit's residuals, cold against hot flights of its own: flat within its scatter
+    u0 = np.array(units) == "U0"
+    z = within.zscore(C[u0], y[u0])
+    t0 = C[u0, 0]
+    assert abs(z[t0 > np.median(t0)].mean() - z[t0 <= np.median(t0)].mean()) < 0.5 * np.std(z)
+    with pytest.raises(ValueError, match="one label per flight"):
+        LinearBaseline(("temp_ground_c",)).fit(C, y, units[:-1])
+
+
 def test_unfitted_models_refuse() -> None:
     with pytest.raises(RuntimeError):
         LinearBaseline().predict(np.zeros((1, 4)))
@@ -248,8 +277,30 @@ def test_fleet_baseline_and_model_round_trip() -> None:
     m2 = DetectionModel.from_dict(json.loads(json.dumps(model.to_dict())))
     f = _flight(rng, {"WT.F_DMD": 20.0})
     z1, z2 = fb.zscores(f), m2.baseline.zscores(f)
-    assert z1 == pytest.approx(z2)
+    assert z1 == pytest.approx(z2, nan_ok=True)  # negative F_SE / F_BDO have no log
     assert z1["WT.F_DMD"] > 10
+
+
+def test_ratio_features_are_judged_on_their_log() -> None:
+    """A healthy F_BDO is log-normal-like: a flight at 4x the median is an ordinary upper
+    tail on the log scale (z about 2.3 at a log-sd of 0.6) but 5 robust scales out on the
+    value's;
+    a document written before log features reads values as they are."""
+    rng = np.random.default_rng(6)
+    flights = [_flight(rng) for _ in range(400)]
+    for f in flights:
+        f.summaries["WT.F_BDO"] = FeatureSummary(float(0.005 * np.exp(0.6 * rng.standard_normal())),
+                                                 0.1, 100)
+    odd = _flight(rng)
+    odd.summaries["WT.F_BDO"] = FeatureSummary(0.02, 0.1, 100)
+    on_log = FleetBaseline().fit(flights)
+    assert 1.5 < on_log.zscores(odd)["WT.F_BDO"] < 3.5
+    doc = on_log.to_dict()
+    assert doc["log_features"] == ["F_SE", "F_BDO"]
+    as_is = FleetBaseline(log_features=()).fit(flights)
+    assert as_is.zscores(odd)["WT.F_BDO"] > 4.5
+    del doc["log_features"]
+    assert FleetBaseline.from_dict(doc).log_features == ()
 
 
 def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:

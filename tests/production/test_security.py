@@ -14,6 +14,7 @@ from server.blobstore import BlobStore
 from server.config import Settings
 from tests.flightlog_factory import make_parquet, serials_for
 from tests.production.helpers import ROLES, seed_system
+from tests.signin import sign_in
 
 PARQUET = "application/vnd.apache.parquet"
 LIMIT = 1024 * 1024
@@ -152,8 +153,7 @@ def test_upload_size_limit_with_and_without_content_length(api) -> None:  # type
 
 def test_dashboard_pages_carry_csp_and_anti_framing_headers(api) -> None:  # type: ignore[no-untyped-def]
     client, keys, _ = api
-    r = client.post("/signin", data={"key": keys["viewer"], "next": "/fleet"},
-                    follow_redirects=False)
+    r = sign_in(client, keys["viewer"])
     assert r.status_code == 303
     cookie = r.headers["set-cookie"].lower()
     assert "httponly" in cookie and "samesite=strict" in cookie
@@ -173,7 +173,6 @@ def test_dashboard_pages_carry_csp_and_anti_framing_headers(api) -> None:  # typ
 def test_signin_redirect_stays_on_this_site(api) -> None:  # type: ignore[no-untyped-def]
     client, keys, _ = api
     for target in ("https://evil.example/", "//evil.example/x", "/\\evil.example"):
-        r = client.post("/signin", data={"key": keys["viewer"], "next": target},
-                        follow_redirects=False)
+        r = sign_in(client, keys["viewer"], next=target)
         location = r.headers.get("location", "")
         assert location.startswith("/") and not location.startswith(("//", "/\\")), location

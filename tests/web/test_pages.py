@@ -14,6 +14,7 @@ from sqlalchemy import event, select
 from server.db import session_scope
 from server.models import Actuator, ActuatorState, Aircraft, Alarm, Flight, Injection
 from server.web.routes import csrf_token
+from tests.signin import sign_in as sign_in_form
 from tests.web.seed import add_alarm, seed_results
 
 log = logging.getLogger(__name__)
@@ -22,7 +23,7 @@ PAGES = ["/fleet", "/alarms", "/models", "/test-station", "/evaluation"]
 
 
 def sign_in(client: TestClient, key: str) -> None:
-    r = client.post("/signin", data={"key": key, "next": "/fleet"}, follow_redirects=False)
+    r = sign_in_form(client, key)
     assert r.status_code == 303, r.text
     assert r.headers["location"] == "/fleet"
 
@@ -33,24 +34,23 @@ def seeded(app, aircraft):  # type: ignore[no-untyped-def]
 
 
 def test_signin_sets_httponly_samesite_cookie_and_signout_clears_it(client, keys) -> None:
-    r = client.post("/signin", data={"key": keys["viewer"], "next": "/alarms"},
-                    follow_redirects=False)
+    r = sign_in_form(client, keys["viewer"], next="/alarms")
     assert r.status_code == 303 and r.headers["location"] == "/alarms"
     cookie = r.headers["set-cookie"]
     assert cookie.startswith("hmsm_session=")
     lowered = cookie.lower()
     assert "httponly" in lowered and "samesite=strict" in lowered and "path=/" in lowered
     assert "secure" not in lowered  # plain http in the test client
-    r = client.post("/signout", follow_redirects=False)
+    r = client.post("/signout", data={"csrf": csrf_token(keys["viewer"])},
+                    follow_redirects=False)
     assert r.status_code == 303 and 'hmsm_session=""' in r.headers["set-cookie"]
 
 
 def test_signin_rejects_unknown_key_and_foreign_next(client, keys) -> None:
-    r = client.post("/signin", data={"key": "hmsm_nope", "next": "/fleet"})
+    r = sign_in_form(client, "hmsm_nope")
     assert r.status_code == 401 and "unknown or revoked" in r.text
     assert "set-cookie" not in r.headers
-    r = client.post("/signin", data={"key": keys["viewer"], "next": "//evil.example/x"},
-                    follow_redirects=False)
+    r = sign_in_form(client, keys["viewer"], next="//evil.example/x")
     assert r.headers["location"] == "/fleet"
 
 
@@ -74,7 +74,8 @@ def test_every_page_renders_for_a_viewer_without_admin_controls(client, keys, se
         assert r.headers["content-type"].startswith("text/html")
         assert "script-src 'self'" in r.headers["content-security-policy"]
         assert "<script>" not in r.text  # no inline script (CSP)
-        assert 'name="csrf"' not in r.text  # a viewer gets no forms that change anything
+        # a viewer gets no forms that change anything: only sign-out's carries the token
+        assert r.text.count('name="csrf"') == 1 and 'action="/signout"' in r.text
     alarms = client.get("/alarms").text
     assert f'id="alarm-{seeded.alarm_id}"' in alarms and ">Acknowledge</button>" not in alarms
     station = client.get("/test-station").text

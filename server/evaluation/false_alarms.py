@@ -1,0 +1,100 @@
+"""False alarms per unit and flight: every alarm on an actuator that has no fault.
+
+An actuator without a fault is at risk on every flight until it alarms (the alarm latches
+for the rest of the pattern, as in service until maintenance): on a healthy cycle, before a
+fault's onset, and, after onset, on the faulty drive's partner (the other drive of the winglet
+tab) and on the other surface. Each alarm there is a false-alarm event, whatever its aircraft
+carries elsewhere. The rate is events per unit-flight at risk, with its exact (Clopper-Pearson)
+90 % interval, set beside the detector's design rate; the events are split by cause and by the
+age of the unit's reference (flights since the unit was installed: its reference is its first
+valid flights).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from scipy.stats import binomtest
+
+from server.vocabulary import POSITIONS, alarming_positions, is_winglet
+
+__all__ = ["CAUSES", "AGE_BINS", "exposure_of", "summarise_false_alarms"]
+
+#: where a unit without a fault flies
+CAUSES: tuple[str, ...] = ("healthy cycle", "before onset", "partner drive", "other surface")
+#: reference ages [flights since installation], lower bounds of the bins
+AGE_BINS: tuple[int, ...] = (0, 50, 150, 300)
+LEVEL = 0.90
+
+
+def _cause(trace: Mapping[str, Any], unit: str, index: int) -> str | None:
+    """Why ``unit`` has no fault on flight ``index`` of the pattern (None: it has one)."""
+    if trace["mode"] == "healthy":
+        return "healthy cycle"
+    onset = int(trace["onset"] or 0)
+    if index < onset:
+        return "before onset"
+    faulty = alarming_positions(trace["mode"], trace["position"],
+                                pair_rod_ends=bool(trace.get("pair_rod_ends", False)))
+    if unit in faulty:
+        return None
+    same_surface = any(is_winglet(unit) == is_winglet(p) for p in faulty)
+    return "partner drive" if same_surface else "other surface"
+
+
+def _age_bin(age: int) -> str:
+    lows = [b for b in AGE_BINS if b <= age]
+    i = AGE_BINS.index(lows[-1])
+    return (f"{AGE_BINS[i]}-{AGE_BINS[i + 1] - 1}" if i + 1 < len(AGE_BINS)
+            else f">={AGE_BINS[i]}")
+
+
+def exposure_of(trace: Mapping[str, Any]) -> dict[str, Any]:
+    """Unit-flights at risk and false-alarm events of one pattern's trace, by cause."""
+    flights = trace["flights"]
+    first = int(flights[0]["index"]) if flights else 0
+    at_risk = dict.fromkeys(CAUSES, 0)
+    events: list[dict[str, Any]] = []
+    alarmed: set[str] = set()
+    for f in flights:
+        index = int(f["index"])
+        new = set(f["new_alarms"])
+        for unit in POSITIONS:
+            if unit in alarmed:
+                continue
+            cause = _cause(trace, unit, index)
+            if cause is None:
+                continue
+            at_risk[cause] += 1
+            if unit in new:
+                events.append({"pattern": trace["id"], "unit": unit, "flight": index,
+                               "cause": cause, "age": index - first})
+        alarmed |= set(f["alarms"])
+    return {"unit_flights": at_risk, "events": events}
+
+
+def _rate(events: int, unit_flights: int) -> dict[str, Any]:
+    if unit_flights == 0:
+        return {"events": events, "unit_flights": 0, "rate": None, "interval": None}
+    ci = binomtest(events, unit_flights).proportion_ci(LEVEL, method="exact")
+    return {"events": events, "unit_flights": unit_flights, "rate": events / unit_flights,
+            "interval": [float(ci.low), float(ci.high)]}
+
+
+def summarise_false_alarms(traces: Sequence[Mapping[str, Any]],
+                           design_rate: float | None) -> dict[str, Any]:
+    """Events per unit-flight over every unit without a fault, with the interval, the design
+    rate beside it, and the split by cause and by reference age."""
+    per = [exposure_of(t) for t in traces]
+    events = [e for p in per for e in p["events"]]
+    by_cause = {c: _rate(sum(e["cause"] == c for e in events),
+                         sum(p["unit_flights"][c] for p in per)) for c in CAUSES}
+    total = _rate(len(events), sum(r["unit_flights"] for r in by_cause.values()))
+    ages = {b: sum(_age_bin(e["age"]) == b for e in events)
+            for b in dict.fromkeys(_age_bin(a) for a in AGE_BINS)}
+    return {**total, "level": LEVEL, "design_rate": design_rate,
+            "design_rate_inside": (None if total["interval"] is None or design_rate is None
+                                   else total["interval"][0] <= design_rate
+                                   <= total["interval"][1]),
+            "by_cause": by_cause, "events_by_reference_age": ages, "list": events}
