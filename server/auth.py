@@ -19,7 +19,7 @@ import secrets
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from server.errors import NotFound
+from server.errors import Conflict, NotFound
 from server.models import ROLES, ApiKey, utcnow
 
 __all__ = ["KEY_PREFIX", "hash_key", "create_key", "authenticate", "revoke_key", "ALLOWED",
@@ -76,10 +76,18 @@ def authenticate(*, session: Session, plaintext: str) -> ApiKey | None:
     return row
 
 
-def revoke_key(*, session: Session, key_id: int) -> ApiKey:
+def revoke_key(*, session: Session, key_id: int, keep_an_admin: bool = False) -> ApiKey:
+    """Revoke a key. ``keep_an_admin`` (the API): never the last active admin key, which would
+    leave nobody to manage keys but the host's ``hmsm keys`` (409 ``last_admin``)."""
     row = session.get(ApiKey, key_id)
     if row is None:
         raise NotFound(f"API key {key_id} does not exist.")
+    if keep_an_admin and row.role == "admin" and row.revoked_at is None:
+        admins = session.scalars(select(ApiKey.id).where(  # locked: two admins revoking
+            ApiKey.role == "admin", ApiKey.revoked_at.is_(None)).with_for_update()).all()
+        if list(admins) == [row.id]:
+            raise Conflict(f"API key {key_id} is the last active admin key; create another "
+                           "admin key before revoking it.", code="last_admin")
     if row.revoked_at is None:
         row.revoked_at = utcnow()
     return row

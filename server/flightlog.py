@@ -47,6 +47,7 @@ __all__ = [
     "METADATA_FIELDS",
     "ID_PATTERN",
     "MAX_ID_LEN",
+    "MAX_BLOCK_HOURS",
     "valid_id",
     "NOMINAL_SAMPLE_RATE_HZ",
     "PhysicalLimits",
@@ -94,6 +95,8 @@ _OPTIONAL_METADATA = ("source", "active_channels")
 #: every metadata field of the format (Parquet key-value metadata, or upload form fields)
 METADATA_FIELDS: tuple[str, ...] = _REQUIRED_METADATA + _OPTIONAL_METADATA
 MAX_ID_LEN = 64
+#: longest block time of one flight [h]: a day; beyond it a value is a unit or typing error
+MAX_BLOCK_HOURS = 24.0
 #: tails, flight codes and serials: ASCII letters, digits, '.', '_', '-', not only dots ('..'
 #: would name a parent directory wherever an id becomes a path segment)
 ID_PATTERN = r"^[A-Za-z0-9._-]*[A-Za-z0-9_-][A-Za-z0-9._-]*$"
@@ -343,13 +346,14 @@ def parse_metadata(raw: Mapping[str, Any],
     except ValueError:
         bad["started_at"] = "ISO 8601 with a UTC offset"
     numbers: dict[str, float] = {}
-    for key in ("block_hours", "sample_rate_hz"):
+    for key, most in (("block_hours", MAX_BLOCK_HOURS), ("sample_rate_hz", math.inf)):
         try:
             numbers[key] = float(raw[key])
-            if not math.isfinite(numbers[key]) or numbers[key] <= 0:
+            if not math.isfinite(numbers[key]) or not 0 < numbers[key] <= most:
                 raise ValueError
         except (TypeError, ValueError):
-            bad[key] = "a positive finite number"
+            bad[key] = ("a positive finite number" if most == math.inf
+                        else f"a positive number, at most {most:g}")
     serials: dict[str, str] = {}
     try:
         parsed = raw["actuator_serials"]

@@ -9,6 +9,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Annotated, Any, Generic, Literal, TypeVar
 
+from fastapi import Query
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from server.flightlog import ID_PATTERN, MAX_ID_LEN
@@ -38,6 +39,9 @@ __all__ = [
     "KeyCreated",
     "Page",
     "Identifier",
+    "MAX_INT32",
+    "FlightNumber",
+    "Offset",
 ]
 
 Position = Literal[POSITIONS]  # type: ignore[valid-type]
@@ -53,6 +57,14 @@ WORK_ORDER_FORM_PATTERN = r"[A-Za-z0-9][A-Za-z0-9\/_\-]{2,31}"
 WORK_ORDER_PATTERN = f"^{WORK_ORDER_FORM_PATTERN}$"
 WorkOrder = Annotated[str, Field(pattern=WORK_ORDER_PATTERN, min_length=3, max_length=32,
                                  description="Work-order reference, e.g. WO-2026-0042.")]
+
+#: PostgreSQL's INTEGER, the type of the id, flight-number and count columns: no request number
+#: beyond it reaches the database (SQLite would store it, PostgreSQL refuses it)
+MAX_INT32 = 2**31 - 1
+#: an aircraft's flight number (its n-th flight)
+FlightNumber = Annotated[int, Field(ge=0, le=MAX_INT32, strict=True)]
+#: the offset of a listed page
+Offset = Annotated[int, Query(ge=0, le=MAX_INT32)]
 
 T = TypeVar("T")
 
@@ -230,8 +242,9 @@ class InjectionCreate(BaseModel):
     time_to_failure_flights: int | None = Field(None, ge=10, le=5000, strict=True, description=(
         "Progressive modes: flights from onset to failure (sets the progression rate); "
         "default: drawn by the simulator's law."))
-    severity: float | None = Field(None, gt=0, le=1.0, description=(
-        "SE/BDO: imposed severity as a fraction of the failure threshold (default 1.0)."))
+    severity: float | None = Field(None, ge=0.01, le=1.0, allow_inf_nan=False, description=(
+        "SE/BDO: imposed severity as a fraction of the failure threshold, 0.01-1 (default "
+        "1.0)."))
 
     @model_validator(mode="after")
     def _severity_only_a_priori(self) -> InjectionCreate:

@@ -16,6 +16,7 @@ from server.schemas import (
     ActuatorRead,
     ActuatorReplace,
     MaintenanceActionRead,
+    Offset,
     Page,
     Position,
 )
@@ -30,7 +31,7 @@ def list_(session: SessionDep, _: Reader,
           position: Position | None = None,
           installed: bool | None = None,
           limit: Annotated[int, Query(ge=1, le=1000)] = 100,
-          offset: Annotated[int, Query(ge=0)] = 0) -> Page[ActuatorRead]:
+          offset: Offset = 0) -> Page[ActuatorRead]:
     rows, total = fleet.list_actuators(session=session, tail=aircraft, position=position,
                                        installed=installed, limit=limit, offset=offset)
     return Page(items=[actuator_read(r) for r in rows], total=total, limit=limit, offset=offset)

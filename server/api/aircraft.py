@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query
 from server.api.deps import Admin, Reader, SessionDep
 from server.api.openapi import errors
 from server.api.presenters import aircraft_read
-from server.schemas import AircraftCreate, AircraftRead, Page
+from server.schemas import AircraftCreate, AircraftRead, Offset, Page
 from server.services import fleet
 
 router = APIRouter(prefix="/aircraft", tags=["aircraft"])
@@ -28,7 +28,7 @@ def create(body: AircraftCreate, session: SessionDep, _: Admin) -> AircraftRead:
 def list_(session: SessionDep, _: Reader,
           base: str | None = None,
           limit: Annotated[int, Query(ge=1, le=500)] = 100,
-          offset: Annotated[int, Query(ge=0)] = 0) -> Page[AircraftRead]:
+          offset: Offset = 0) -> Page[AircraftRead]:
     rows, total = fleet.list_aircraft(session=session, base=base, limit=limit, offset=offset)
     return Page(items=[aircraft_read(r) for r in rows], total=total, limit=limit, offset=offset)
 

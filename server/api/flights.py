@@ -30,7 +30,7 @@ from server.errors import (
 )
 from server.flightlog import METADATA_FIELDS
 from server.models import ApiKey
-from server.schemas import FlightAccepted, FlightRead, Page, SignalsRead
+from server.schemas import FlightAccepted, FlightRead, Offset, Page, SignalsRead
 from server.services import analysis as analysis_service
 from server.services import flights as service
 
@@ -160,7 +160,7 @@ def list_(session: SessionDep, _: Reader,
           status: Annotated[str | None, Query(pattern="^(received|queued|analyzing|analyzed|"
                                               "rejected|failed)$")] = None,
           limit: Annotated[int, Query(ge=1, le=500)] = 50,
-          offset: Annotated[int, Query(ge=0)] = 0) -> Page[FlightRead]:
+          offset: Offset = 0) -> Page[FlightRead]:
     rows, total = service.list_flights(session=session, tail=aircraft, status=status,
                                        limit=limit, offset=offset)
     keys = _uploaders(session, {r.uploader_key_id for r in rows})

@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Admin, Reader, SessionDep
 from server.api.openapi import errors
-from server.schemas import Page
+from server.schemas import Offset, Page
 from server.services import health as service
 
 router = APIRouter(tags=["health"])
@@ -210,7 +210,7 @@ def alarms(session: SessionDep, _: Reader,
            status: Annotated[str | None, Query(pattern="^(open|acknowledged|closed)$")] = None,
            aircraft: str | None = None,
            limit: Annotated[int, Query(ge=1, le=500)] = 100,
-           offset: Annotated[int, Query(ge=0)] = 0) -> Page[AlarmRead]:
+           offset: Offset = 0) -> Page[AlarmRead]:
     rows, total = service.list_alarms(session=session, status=status, tail=aircraft,
                                       limit=limit, offset=offset)
     return Page(items=[alarm_read(r) for r in rows], total=total, limit=limit, offset=offset)

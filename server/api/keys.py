@@ -28,8 +28,9 @@ def create(body: KeyCreate, session: SessionDep, _: Admin) -> KeyCreated:
     return KeyCreated(**key_read(row).model_dump(), key=plaintext)
 
 
-@router.post("/{key_id}/revoke", response_model=KeyRead, summary="Revoke a key (admin)")
+@router.post("/{key_id}/revoke", response_model=KeyRead, responses=errors(409),
+             summary="Revoke a key (admin; never the last active admin key)")
 def revoke(key_id: int, session: SessionDep, _: Admin) -> KeyRead:
-    row = revoke_key(session=session, key_id=key_id)
+    row = revoke_key(session=session, key_id=key_id, keep_an_admin=True)
     session.commit()
     return key_read(row)

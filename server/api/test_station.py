@@ -11,10 +11,11 @@ from pydantic import BaseModel, ConfigDict, Field
 from server.api.deps import Operator, Reader, SessionDep
 from server.api.openapi import errors
 from server.models import GroundTruth, Injection
-from server.schemas import Identifier, InjectionCreate, Page
+from server.schemas import FlightNumber, Identifier, InjectionCreate, Offset, Page
 from server.services import test_station as service
 
 router = APIRouter(prefix="/test-station", tags=["test station"])
+MAX_SEVERITY = 10.0  # ground truth: severity and severity_norm (see GroundTruthIn)
 
 class InjectionRead(BaseModel):
     id: int
@@ -40,17 +41,19 @@ class InjectionRead(BaseModel):
 class InjectionStatus(BaseModel):
     model_config = ConfigDict(extra="forbid")
     status: Annotated[str, Field(pattern="^(active|failed)$")]
-    failure_flight: int | None = Field(None, ge=0, strict=True)
-    planned_failure_flight: int | None = Field(None, ge=0, strict=True)
+    failure_flight: FlightNumber | None = None
+    planned_failure_flight: FlightNumber | None = None
 
 
 class GroundTruthIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
     flight: Identifier
-    flight_number: int = Field(ge=0, strict=True)
-    severity: float = Field(ge=0, allow_inf_nan=False)
-    severity_norm: float = Field(ge=0, allow_inf_nan=False)
-    true_rul_flights: int | None = Field(None, ge=0, strict=True)
+    flight_number: FlightNumber
+    # the fault's size in its own unit (m, ohm, ...; every failure threshold is at most 1), and
+    # as a fraction of the threshold: a fault is failed at 1, reported a little beyond at most
+    severity: float = Field(ge=0, le=MAX_SEVERITY, allow_inf_nan=False)
+    severity_norm: float = Field(ge=0, le=MAX_SEVERITY, allow_inf_nan=False)
+    true_rul_flights: FlightNumber | None = None
 
 
 class GroundTruthRead(GroundTruthIn):
@@ -100,7 +103,7 @@ def list_(session: SessionDep, _: Reader, aircraft: str | None = None,
           status: Annotated[str | None, Query(pattern="^(pending|active|cancelled|failed)$")
                             ] = None,
           limit: Annotated[int, Query(ge=1, le=500)] = 100,
-          offset: Annotated[int, Query(ge=0)] = 0) -> Page[InjectionRead]:
+          offset: Offset = 0) -> Page[InjectionRead]:
     rows, total = service.list_injections(session=session, tail=aircraft, status=status,
                                           limit=limit, offset=offset)
     return Page(items=[_read(r, t) for r, t in rows], total=total, limit=limit, offset=offset)

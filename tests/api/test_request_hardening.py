@@ -342,3 +342,103 @@ def test_stale_temporary_uploads_are_swept_at_start(settings: Settings) -> None:
     assert not any(p.exists() for p in stale)
     assert live.exists()  # maybe another API process's upload
 
+
+# ------------------------------------------------------------------------------------------
+# numbers beyond what they can mean: 422 in the error envelope, never a database error
+# ------------------------------------------------------------------------------------------
+
+BIG = 442817151593597894656  # beyond 64 bits
+
+
+def _refused_422(r) -> None:  # type: ignore[no-untyped-def]
+    assert r.status_code == 422, r.text[:300]
+    error = r.json()["error"]
+    assert set(error) == {"code", "message", "details"} and error["code"] == "validation_error"
+
+
+def test_absurd_numbers_in_bodies_are_refused(client: TestClient, keys: dict[str, str],
+                                              aircraft: str) -> None:
+    injection = _injection(client, keys, aircraft)
+    op = auth(keys["operator"])
+    truth = f"/api/v1/test-station/injections/{injection}/ground-truth"
+    ok = {"flight": "F1", "flight_number": 1, "severity": 2e-4, "severity_norm": 0.7,
+          "true_rul_flights": 80}
+    for change in ({"severity": 1e308}, {"severity_norm": 1e308}, {"severity": 10.5},
+                   {"flight_number": 2**63 - 1}, {"flight_number": 2**31},
+                   {"true_rul_flights": 2**31}):
+        _refused_422(client.put(truth, json={**ok, **change}, headers=op))
+    assert client.put(truth, json={**ok, "flight_number": 2**31 - 1}, headers=op).status_code == 200
+    status = f"/api/v1/test-station/injections/{injection}/status"
+    for change in ({"failure_flight": 2**62}, {"planned_failure_flight": 2**31}):
+        _refused_422(client.post(status, json={"status": "active", **change}, headers=op))
+    se = {"aircraft": aircraft, "position": "WL1", "fault_mode": "SE"}
+    for severity in (1e-320, 0.005, 1.5):
+        _refused_422(client.post("/api/v1/test-station/injections", headers=op,
+                                 json={**se, "severity": severity}))
+    assert client.post(f"/api/v1/test-station/injections/{injection}/cancel",
+                       headers=op).status_code == 200  # one live fault per aircraft
+    assert client.post("/api/v1/test-station/injections", headers=op,
+                       json={**se, "severity": 0.01}).status_code == 201
+
+
+@pytest.mark.parametrize("path", ["/api/v1/jobs", "/api/v1/flights", "/api/v1/aircraft",
+                                  "/api/v1/actuators", "/api/v1/alarms",
+                                  "/api/v1/test-station/injections"])
+def test_list_offsets_beyond_an_integer_column_are_refused(client: TestClient,
+                                                           keys: dict[str, str],
+                                                           path: str) -> None:
+    viewer = auth(keys["viewer"])
+    for offset in (BIG, 2**63, 2**31):
+        _refused_422(client.get(f"{path}?offset={offset}", headers=viewer))
+    r = client.get(f"{path}?offset={2**31 - 1}", headers=viewer)
+    assert r.status_code == 200 and r.json()["items"] == []
+
+
+def test_jobs_of_an_impossible_flight_id_are_refused(client: TestClient,
+                                                    keys: dict[str, str]) -> None:
+    _refused_422(client.get(f"/api/v1/jobs?flight_id={BIG}", headers=auth(keys["viewer"])))
+
+
+@pytest.mark.parametrize("block_hours", ["1e308", "25", "0", "inf"])
+def test_flight_of_absurd_block_hours_is_refused_as_bad_metadata(
+        client: TestClient, keys: dict[str, str], aircraft: str, block_hours: str) -> None:
+    from tests.bombs import plain_csv
+    from tests.flightlog_factory import make_log
+
+    log = make_log(aircraft, "F0042")
+    meta = {**log.metadata.to_strings(), "block_hours": block_hours}
+    r = client.post("/api/v1/flights", headers=auth(keys["uploader"]), data=meta,
+                    files={"file": ("f.csv", plain_csv(log.channels))})
+    assert r.status_code == 422, r.text[:300]
+    reasons = r.json()["error"]["details"]["reasons"]
+    assert reasons[0]["code"] == "bad_metadata" and "block_hours" in reasons[0]["details"][
+        "fields"]
+    assert client.get(f"/api/v1/flights?aircraft={aircraft}",
+                      headers=auth(keys["viewer"])).json()["items"][0]["block_hours"] is None
+
+
+def test_the_last_active_admin_key_cannot_be_revoked(client: TestClient,
+                                                    keys: dict[str, str]) -> None:
+    admin = auth(keys["admin"])
+    listed = client.get("/api/v1/keys", headers=admin).json()
+    own = next(k["id"] for k in listed if k["name"] == "test-admin")
+    r = client.post(f"/api/v1/keys/{own}/revoke", headers=admin)
+    assert r.status_code == 409 and r.json()["error"]["code"] == "last_admin", r.text
+    assert "last active admin" in r.json()["error"]["message"]
+    assert client.get("/api/v1/keys", headers=admin).status_code == 200  # still works
+    other = client.post("/api/v1/keys", headers=admin, json={"name": "second", "role": "admin"})
+    assert client.post(f"/api/v1/keys/{own}/revoke", headers=admin).status_code == 200
+    second = auth(other.json()["key"])
+    r = client.post(f"/api/v1/keys/{other.json()['id']}/revoke", headers=second)
+    assert r.status_code == 409  # now the last one itself
+    assert client.post(f"/api/v1/keys/{own}/revoke", headers=second).status_code == 200
+
+
+def test_a_wrong_method_is_answered_with_every_method_of_the_path(client: TestClient) -> None:
+    for path, methods in (("/api/v1/flights", {"GET", "HEAD", "POST"}),
+                          ("/api/v1/test-station/injections/1/ground-truth",
+                           {"GET", "HEAD", "PUT"})):
+        for method in ("OPTIONS", "DELETE"):
+            r = client.request(method, path)
+            assert r.status_code == 405
+            assert set(r.headers["allow"].split(", ")) == methods, r.headers["allow"]
