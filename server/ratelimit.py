@@ -18,6 +18,7 @@ import math
 import time
 from collections import OrderedDict
 from collections.abc import Callable
+
 from starlette.requests import cookie_parser
 from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
