@@ -21,6 +21,7 @@ from server.api import (
 )
 from server.api.openapi import document_errors
 from server.blobstore import BlobStore
+from server.boundedpool import BoundedPool
 from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.errors import BodyOverLimit, BodyTimeout, install_error_handlers
@@ -152,6 +153,8 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     app.state.engine = engine
     app.state.session_factory = make_session_factory(engine)
     app.state.blobs = blobs
+    app.state.signal_reads = BoundedPool("signals", settings.signals_concurrency,
+                                         settings.signals_waiting)
     install_error_handlers(app)
     document_errors(app)
     for module in (health, aircraft, actuators, health_records, flights, jobs, models_api,

@@ -33,6 +33,11 @@ class Settings(BaseSettings):
     host: str = Field("127.0.0.1", description="Bind address of `hmsm serve`.")
     port: int = Field(8000, ge=0, le=65535, description="TCP port of `hmsm serve`.")
     signals_max_points: int = Field(5000, gt=10, description="Cap on points per plotted channel.")
+    signals_concurrency: int = Field(2, ge=1, description=(
+        "Signal reads (`GET /flights/{id}/signals`) decoded at once, each on a thread of their "
+        "own pool (docs/SECURITY.md: memory per read)."))
+    signals_waiting: int = Field(64, ge=0, description=(
+        "Signal reads that may wait for those; past that 503 `busy` with Retry-After."))
     # What a decoder may build from an upload (server.flightlog.DecodeLimits, which gives the
     # defaults and why; docs/SECURITY.md, "Hostile uploads")
     max_decompressed_bytes: int = Field(_DECODE.max_decompressed_bytes, gt=0, description=(

@@ -13,7 +13,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request
 from fastapi.concurrency import run_in_threadpool
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
@@ -181,21 +181,27 @@ def get(flight_id: int, session: SessionDep, _: Reader) -> FlightRead:
     return flight_read(row, _uploaders(session, {row.uploader_key_id}).get(row.uploader_key_id))
 
 
-@router.get("/{flight_id}/signals", response_model=SignalsRead, responses=errors(410),
+@router.get("/{flight_id}/signals", response_model=SignalsRead, responses=errors(410, 503),
             summary="Signals of a flight, decimated for plotting")
-def signals(flight_id: int, session: SessionDep, blobs: BlobsDep, settings: SettingsDep,
-            _: Reader,
-            channels: Annotated[str | None, Query(description="Comma-separated channel names; "
-                                                  "default all.", max_length=2000)] = None,
-            max_points: Annotated[int | None, Query(ge=10)] = None) -> SignalsRead:
-    row = service.get_flight(session=session, flight_id=flight_id)
+async def signals(flight_id: int, request: Request, session: SessionDep, blobs: BlobsDep,
+                  settings: SettingsDep, _: Reader,
+                  channels: Annotated[str | None, Query(description="Comma-separated channel "
+                                                        "names; default all.",
+                                                        max_length=2000)] = None,
+                  max_points: Annotated[int | None, Query(ge=10)] = None) -> Response:
+    """Read on the app's signal pool (`HMSM_SIGNALS_CONCURRENCY` at once, the next
+    `HMSM_SIGNALS_WAITING` wait their turn, any more are answered 503 `busy`)."""
     wanted = [c.strip() for c in channels.split(",") if c.strip()] if channels else None
     points = min(max_points or settings.signals_max_points, settings.signals_max_points)
-    step, data = service.flight_signals(blobs=blobs, flight=row, channels=wanted,
-                                        max_points=points, limits=settings.decode_limits)
-    t = data.pop("t")
-    return SignalsRead(flight_id=row.id, decimation=step, t=t.tolist(),
-                       channels={k: v.astype(float).tolist() for k, v in data.items()})
+
+    def read() -> bytes:
+        row = service.get_flight(session=session, flight_id=flight_id)
+        step, data = service.flight_signals(blobs=blobs, flight=row, channels=wanted,
+                                            max_points=points, limits=settings.decode_limits)
+        return service.signals_json(row.id, step, data)
+
+    return Response(await request.app.state.signal_reads.run(read),
+                    media_type="application/json")
 
 
 @router.post("/{flight_id}/retry", status_code=202, response_model=FlightRead,

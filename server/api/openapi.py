@@ -33,6 +33,7 @@ DESCRIPTIONS = {
     422: "The request is not valid.",
     429: "Too many failed authentications from this client address; try again after "
          "Retry-After seconds.",
+    503: "Too many of these requests at once (`busy`); try again after Retry-After seconds.",
 }
 WRITE_METHODS = {"post", "put", "patch", "delete"}
 ERROR_SCHEMA: dict[str, Any] = {

@@ -360,3 +360,46 @@ def test_openapi_documents_upload(client: TestClient, keys: dict[str, str]) -> N
     content = spec["paths"]["/api/v1/flights"]["post"]["requestBody"]["content"]
     assert {"application/vnd.apache.parquet", "multipart/form-data"} <= set(content)
     assert json.dumps(spec)  # serialisable
+
+
+def test_signals_json_is_the_schema_pydantic_would_write() -> None:
+    from server.schemas import SignalsRead
+    from server.services.flights import signals_json
+
+    arrays = {"t": np.array([0.0, 0.5]), "WL1.x": np.array([1.5, np.nan], dtype=np.float32),
+              "WT.ia": np.array([np.inf, -2.25])}
+    model = SignalsRead(flight_id=7, decimation=3, t=[0.0, 0.5],
+                        channels={k: v.astype(float).tolist() for k, v in arrays.items()
+                                  if k != "t"})
+    assert json.loads(signals_json(7, 3, arrays)) == json.loads(model.model_dump_json())
+    assert json.loads(signals_json(7, 3, arrays))["channels"]["WL1.x"] == [1.5, None]
+
+
+def test_signal_reads_past_the_pool_and_its_queue_are_refused_busy() -> None:
+    import asyncio
+    import threading
+
+    from server.boundedpool import BoundedPool
+    from server.errors import ServiceUnavailable
+
+    pool = BoundedPool("test", workers=1, waiting=1)
+    release = threading.Event()
+
+    async def three() -> list[object]:
+        first = asyncio.ensure_future(pool.run(release.wait, 10))
+        second = asyncio.ensure_future(pool.run(lambda: "waited"))
+        await asyncio.sleep(0)  # both taken: one running, one waiting
+        try:
+            await pool.run(lambda: "never")
+        except ServiceUnavailable as exc:
+            refused: object = exc
+        release.set()
+        return [await first, await second, refused]
+
+    try:
+        first, second, refused = asyncio.run(three())
+    finally:
+        pool.shutdown()
+    assert first is True and second == "waited"
+    assert isinstance(refused, ServiceUnavailable) and refused.code == "busy"
+    assert refused.headers == {"Retry-After": "2"}

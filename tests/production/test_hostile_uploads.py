@@ -31,6 +31,7 @@ from tests.production.helpers import env_of, seed_system
 
 BOUND_MB = 300  # the goal: no bomb takes the API this far above idle
 LIAR_BOUND_MB = 64  # a MAT header that lies is caught within a few hundred inflated bytes
+SIGNALS_BOUND_MB = 64  # 20 signal reads at once: a few decode, the others wait
 TAIL = "HOST1"
 PARQUET = "application/vnd.apache.parquet"
 LOG = make_log(TAIL, "W1")
@@ -239,6 +240,32 @@ def test_signals_of_a_long_flight_are_decimated_while_read(api: Api, capsys) -> 
         assert body["decimation"] == rows // 5000 and len(body["t"]) == 5000
         assert len(body["channels"]) == len(NAMES) - 1
     assert above < BOUND_MB
+
+
+@pytest.mark.slow
+def test_twenty_concurrent_signal_reads_stay_bounded(api: Api, capsys) -> None:  # type: ignore[no-untyped-def]
+    """20 dashboards reading a 40 s flight's signals (2.7 MB, 32,000 rows) at once: every one
+    answered, the API under ``SIGNALS_BOUND_MB`` above idle (before, commit 73bd9ae: +229 MB
+    and it stayed, one malloc arena per server thread that decoded)."""
+    r = api.upload_parquet(write_parquet(make_log(TAIL, "SIG20", duration_s=40)))
+    assert r.status_code == 202, r.text[:500]
+    url = f"/api/v1/flights/{r.json()['id']}/signals"
+    viewer = api.headers("viewer")
+    with running_server_process(env_of(api.settings)) as (fresh, proc):
+        assert httpx.get(fresh + url, headers=viewer, timeout=60).status_code == 200
+
+        def twenty_at_once() -> list[httpx.Response]:
+            with ThreadPoolExecutor(20) as pool:
+                return list(pool.map(lambda _: httpx.get(fresh + url, headers=viewer,
+                                                         timeout=120), range(20)))
+
+        answers, above = peak_above_idle(proc.pid, twenty_at_once)
+        _, again = peak_above_idle(proc.pid, twenty_at_once)
+    _report("GET signals of a 40 s flight, 20 at once", 0, f"200 (a second round +{again:.0f} "
+            "MB)", above, capsys)
+    assert [a.status_code for a in answers] == [200] * 20  # type: ignore[attr-defined]
+    assert len(answers[0].json()["channels"]) == len(NAMES) - 1  # type: ignore[index]
+    assert above < SIGNALS_BOUND_MB and again < SIGNALS_BOUND_MB
 
 
 @pytest.mark.slow
