@@ -671,6 +671,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
         raise ValueError(f"bases must be among {sorted(BASES)}")
     if not noise_scale > 0:
         raise ValueError("noise_scale must be positive")
+    if per_mode is not None and (isinstance(per_mode, bool) or int(per_mode) != per_mode
+                                 or per_mode < 0):
+        raise ValueError(f"per_mode must be a count of patterns (>= 0), got {per_mode!r}")
     faults = _sensor_faults(sensor_faults)
     cfg = _scale_config(scale, kind, render_every, span_flights)
     sink = sink if sink is not None else ParquetSink()

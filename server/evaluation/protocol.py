@@ -54,6 +54,10 @@ def add_protocol_arguments(parser: argparse.ArgumentParser) -> argparse.Argument
     parser.add_argument("--span-range", default=None, metavar="LOW,HIGH",
                         help="verification only: range of fault-to-failure spans [flights] "
                         "(faults faster or slower than design's)")
+    parser.add_argument("--per-mode", type=int, default=None, metavar="N",
+                        help="a reduced protocol: every healthy cycle but only the first N "
+                        "patterns of each fault mode, in both campaigns (the same flights as "
+                        "the whole run's)")
     parser.add_argument("--keep-raw-every", type=int, default=200, metavar="K",
                         help="keep the log of every K-th flight of a pattern (default 200)")
     parser.add_argument("--workers", type=int, default=None,
@@ -75,7 +79,7 @@ def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
     return argparse.Namespace(kind=kind, out=str(out), seed=seed, scale=args.scale,
                               workers=args.workers, dask=args.dask, render_every=None,
                               span_range=span_range, no_progress=args.no_progress, bases=None,
-                              noise_scale=1.0, sensor_fault=None, per_mode=None)
+                              noise_scale=1.0, sensor_fault=None, per_mode=args.per_mode)
 
 
 def _evaluate_args(args: argparse.Namespace, model: Path, campaign: Path, out: Path

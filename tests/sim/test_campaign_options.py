@@ -298,3 +298,9 @@ def test_a_study_flight_is_its_twin_with_one_sensor_noisier(tmp_path) -> None:
              for c in ("theta", "x", "i_sum", "v_sum")}
     assert ratio["theta"] == pytest.approx(SENSOR_STUDY_NOISE, rel=0.05)
     assert all(abs(ratio[c] - 1.0) < 0.05 for c in ("x", "i_sum", "v_sum"))
+
+
+def test_a_negative_part_is_refused(tmp_path) -> None:
+    with pytest.raises(ValueError, match="per_mode"):
+        run_campaign("design", tmp_path, seed=1, scale="ci", per_mode=-1, progress=False)
+    assert not any(tmp_path.iterdir())  # refused before anything is written
