@@ -74,10 +74,11 @@ class Settings(BaseSettings):
     auth_failure_clients: int = Field(10_000, ge=1, description=(
         "Most client addresses whose failed authentications are tracked; past that the one "
         "that failed least recently is forgotten."))
-    raw_retention_healthy: int | None = Field(None, ge=0, description=(
-        "Keep the raw logs of only this many most recent healthy flights per aircraft (analysed, "
-        "no actuator in alarm); older ones are removed after each analysis, their features and "
-        "results kept. Unset: every raw log is kept (the default)."))
+    raw_retention_flights: int | None = Field(None, ge=0, description=(
+        "Keep the raw logs of only this many most recent analysed flights per aircraft, healthy "
+        "or in alarm, and of the flights that raised an alarm or changed its class; the other "
+        "analysed flights' logs are removed after each analysis, their features and results "
+        "kept (server/services/retention.py). Unset: every raw log is kept (the default)."))
 
     @field_validator("data_dir")
     @classmethod

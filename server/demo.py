@@ -9,9 +9,10 @@ active model on it (:mod:`server.demo_evaluation`), which fills the evaluation p
 
 The sim worker gets the uploader and operator keys in its environment, never on its command
 line (where ``ps`` shows them); the fleet is registered here, so it needs no admin key.
-Disk: the demo keeps the raw logs of its last ``DEMO_RAW_KEEP_HEALTHY`` healthy flights per
-aircraft and of every flight with an alarm (``HMSM_RAW_RETENTION_HEALTHY``), so its data
-directory stops growing by the flight logs of a healthy fleet.
+Disk: the demo keeps the raw logs of the last ``DEMO_RAW_KEEP_FLIGHTS`` flights of each
+aircraft, healthy or in alarm, and of the flights that raised or changed an alarm
+(``HMSM_RAW_RETENTION_FLIGHTS``, :mod:`server.services.retention`): once every aircraft has
+flown that many, the flight logs grow only by those turning points, in alarm or not.
 """
 
 from __future__ import annotations
@@ -27,10 +28,11 @@ from sqlalchemy import select
 
 from server.config import Settings
 
-__all__ = ["DEMO_INJECTIONS", "DEMO_RAW_KEEP_HEALTHY", "prepare_demo", "run_demo"]
+__all__ = ["DEMO_INJECTIONS", "DEMO_RAW_KEEP_FLIGHTS", "prepare_demo", "run_demo"]
 
-#: raw logs of healthy flights the demo keeps per aircraft (the rest are pruned after analysis)
-DEMO_RAW_KEEP_HEALTHY = 20
+#: raw logs of its latest flights the demo keeps per aircraft, besides its alarms' turning
+#: points (the rest are pruned after analysis): 10 x about 1.8 MB
+DEMO_RAW_KEEP_FLIGHTS = 10
 
 # (tail, position, mode, onset flight, flights to failure). Lives at the short end of the
 # design campaign's 170-360 flights (the range the model's degradation priors were fitted on):
@@ -141,9 +143,9 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
     from server.app import create_app
 
     keys = prepare_demo(settings, n_aircraft=n_aircraft, seed=seed, train=train)
-    os.environ.setdefault("HMSM_RAW_RETENTION_HEALTHY", str(DEMO_RAW_KEEP_HEALTHY))
-    settings = settings.model_copy(update={"raw_retention_healthy": int(
-        os.environ["HMSM_RAW_RETENTION_HEALTHY"])})
+    os.environ.setdefault("HMSM_RAW_RETENTION_FLIGHTS", str(DEMO_RAW_KEEP_FLIGHTS))
+    settings = settings.model_copy(update={"raw_retention_flights": int(
+        os.environ["HMSM_RAW_RETENTION_FLIGHTS"])})
     app = create_app(settings)
     url = f"http://{host}:{port}"
     env = {**os.environ, "HMSM_DATA_DIR": str(settings.data_dir)}
@@ -186,8 +188,8 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
                       if int(t[3:]) <= n_aircraft))
     print("  the evaluation page fills in about 4 minutes (a small verification campaign is "
           "simulated and evaluated in the background; logs/evaluation.log)")
-    print(f"  raw logs: the last {settings.raw_retention_healthy} healthy flights per aircraft "
-          "and every flight with an alarm are kept")
+    print(f"  raw logs: the last {settings.raw_retention_flights} flights of each aircraft and "
+          "the flights that raised or changed an alarm are kept")
     print("  Ctrl-C stops everything.\n", flush=True)
     def _terminate(*_: object) -> None:
         raise KeyboardInterrupt  # uvicorn stops, then the finally block stops the children

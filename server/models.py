@@ -217,8 +217,8 @@ class Flight(Base):
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     block_hours: Mapped[float | None] = mapped_column(Float)
     uploader_key_id: Mapped[int | None] = mapped_column(ForeignKey("api_keys.id"))
-    #: when the raw log was removed by the retention of healthy flights (its features and
-    #: results stay); None while the bytes are kept
+    #: when the raw log was removed by the raw-log retention (server/services/retention.py;
+    #: its features and results stay); None while the bytes are kept
     raw_pruned_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     received_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)

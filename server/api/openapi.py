@@ -27,8 +27,7 @@ DESCRIPTIONS = {
     404: "No such resource.",
     408: "The request body stalled (nothing arrived for the body idle timeout).",
     409: "The request conflicts with the current state.",
-    410: "The flight's raw log was removed by the retention of healthy flights (its results "
-         "are kept).",
+    410: "The flight's raw log was removed by the raw-log retention (its results are kept).",
     413: "The request body exceeds the size limit.",
     422: "The request is not valid.",
     429: "Too many failed authentications from this client address; try again after "

@@ -60,11 +60,11 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
         analysis.store_analysis(session=session, flight_id=todo.flight_id, features=features,
                                 model_id=model_id, model=model)
         session.commit()
-    keep = ctx.settings.raw_retention_healthy
+    keep = ctx.settings.raw_retention_flights
     if keep is not None and todo.aircraft_id is not None:
         with ctx.factory() as session:
-            retention.prune_healthy_raw(session=session, blobs=ctx.blobs,
-                                        aircraft_id=todo.aircraft_id, keep=keep)
+            retention.prune_raw(session=session, blobs=ctx.blobs,
+                                aircraft_id=todo.aircraft_id, keep=keep)
 
 
 def _reject(ctx: JobContext, flight_id: int, reasons: list[dict]) -> None:

@@ -210,9 +210,9 @@ def list_flights(*, session: Session, tail: str | None, status: str | None, limi
 
 def _raw_kept(flight: Flight) -> None:
     if flight.raw_pruned_at is not None:
-        raise Gone(f"The raw log of flight {flight.id} was removed by the retention of healthy "
-                   f"flights on {flight.raw_pruned_at.isoformat()}; its features and results "
-                   "are kept.", code="raw_pruned")
+        raise Gone(f"The raw log of flight {flight.id} was removed by the raw-log retention "
+                   f"on {flight.raw_pruned_at.isoformat()}; its features and results are "
+                   "kept.", code="raw_pruned")
 
 
 def decode_flight(*, blobs: BlobStore, flight: Flight,

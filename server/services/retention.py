@@ -1,10 +1,12 @@
-"""Retention of raw flight logs: the bytes of old healthy flights go, their results stay.
+"""Retention of raw flight logs: the bytes of old flights go, their results stay.
 
-A fleet in service uploads a log per flight (about 1.5 MB for a 60 s demo flight), and almost
-every one is healthy. With ``HMSM_RAW_RETENTION_HEALTHY=K`` the service keeps, per aircraft,
-the raw logs of its K most recent healthy flights -- analysed, and no actuator in alarm on
-that flight -- and of every other flight (in alarm, rejected, failed, not yet analysed);
-older healthy logs are removed after each analysis. What was computed from them stays: the
+A fleet in service uploads a log per flight (about 1.8 MB for a 60 s demo flight). With
+``HMSM_RAW_RETENTION_FLIGHTS=K`` the service keeps, per aircraft, the raw logs of its K most
+recent analysed flights, healthy or in alarm, and of the flights that raised an alarm or
+changed one's leading class (``alarms.flight_id``, ``alarm_events.flight_id``: what an engineer
+would open to see why); flights not analysed (queued, rejected, failed) keep theirs. The other
+analysed flights' logs are removed after each analysis, so an aircraft holds at most K logs
+plus its alarms' turning points, in alarm or not. What was computed from them stays: the
 flight row with its hash and metadata, features, health records, prognoses. A request for the
 signals of a pruned flight answers 410 Gone.
 
@@ -20,30 +22,30 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from server.blobstore import BlobStore
-from server.models import Flight, HealthRecord, utcnow
+from server.models import Alarm, AlarmEvent, Flight, utcnow
 
-__all__ = ["healthy_flights_to_prune", "prune_healthy_raw"]
+__all__ = ["flights_to_prune", "prune_raw"]
 
 log = logging.getLogger("hmsm.retention")
 
 
-def healthy_flights_to_prune(*, session: Session, aircraft_id: int, keep: int) -> list[Flight]:
-    """The aircraft's analysed flights with no actuator in alarm, still holding their raw log,
-    beyond the ``keep`` most recent."""
-    in_alarm = exists().where(HealthRecord.flight_id == Flight.id, HealthRecord.alarm.is_(True))
-    analysed = exists().where(HealthRecord.flight_id == Flight.id)
-    query = (select(Flight).where(Flight.aircraft_id == aircraft_id,
-                                  Flight.status == "analyzed", Flight.raw_pruned_at.is_(None),
-                                  analysed, ~in_alarm)
-             .order_by(Flight.started_at.desc(), Flight.id.desc()).offset(keep))
-    return list(session.scalars(query))
+def flights_to_prune(*, session: Session, aircraft_id: int, keep: int) -> list[Flight]:
+    """The aircraft's analysed flights still holding their raw log, beyond its ``keep`` most
+    recent analysed ones, that neither raised an alarm nor changed an alarm's class."""
+    analysed = (Flight.aircraft_id == aircraft_id, Flight.status == "analyzed")
+    recent = list(session.scalars(select(Flight.id).where(*analysed)
+                                  .order_by(Flight.started_at.desc(), Flight.id.desc())
+                                  .limit(keep)))
+    raised = exists().where(Alarm.flight_id == Flight.id)
+    changed = exists().where(AlarmEvent.flight_id == Flight.id)
+    return list(session.scalars(select(Flight).where(
+        *analysed, Flight.raw_pruned_at.is_(None), Flight.id.not_in(recent), ~raised, ~changed)))
 
 
-def prune_healthy_raw(*, session: Session, blobs: BlobStore, aircraft_id: int, keep: int
-                      ) -> int:
-    """Remove the raw logs of the aircraft's healthy flights beyond the ``keep`` most recent;
-    commit; return how many flights lost their raw log."""
-    rows = healthy_flights_to_prune(session=session, aircraft_id=aircraft_id, keep=keep)
+def prune_raw(*, session: Session, blobs: BlobStore, aircraft_id: int, keep: int) -> int:
+    """Remove the raw logs of :func:`flights_to_prune`; commit; return how many flights lost
+    their raw log."""
+    rows = flights_to_prune(session=session, aircraft_id=aircraft_id, keep=keep)
     if not rows:
         return 0
     now = utcnow()

@@ -1,5 +1,7 @@
-"""Raw-log retention (``server/services/retention.py``): the bytes of old healthy flights go,
-their results stay; flights in alarm keep theirs; a pruned flight's signals answer 410."""
+"""Raw-log retention (``server/services/retention.py``) on a real SQLite database and real blob
+files: an aircraft keeps the raw logs of its last K analysed flights, healthy or in alarm, and
+of the flights that raised or changed an alarm; the others' files go, their results stay; a
+pruned flight's signals answer 410."""
 
 from __future__ import annotations
 
@@ -9,8 +11,8 @@ from fastapi.testclient import TestClient
 from sqlalchemy import select
 
 from server.db import session_scope
-from server.models import Actuator, Flight, HealthRecord
-from server.services.retention import prune_healthy_raw
+from server.models import Actuator, Alarm, AlarmEvent, Flight, HealthRecord
+from server.services.retention import prune_raw
 from tests.api.conftest import auth
 from tests.flightlog_factory import make_parquet
 
@@ -18,7 +20,8 @@ PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
 
 
 def _analysed(app, flight_id: int, index: int, alarm: bool) -> None:  # type: ignore[no-untyped-def]
-    """The flight as the analysis leaves it: analysed, one health record per actuator."""
+    """The flight as the analysis leaves it: analysed, one health record per actuator, WT in
+    alarm if ``alarm``."""
     with session_scope(app.state.session_factory) as s:
         flight = s.get(Flight, flight_id)
         flight.status = "analyzed"
@@ -29,38 +32,61 @@ def _analysed(app, flight_id: int, index: int, alarm: bool) -> None:  # type: ig
                                alarm=alarm and act.position == "WT"))
 
 
-def test_old_healthy_raw_logs_are_pruned_results_and_alarm_flights_kept(
+def _wt(app, flight_id: int) -> int:  # type: ignore[no-untyped-def]
+    with session_scope(app.state.session_factory) as s:
+        aircraft_id = s.get(Flight, flight_id).aircraft_id
+        return int(s.scalar(select(Actuator.id).where(Actuator.aircraft_id == aircraft_id,
+                                                      Actuator.position == "WT")))
+
+
+def test_raw_logs_beyond_the_last_flights_go_in_alarm_too_turning_points_kept(
         app, client: TestClient, keys: dict[str, str], aircraft: str) -> None:  # type: ignore[no-untyped-def]
+    """Flight 0 healthy; WT in alarm from flight 1 (raised there), its class changed on flight
+    2; keep 2: flights 5 and 6 are the last two, 1 and 2 the alarm's turning points, 7 not yet
+    analysed; 0, 3 and 4 lose their files -- 3 and 4 in alarm (the old rule kept every flight
+    in alarm: an aircraft in alarm grew by a log a flight)."""
     ids = []
-    for i in range(6):
+    for i in range(8):
         r = client.post("/api/v1/flights", content=make_parquet(aircraft, f"F{i:04d}", seed=i),
                         headers={**PARQUET, **auth(keys["uploader"])})
         assert r.status_code == 202, r.text
         ids.append(r.json()["id"])
-        _analysed(app, ids[-1], i, alarm=(i == 1))
+        if i < 7:
+            _analysed(app, ids[-1], i, alarm=i >= 1)
+    wt = _wt(app, ids[0])
     with session_scope(app.state.session_factory) as s:
+        alarm = Alarm(actuator_id=wt, flight_id=ids[1], status="open", confidence=0.9,
+                      fault_mode="DMD")
+        s.add(alarm)
+        s.flush()
+        s.add(AlarmEvent(alarm_id=alarm.id, flight_id=ids[2], flight_index=2,
+                         kind="class_change", from_mode="DMD", to_mode="BDO"))
         paths = {f.id: app.state.blobs.root / f.blob_path for f in s.scalars(select(Flight))}
     assert all(p.exists() for p in paths.values())
+    aircraft_id = _aircraft_id(app, ids[0])
 
     with app.state.session_factory() as s:
-        pruned = prune_healthy_raw(session=s, blobs=app.state.blobs,
-                                   aircraft_id=_aircraft_id(app, ids[0]), keep=2)
-    # healthy flights 0, 2, 3 go (flights 4 and 5 are the two most recent healthy ones);
-    # flight 1 had an actuator in alarm and keeps its log
-    assert pruned == 3
-    gone = {ids[0], ids[2], ids[3]}
+        pruned = prune_raw(session=s, blobs=app.state.blobs, aircraft_id=aircraft_id, keep=2)
+    gone = {ids[0], ids[3], ids[4]}
+    assert pruned == len(gone)
     for fid, path in paths.items():
         assert path.exists() == (fid not in gone), fid
     viewer = auth(keys["viewer"])
-    r = client.get(f"/api/v1/flights/{ids[0]}/signals", headers=viewer)
+    r = client.get(f"/api/v1/flights/{ids[3]}/signals", headers=viewer)
     assert r.status_code == 410 and r.json()["error"]["code"] == "raw_pruned"
     assert client.get(f"/api/v1/flights/{ids[1]}/signals", headers=viewer).status_code == 200
-    assert client.get(f"/api/v1/flights/{ids[0]}", headers=viewer).status_code == 200
+    assert client.get(f"/api/v1/flights/{ids[3]}", headers=viewer).status_code == 200
     with session_scope(app.state.session_factory) as s:  # the results stay
-        assert s.scalar(select(HealthRecord).where(HealthRecord.flight_id == ids[0]))
-    with app.state.session_factory() as s:  # nothing more to prune
-        assert prune_healthy_raw(session=s, blobs=app.state.blobs,
-                                 aircraft_id=_aircraft_id(app, ids[0]), keep=2) == 0
+        assert s.scalar(select(HealthRecord).where(HealthRecord.flight_id == ids[3]))
+
+    # the next flight analysed: flight 5 falls out of the last two, still in alarm
+    _analysed(app, ids[7], 7, alarm=True)
+    with app.state.session_factory() as s:
+        assert prune_raw(session=s, blobs=app.state.blobs, aircraft_id=aircraft_id,
+                         keep=2) == 1
+    assert not paths[ids[5]].exists() and paths[ids[6]].exists() and paths[ids[7]].exists()
+    kept = [f for f in paths.values() if f.exists()]
+    assert len(kept) == 2 + 2  # the bound: K plus the alarm's turning points
 
 
 def _aircraft_id(app, flight_id: int) -> int:  # type: ignore[no-untyped-def]
