@@ -290,6 +290,60 @@ def test_every_page_fits_a_phone_screen(live: Live, browser) -> None:  # type: i
     context.close()
 
 
+def test_test_station_injections_read_on_a_phone(live: Live, browser) -> None:  # type: ignore[no-untyped-def]
+    """At 390x844 the injections are cards, two short fields a line: nothing scrolls sideways,
+    not even inside the table's box, the status is on the screen and the cancel button in the
+    viewport once its row is scrolled into view, and it cancels (before: the table scrolled
+    450 px in its box, status and cancel off-screen, rows about 300 px tall). The charts on a
+    phone have no mode bar over their titles."""
+    for tail in live.tails:  # one live injection per aircraft: the first one free
+        r = httpx.post(f"{live.url}/api/v1/test-station/injections",
+                       headers={"Authorization": f"Bearer {live.keys['operator']}"},
+                       json={"aircraft": tail, "position": "WL2", "fault_mode": "MTWEAR",
+                             "onset_flight": 40, "time_to_failure_flights": 120}, timeout=30)
+        if r.status_code != 409:
+            break
+    assert r.status_code == 201, r.text
+    injection = r.json()["id"]
+    context = browser.new_context(viewport=PHONE)
+    page = context.new_page()
+    console = Console(page)
+    _sign_in(page, live.url, live.keys["admin"])
+    page.goto(f"{live.url}/test-station")
+    overflow = page.evaluate("""() => [document.documentElement,
+        document.querySelector('#injection-table').parentElement]
+        .map(e => e.scrollWidth - e.clientWidth)""")
+    assert overflow == [0, 0], overflow  # page, table box
+    row = page.locator(f"#injection-{injection}")
+    row.scroll_into_view_if_needed()
+    _shot(page, "test-station-390")
+    height = row.bounding_box()["height"]
+    assert height < PHONE["height"] / 3, height  # seven lines: about 260 px
+    for cell in (row.locator('td[data-label="Status"]'), row.get_by_role("button")):
+        box = cell.bounding_box()
+        assert box is not None and box["x"] >= 0 and box["x"] + box["width"] <= PHONE["width"]
+    button = row.get_by_role("button", name=re.compile("^Cancel injection"))
+    button.scroll_into_view_if_needed()
+    assert button.is_visible() and _in_viewport(page, button)
+    button.click()  # and it works: the aircraft is free again for the other tests
+    page.wait_for_url(f"{live.url}/test-station")
+    assert "cancelled" in page.locator(f"#injection-{injection}").inner_text()
+
+    page.goto(f"{live.url}/actuators/{live.seed.actuator_id}")
+    page.wait_for_selector("#fig-cone .main-svg", timeout=15_000)
+    assert page.locator(".modebar").count() == 0
+    assert console.errors == [], console.errors
+    context.close()
+
+
+def _in_viewport(page, locator) -> bool:  # type: ignore[no-untyped-def]
+    box = locator.bounding_box()
+    size = page.viewport_size
+    return (box is not None and box["x"] >= 0 and box["y"] >= 0
+            and box["x"] + box["width"] <= size["width"]
+            and box["y"] + box["height"] <= size["height"])
+
+
 def test_a_pair_alarm_and_a_cancelled_injection_in_the_browser(live: Live, browser) -> None:  # type: ignore[no-untyped-def]
     """An admin acknowledges a winglet-pair alarm (one row, both drives) with one click; an
     operator cancels a live injection from its row; no probability reads as certain."""

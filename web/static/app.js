@@ -10,6 +10,7 @@
   var refreshes = 0;
   var lastRefresh = 0;
   var MIN_INTERVAL_MS = 2000;  /* at most one refetch per 2 s, however busy the fleet */
+  var PHONE = window.matchMedia("(max-width: 600px)");  /* app.css's phone layout */
 
   function drawFigures(root) {
     if (typeof window.Plotly === "undefined") { return; }
@@ -20,8 +21,9 @@
       var fig = JSON.parse(blocks[i].textContent);
       var layout = fig.layout || {};
       layout.autosize = true;
+      /* on a phone the mode bar covers the chart's title, and a tap shows it anyway */
       window.Plotly.newPlot(target, fig.data || [], layout,
-        { responsive: true, displaylogo: false });
+        { responsive: true, displaylogo: false, displayModeBar: !PHONE.matches });
     }
   }
 
