@@ -701,8 +701,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
             for s in execution_order(specs) if s.number not in results}
     bar = tqdm(total=len(specs), initial=len(results), desc=f"{kind} campaign",
                unit="pattern", disable=not progress)
+    by_number = {s.number: s for s in specs}  # a part's numbers are the whole campaign's
     for number, res in _completed(todo, workers or os.cpu_count() or 1, executor):
-        store.save(specs[number], res)
+        store.save(by_number[number], res)
         results[number] = res
         bar.update(1)
     bar.close()

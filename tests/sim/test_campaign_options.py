@@ -28,7 +28,7 @@ from sim_worker.campaign import (
     run_campaign,
 )
 from sim_worker.cli import build_parser
-from sim_worker.faults import healthy
+from sim_worker.faults import MODES, healthy
 from sim_worker.flight import draw_conditions, run_scenario
 from sim_worker.kernel import D
 from sim_worker.scenario import build_scenario
@@ -304,3 +304,14 @@ def test_a_negative_part_is_refused(tmp_path) -> None:
     with pytest.raises(ValueError, match="per_mode"):
         run_campaign("design", tmp_path, seed=1, scale="ci", per_mode=-1, progress=False)
     assert not any(tmp_path.iterdir())  # refused before anything is written
+
+
+@pytest.mark.slow
+def test_a_part_of_a_campaign_runs_to_its_manifest(tmp_path) -> None:
+    """A part's patterns keep the whole campaign's numbers (the faults' run past the part's
+    length): the run stores each under its own and writes the part's manifest."""
+    manifest = run_campaign("verification", tmp_path, seed=1, scale="ci", per_mode=1,
+                            progress=False, workers=1)
+    want = [s.id for s in plan_campaign("verification", 1, "ci", per_mode=1)]
+    assert [p["id"] for p in manifest["patterns"]] == want
+    assert {p["mode"] for p in manifest["patterns"]} == {"healthy", *MODES}
