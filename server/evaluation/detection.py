@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from server.campaigns import load_campaign
+from server.phm.baselines import BASELINE_DEFAULTS, FleetBaseline
 from server.phm.evaluate_detection import evaluate, fit_detection, format_report, summarise
 
 __all__ = ["main"]
@@ -27,9 +28,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--model-out", help="write the fitted detection model (JSON) here")
     ap.add_argument("--no-cache", action="store_true", help="do not cache features")
+    ap.add_argument("--pooled-slopes", action="store_true",
+                    help="compare: the baselines' slopes from all flights pooled, not within "
+                    "units")
+    ap.add_argument("--raw-ratios", action="store_true",
+                    help="compare: F_SE and F_BDO on their value, not its log")
     args = ap.parse_args(argv)
     design = load_campaign(args.design, jobs=args.jobs, cache=not args.no_cache)
-    model = fit_detection(design)
+    model = fit_detection(design, baseline=FleetBaseline(
+        within_units=not args.pooled_slopes,
+        log_features=() if args.raw_ratios else BASELINE_DEFAULTS.log_features))
     if args.model_out:
         Path(args.model_out).write_text(json.dumps(model.to_dict(), indent=1))
     verification = load_campaign(args.verification, jobs=args.jobs, cache=not args.no_cache)

@@ -78,6 +78,9 @@ class BaselineConfig:
     min_evidence:
         Fraction of the healthy median number of valid windows a flight value needs to get a
         residual [-]: below a quarter its sampling noise is at least twice the usual.
+    within_units:
+        Learn the condition slopes within units when the fit is told each flight's unit (the
+        module docstring); False pools every flight (the earlier fit, kept to compare).
     log_features:
         Generic features modelled on the log of their value: ratios of a noise-driven spread
         to a mean (``F_BDO`` the phase voltages' imbalance, ``F_SE`` the flux's 1/rev
@@ -93,6 +96,7 @@ class BaselineConfig:
     ridge: float = 1.0
     outlier_k: float = 6.0
     min_evidence: float = 0.25
+    within_units: bool = True
     log_features: tuple[str, ...] = ("F_SE", "F_BDO")
 
 
@@ -262,6 +266,7 @@ class FleetBaseline:
                  ridge: float = BASELINE_DEFAULTS.ridge,
                  outlier_k: float = BASELINE_DEFAULTS.outlier_k,
                  min_evidence: float = BASELINE_DEFAULTS.min_evidence,
+                 within_units: bool = BASELINE_DEFAULTS.within_units,
                  log_features: Sequence[str] = BASELINE_DEFAULTS.log_features) -> None:
         unknown = set(covariates) - set(CONDITION_NAMES)
         if unknown:
@@ -270,6 +275,7 @@ class FleetBaseline:
         self.ridge = ridge
         self.outlier_k = outlier_k
         self.min_evidence = float(min_evidence)
+        self.within_units = bool(within_units)
         self.log_features = tuple(log_features)
 
     def _values(self, flights: Sequence[FlightFeatures], name: str) -> np.ndarray:
@@ -299,6 +305,8 @@ class FleetBaseline:
             raise ValueError("need at least three healthy flights")
         if units is not None and len(units) != len(flights):
             raise ValueError("units must give one label per flight")
+        if not self.within_units:
+            units = None
         self.models_: dict[str, LinearBaseline] = {}
         self.min_valid_: dict[str, float] = {}
         for name in AIRCRAFT_FEATURES:
@@ -351,16 +359,17 @@ class FleetBaseline:
         return {"format": BASELINE_FORMAT, "covariates": list(self.covariates),
                 "ridge": self.ridge, "outlier_k": self.outlier_k, "n_flights": self.n_flights_,
                 "min_evidence": self.min_evidence, "min_valid": dict(self.min_valid_),
-                "log_features": list(self.log_features),
+                "within_units": self.within_units, "log_features": list(self.log_features),
                 "models": {k: m.to_dict() for k, m in self.models_.items()}}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> FleetBaseline:
         if d.get("format") != BASELINE_FORMAT:
             raise ValueError(f"not a {BASELINE_FORMAT} document")
-        # a document without log features modelled every value as it is
+        # a document without these keys pooled its fit and modelled every value as it is
         b = cls(d["covariates"], ridge=float(d["ridge"]), outlier_k=float(d["outlier_k"]),
                 min_evidence=float(d.get("min_evidence", 0.0)),
+                within_units=bool(d.get("within_units", False)),
                 log_features=tuple(d.get("log_features", ())))
         b.min_valid_ = {k: float(v) for k, v in (d.get("min_valid") or {}).items()}
         b.models_ = {k: LinearBaseline.from_dict(v) for k, v in d["models"].items()}

@@ -73,7 +73,7 @@ def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
     tails_of = [a for a, s in seqs for _ in s]  # each flight's aircraft: its units
     proto = baseline or FleetBaseline()
     final = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence,
+                          min_evidence=proto.min_evidence, within_units=proto.within_units,
                           log_features=proto.log_features).fit(all_flights, tails_of)
     tails = sorted({a for a, _ in seqs})
     oof: list[np.ndarray] = []
@@ -82,7 +82,7 @@ def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
         if len(train) < 3:
             continue
         b = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence,
+                          min_evidence=proto.min_evidence, within_units=proto.within_units,
                           log_features=proto.log_features)
         b.fit(train, [a for a, s in seqs if a != tail for _ in s])
         oof += [b.zscore_matrix(s) for a, s in seqs if a == tail]
