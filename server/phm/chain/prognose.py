@@ -10,7 +10,13 @@ import numpy as np
 
 from server.vocabulary import PROGRESSIVE
 
-from ..prognosis import ParticleFilterPrognoser, PrognoserState, RulDistribution, growth_onset
+from ..prognosis import (
+    ParticleFilterPrognoser,
+    PrognoserState,
+    RulDistribution,
+    StaleStateError,
+    growth_onset,
+)
 from ..season import StressClock
 from .model import MeasurementSpec, PhmModel
 from .state import ActuatorHealth
@@ -43,7 +49,8 @@ def _continue(pf: ParticleFilterPrognoser, spec: MeasurementSpec, h: ActuatorHea
               generic: dict[str, float], index: int, clock: StressClock | None
               ) -> tuple[PrognoserState | None, RulDistribution | None]:
     """The stored filter updated with this flight's measurement; (None, None) when there is
-    none, or it belongs to another model version (a new model was activated)."""
+    none, or it belongs to another model version (a new model was activated). Any other
+    error (a flight index that does not increase, a non-finite stress) propagates."""
     if h.prognosis is None:
         return None, None
     try:
@@ -52,7 +59,7 @@ def _continue(pf: ParticleFilterPrognoser, spec: MeasurementSpec, h: ActuatorHea
         if value is not None and math.isfinite(value):
             state = pf.update(state, value, index, stress=_stress(clock, state, index))
         return state, _predict(pf, state, index, clock)
-    except ValueError:
+    except StaleStateError:
         return None, None
 
 

@@ -12,6 +12,7 @@ from .degradation import growth_rate, regressor, rls_update
 from .filter import (
     ParticleFilterPrognoser,
     PrognoserState,
+    StaleStateError,
     effective_sample_size,
     systematic_resample,
 )
@@ -55,6 +56,7 @@ __all__ = [
     "RlsMeasurement",
     "RulDistribution",
     "RulForecast",
+    "StaleStateError",
     "backtest_forecasts",
     "effective_sample_size",
     "estimate_noise_std",

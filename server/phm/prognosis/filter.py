@@ -48,11 +48,18 @@ from .predictor import RulDistribution, propagate_to_threshold, summarise_rul
 __all__ = [
     "ParticleFilterPrognoser",
     "PrognoserState",
+    "StaleStateError",
     "effective_sample_size",
     "systematic_resample",
 ]
 
 _STATE_VERSION = 1
+
+
+class StaleStateError(ValueError):
+    """A stored filter state that belongs to another model version: another state format,
+    config or measurement model, or particle count. The caller restarts the filter; every
+    other ``ValueError`` (a non-monotone flight index, a non-finite value) is a real error."""
 
 
 def effective_sample_size(weights: NDArray[np.float64]) -> float:
@@ -175,7 +182,7 @@ class PrognoserState:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PrognoserState:
         if data.get("version") != _STATE_VERSION or data.get("kind") != "pf_prognoser_state":
-            raise ValueError(
+            raise StaleStateError(
                 f"unsupported prognoser state {data.get('kind')!r} v{data.get('version')!r}"
             )
         severity = np.asarray(data["severity"], dtype=float)
@@ -319,9 +326,9 @@ class ParticleFilterPrognoser:
 
     def _check(self, state: PrognoserState) -> None:
         if state.config_digest != self.digest:
-            raise ValueError("state belongs to another config or measurement model")
+            raise StaleStateError("state belongs to another config or measurement model")
         if state.severity.size != self.config.n_particles:
-            raise ValueError("state has the wrong number of particles")
+            raise StaleStateError("state has the wrong number of particles")
 
     def update(
         self,
