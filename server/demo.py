@@ -54,6 +54,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int, train: bool 
     """Model, fleet, injections and keys; return the keys by role."""
     from server.auth import create_key
     from server.db import make_engine, make_session_factory, session_scope
+    from server.errors import Conflict
     from server.migrate import ensure_schema
     from server.models import ROLES, Aircraft
     from server.services import fleet, test_station
@@ -95,7 +96,9 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int, train: bool 
                                               time_to_failure_flights=ttf, severity=None,
                                               created_by="demo")
                 session.commit()
-            except Exception:  # already injected on an earlier run of the demo
+            except Conflict as exc:  # already injected on an earlier run of the demo
+                if exc.code != "injection_exists":
+                    raise
                 session.rollback()
     keys: dict[str, str] = {}
     with session_scope(factory) as session:

@@ -19,6 +19,7 @@ from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.demo import DEMO_INJECTIONS, prepare_demo
 from server.demo_model import DESIGN_SEED, TRAINING_SEED, load_demo_model, portable_report
+from server.errors import Unprocessable
 from server.models import Aircraft, Injection, ModelVersion
 from sim_worker.cli import build_parser
 from sim_worker.service import Api, SimFleetRunner
@@ -121,3 +122,24 @@ def test_the_sim_worker_reads_its_keys_from_the_environment(monkeypatch) -> None
         assert exc.code == 2
     else:
         raise AssertionError("--key is required when HMSM_SIM_KEY is not set")
+
+
+def test_a_second_run_of_the_demo_keeps_its_injections(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    settings = Settings(data_dir=tmp_path / "demo")
+    prepare_demo(settings, n_aircraft=2, seed=1)
+    prepare_demo(settings, n_aircraft=2, seed=1)  # the service refuses a second live one
+    engine = make_engine(settings.effective_database_url)
+    with make_session_factory(engine)() as session:
+        rows = session.execute(select(Aircraft.tail, Injection.position, Injection.fault_mode)
+                               .join(Aircraft, Aircraft.id == Injection.aircraft_id)).all()
+        assert sorted(rows) == [("SIM01", "WL1", "MTWEAR"), ("SIM02", "WT", "DMD")]
+    engine.dispose()
+
+
+def test_an_injection_the_service_refuses_is_not_taken_for_an_earlier_one(  # type: ignore[no-untyped-def]
+        tmp_path, monkeypatch) -> None:
+    """Only the service's conflict for an existing injection means "injected on an earlier
+    run"; any other refusal stops the demo."""
+    monkeypatch.setattr("server.demo.DEMO_INJECTIONS", [("SIM01", "WT", "NOSUCH", 9, None)])
+    with pytest.raises(Unprocessable, match="Unknown fault mode"):
+        prepare_demo(Settings(data_dir=tmp_path / "demo"), n_aircraft=2, seed=1)
