@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
 from server.models import Job, JobKind, ModelVersion, utcnow
-from server.phm.chain import PhmModel, read_model_document
+from server.phm.chain import PhmModel, is_model_document, read_model_document
 from server.phm.detection import FaultDetector
 
 __all__ = ["create_version", "finish_version", "fail_version", "activate", "get_version",
@@ -129,13 +129,13 @@ def detector_levels(*, session: Session, version_id: int | None, features: Seque
     band (median over the features), that band plus the standard errors at which the alarm
     confidence is reached, and that confidence. Without a usable model, the detector's
     defaults."""
-    detector = FaultDetector()
-    if version_id is not None:
-        try:
-            detector = decoded_model(session=session, version_id=version_id).detector
-        except (NotFound, ValueError):
-            pass
-    bands = detector.bands() if hasattr(detector, "band_") else {}
+    version = None if version_id is None else session.get(ModelVersion, version_id)
+    if version is None or not is_model_document(version.payload):
+        default = FaultDetector()  # unfitted: its band floor and alarm levels
+        return DetectorLevels(default.band_floor, default.band_floor + default.z_alarm,
+                              default.alarm_confidence)
+    detector = decoded_model(session=session, version_id=version.id).detector
+    bands = detector.bands()
     values = sorted(bands[f][0] for f in features if f in bands and bands[f])
     band = values[len(values) // 2] if values else detector.band_floor
     return DetectorLevels(band, band + detector.z_alarm, detector.alarm_confidence)

@@ -31,7 +31,7 @@ from .inputs import (
     self_residuals,
     surface_of,
 )
-from .model import MODEL_FORMAT, MeasurementSpec, PhmModel, read_model_document
+from .model import MODEL_FORMAT, MeasurementSpec, PhmModel, is_model_document, read_model_document
 from .run import ActuatorOutcome, MeasurementHook, analyze_flight
 from .state import HEALTH_FORMAT, ActuatorHealth
 
@@ -51,6 +51,7 @@ __all__ = [
     "MeasurementSpec",
     "surface_of",
     "PhmModel",
+    "is_model_document",
     "read_model_document",
     "ActuatorHealth",
     "ActuatorOutcome",

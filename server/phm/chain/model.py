@@ -17,7 +17,8 @@ from ..sensor_health import SensorModel
 from .inputs import actuator_feature_names, surface_of
 from .state import ActuatorHealth
 
-__all__ = ["MODEL_FORMAT", "MeasurementSpec", "PhmModel", "read_model_document"]
+__all__ = ["MODEL_FORMAT", "MeasurementSpec", "PhmModel", "is_model_document",
+           "read_model_document"]
 
 #: /5: thermal modes age on the season's stress clock (the model carries the bases' climate).
 #: A model of an older format was fitted on other feature definitions and is refused
@@ -128,6 +129,17 @@ class PhmModel:
 def read_model_document(doc: Mapping[str, Any]) -> PhmModel:
     """A model from its JSON document, or from a model-version record that wraps it in its
     ``payload`` field (``{"payload": <document>, ...}``)."""
+    return PhmModel.from_dict(_unwrap(doc))
+
+
+def is_model_document(doc: Any) -> bool:
+    """Whether ``doc`` (or the record wrapping it) is in this chain's format, the one
+    :func:`read_model_document` reads: not the empty payload of a version not trained yet,
+    nor the document of an older chain."""
+    return isinstance(doc, Mapping) and _unwrap(doc).get("format") == MODEL_FORMAT
+
+
+def _unwrap(doc: Mapping[str, Any]) -> Mapping[str, Any]:
     if doc.get("format") != MODEL_FORMAT and isinstance(doc.get("payload"), Mapping):
-        doc = doc["payload"]
-    return PhmModel.from_dict(doc)
+        return doc["payload"]
+    return doc
