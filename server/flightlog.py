@@ -377,7 +377,7 @@ def parse_metadata(raw: Mapping[str, Any],
         raise FlightLogError([Issue("bad_metadata", "Metadata values are malformed: "
                                     + ", ".join(f"{k} must be {v}" for k, v in bad.items()) + ".",
                                     {"fields": bad})])
-    assert started_at is not None
+    assert started_at is not None  # for the type checker: None only with bad["started_at"]
     return FlightMetadata(
         aircraft=aircraft,
         flight=flight,

@@ -41,7 +41,8 @@ def downgrade(url: str, revision: str = "base") -> None:
 
 def head_revision() -> str:
     head = ScriptDirectory.from_config(alembic_config("sqlite://")).get_current_head()
-    assert head is not None
+    if head is None:
+        raise RuntimeError("the migrations directory holds no Alembic revision")
     return head
 
 

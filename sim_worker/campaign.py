@@ -523,12 +523,18 @@ def _study_entry(spec: PatternSpec) -> dict[str, Any]:
                              "twin": spec.twin}}
 
 
+def _position(spec: PatternSpec) -> str:
+    """The faulty actuator of a fault pattern; a fault pattern without one is an error."""
+    if spec.position is None:
+        raise ValueError(f"pattern {spec.id}: a {spec.mode} pattern needs a position")
+    return spec.position
+
+
 def _constant_run(spec: PatternSpec, render: Callable[[FaultState, int], Any]) -> float | None:
     """A healthy cycle, or an a priori fault imposed from ``onset`` on; its threshold."""
     fault_on = healthy()
     if spec.mode in A_PRIORI:
-        assert spec.position is not None
-        fault_on = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]))
+        fault_on = new_fault(spec.mode, _position(spec), np.random.default_rng([spec.seed, 7]))
     for index in range(spec.n_flights):
         render(fault_on if index >= spec.onset else healthy(), index)
     return fault_on.threshold
@@ -539,9 +545,9 @@ def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
                       ) -> tuple[float | None, int | None]:
     """The healthy lead, then the fault advanced flight by flight to failure (every
     ``render_every``-th flight and the failure flight rendered); threshold and failure flight."""
-    assert spec.position is not None
-    ref = reference_summary(aircraft, spec.position, duration_s=cfg.duration_s, seed=spec.seed)
-    fault = new_fault(spec.mode, spec.position, np.random.default_rng([spec.seed, 7]),
+    position = _position(spec)
+    ref = reference_summary(aircraft, position, duration_s=cfg.duration_s, seed=spec.seed)
+    fault = new_fault(spec.mode, position, np.random.default_rng([spec.seed, 7]),
                       reference=ref, span_range=cfg.span_flights)
     for index in range(spec.onset):
         render(healthy(), index)

@@ -675,7 +675,8 @@ def _init_worker(model_doc: dict[str, Any], noise_free: bool = False) -> None:
 
 
 def _work(pattern: Pattern) -> tuple[dict[str, Any], dict[str, Any]]:
-    assert _WORKER_MODEL is not None
+    if _WORKER_MODEL is None:
+        raise RuntimeError("the evaluation worker has no model: _init_worker was not run")
     timer = ChainTimer()
     with timer.instrument():
         trace = run_pattern(_WORKER_MODEL, pattern, timer=timer, noise_free=_WORKER_NOISE_FREE)

@@ -24,7 +24,8 @@ __all__ = ["analyze_flight_job", "analysis_given_up"]
 
 
 def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
-    assert job.flight_id is not None
+    if job.flight_id is None:
+        raise ValueError(f"analyze_flight job {job.id} names no flight")
     with ctx.factory() as session:
         todo = analysis.flight_to_analyse(session=session, flight_id=job.flight_id)
         if todo is None:
