@@ -74,6 +74,9 @@ class Settings(BaseSettings):
     auth_failure_clients: int = Field(10_000, ge=1, description=(
         "Most client addresses whose failed authentications are tracked; past that the one "
         "that failed least recently is forgotten."))
+    train_disk_reserve_bytes: int = Field(1024 ** 3, ge=0, description=(
+        "Free disk a design campaign generated for training (`POST /api/v1/models/train` with "
+        "`generate`) must leave besides its own size; less: 507 `insufficient_storage`."))
     raw_retention_flights: int | None = Field(None, ge=0, description=(
         "Keep the raw logs of only this many most recent analysed flights per aircraft, healthy "
         "or in alarm, and of the flights that raised an alarm or changed its class; the other "

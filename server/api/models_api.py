@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
+from typing import Any, Literal
 
 from fastapi import APIRouter
 from pydantic import BaseModel, ConfigDict, Field
@@ -46,7 +46,10 @@ class ModelSummary(BaseModel):
 class GenerateSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
     seed: int = Field(ge=0, le=2**31 - 1, strict=True)
-    scale: str = Field("quick", pattern="^(quick|paper)$")
+    # quick alone: about 920 flights in 3 minutes on 2 cores, streamed (docs/SECURITY.md);
+    # paper (about 8 GB) and protocol (hours) campaigns are for `hmsm campaign` / `protocol`
+    scale: Literal["quick"] = Field("quick", description=(
+        "Only quick; larger campaigns come from the command line (`hmsm campaign`)."))
 
 
 class TrainRequest(BaseModel):
@@ -54,7 +57,8 @@ class TrainRequest(BaseModel):
     campaign: str = Field(pattern=_NAME, description=(
         "Design campaign directory name under HMSM_DATA_DIR/campaigns."))
     generate: GenerateSpec | None = Field(None, description=(
-        "Simulate the design campaign first if it does not exist yet."))
+        "Simulate the design campaign first if it does not exist yet; it is removed once "
+        "training has read it."))
     seed: int = Field(0, ge=0, le=2**31 - 1, strict=True,
                       description="Seed of the 70/30 split.")
     name: str | None = Field(None, pattern=_NAME)
@@ -97,14 +101,20 @@ def activate(model_id: int, session: SessionDep, _: Admin) -> ModelRead:
     return ModelRead.model_validate(row)
 
 
-@router.post("/train", status_code=202, response_model=TrainAccepted,
+@router.post("/train", status_code=202, response_model=TrainAccepted, responses={
+                 "507": {"description": (
+                     "`insufficient_storage`: not enough free disk to generate the campaign "
+                     "(details: needed_bytes, free_bytes).")}},
              summary="Train a model version from a design campaign, as a background job (admin)")
 def train(body: TrainRequest, session: SessionDep, settings: SettingsDep, key: Admin
           ) -> TrainAccepted:
     directory = service.campaign_dir(settings.data_dir, body.campaign)
-    if not (directory / "manifest.json").exists() and body.generate is None:
+    generated = not (directory / "manifest.json").exists()
+    if generated and body.generate is None:
         raise Unprocessable(f"Campaign '{body.campaign}' does not exist under the data "
                             "directory; give 'generate' to simulate it.", code="no_campaign")
+    if generated:
+        service.check_generate_space(settings.data_dir, settings.train_disk_reserve_bytes)
     version = service.create_version(session=session, name=body.name or body.campaign,
                                      training={"requested_by": key.name,
                                                "campaign": body.campaign})
@@ -112,7 +122,7 @@ def train(body: TrainRequest, session: SessionDep, settings: SettingsDep, key: A
         session=session, version_id=version.id,
         payload={"campaign": body.campaign, "seed": body.seed,
                  "generate": body.generate.model_dump() if body.generate else None,
-                 "activate": body.activate})
+                 "remove_campaign": generated, "activate": body.activate})
     session.commit()
     return TrainAccepted(model_id=version.id, job_id=job.id,
                          status_url=f"/api/v1/models/{version.id}")

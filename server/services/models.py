@@ -3,6 +3,7 @@ one the workers run (cached per database and version)."""
 
 from __future__ import annotations
 
+import shutil
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -11,7 +12,7 @@ from typing import Any, NamedTuple
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
-from server.errors import Conflict, NotFound
+from server.errors import Conflict, NotFound, StorageUnavailable
 from server.models import Job, JobKind, ModelVersion, utcnow
 from server.phm.chain import PhmModel, is_model_document, read_model_document
 from server.phm.detection import FaultDetector
@@ -19,7 +20,13 @@ from server.phm.detection import FaultDetector
 __all__ = ["create_version", "finish_version", "fail_version", "activate", "get_version",
            "active_version", "list_versions", "metrics_of", "store_trained", "active_model",
            "decoded_model", "DetectorLevels", "detector_levels", "request_training",
-           "campaign_dir"]
+           "campaign_dir", "GENERATED_CAMPAIGN_BYTES", "check_generate_space"]
+
+#: what a design campaign generated for training (quick scale, 60 patterns) may take on disk:
+#: it is streamed (features kept, the log of flight 0 of each pattern and then one in 200),
+#: about 120 MB, as the demo's streamed quick verification campaign took 59 MB for its 31
+#: patterns (README); twice that is reserved
+GENERATED_CAMPAIGN_BYTES = 256 * 1024 * 1024
 
 #: decoded models, keyed by (database URL, model version id): a version id alone names
 #: another model in another database served by the same process
@@ -153,3 +160,18 @@ def request_training(*, session: Session, version_id: int, payload: dict[str, An
 def campaign_dir(data_dir: Path, name: str) -> Path:
     """A campaign directory under ``<data_dir>/campaigns`` (names are validated by the API)."""
     return data_dir / "campaigns" / name
+
+
+def check_generate_space(data_dir: Path, reserve_bytes: int) -> None:
+    """Refuse (507 ``insufficient_storage``) to generate a design campaign unless the data
+    directory's file system has room for it and ``reserve_bytes`` besides (flight logs and
+    the database need the rest)."""
+    existing = next(p for p in (data_dir, *data_dir.parents) if p.exists())
+    free = shutil.disk_usage(existing).free
+    needed = GENERATED_CAMPAIGN_BYTES + reserve_bytes
+    if free < needed:
+        raise StorageUnavailable(
+            f"Not enough free disk to generate a design campaign: {needed} bytes needed "
+            f"({GENERATED_CAMPAIGN_BYTES} for the campaign, {reserve_bytes} kept free), "
+            f"{free} free.", code="insufficient_storage",
+            details={"needed_bytes": needed, "free_bytes": free})
