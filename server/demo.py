@@ -22,13 +22,16 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
+from pathlib import Path
 
 from sqlalchemy import select
 
 from server.config import Settings
 
-__all__ = ["DEMO_INJECTIONS", "DEMO_RAW_KEEP_FLIGHTS", "prepare_demo", "run_demo"]
+__all__ = ["DEMO_INJECTIONS", "DEMO_RAW_KEEP_FLIGHTS", "prepare_demo", "run_demo",
+           "start_child"]
 
 #: raw logs of its latest flights the demo keeps per aircraft, besides its alarms' turning
 #: points (the rest are pruned after analysis): 10 x about 1.8 MB
@@ -139,6 +142,18 @@ def _train_demo_model(settings: Settings, factory: object, seed: int) -> None:
     bar.close()
 
 
+def start_child(argv: list[str], *, env: dict[str, str], log: Path, nice: bool = False
+                ) -> subprocess.Popen[bytes]:
+    """Start one of the demo's processes, its output appended to ``log``, and reap it as soon
+    as it ends (a thread waits for it): the background evaluation ends minutes into the demo
+    and would otherwise stay a zombie until the demo stops."""
+    with open(log, "ab") as out:  # the child has its own descriptor of it
+        child = subprocess.Popen(argv, env=env, stdout=out, stderr=subprocess.STDOUT,
+                                 preexec_fn=(lambda: os.nice(15)) if nice else None)
+    threading.Thread(target=child.wait, name=f"reap-{log.stem}", daemon=True).start()
+    return child
+
+
 def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate: float,
              seed: int, log_level: str, train: bool = False) -> int:
     import uvicorn
@@ -160,10 +175,8 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
 
     def start(name: str, argv: list[str], extra_env: dict[str, str] | None = None,
               nice: bool = False) -> None:
-        out = open(logs / f"{name}.log", "ab")  # the child keeps it open for its lifetime
-        children.append(subprocess.Popen(argv, env={**env, **(extra_env or {})}, stdout=out,
-                                         stderr=subprocess.STDOUT,
-                                         preexec_fn=(lambda: os.nice(15)) if nice else None))
+        children.append(start_child(argv, env={**env, **(extra_env or {})},
+                                    log=logs / f"{name}.log", nice=nice))
 
     def stop_children(*_: object) -> None:
         for child in children:
