@@ -38,6 +38,7 @@ _SWAGGER = """<!doctype html>
 <html lang="en">
 <head>
   <meta charset="utf-8">
+  <meta name="viewport" content="width=device-width, initial-scale=1">
   <title>{title} - Swagger UI</title>
   <link rel="icon" href="{assets}/favicon.png">
   <link rel="stylesheet" href="{assets}/swagger-ui.css">
@@ -55,6 +56,7 @@ _REDOC = """<!doctype html>
 <html lang="en">
 <head>
   <meta charset="utf-8">
+  <meta name="viewport" content="width=device-width, initial-scale=1">
   <title>{title} - ReDoc</title>
   <link rel="icon" href="{assets}/favicon.png">
 </head>

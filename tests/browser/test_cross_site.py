@@ -220,3 +220,24 @@ def test_api_docs_render_under_the_csp_from_local_assets(site: Site, browser) ->
     assert all(dict(blocked).get(url) == "csp" for url in foreign), blocked  # never sent
     assert [e for e in console.errors if REDOCLY_LOGO not in e] == [], console.errors
     context.close()
+
+
+def test_api_docs_fit_a_phone(site: Site, browser) -> None:  # type: ignore[no-untyped-def]
+    """A phone lays a page out 980 px wide unless the page asks for its width (the viewport
+    meta tag): Swagger UI and ReDoc fit 390 px."""
+    context = browser.new_context(viewport={"width": 390, "height": 844}, is_mobile=True,
+                                  has_touch=True, device_scale_factor=3)
+    page = context.new_page()
+    _sign_in(page, site.url, site.admin)
+    page.goto(f"{site.url}/docs")
+    page.locator(".opblock-summary-path", has_text="/api/v1/flights").first.wait_for(
+        timeout=15_000)
+    assert page.evaluate("window.innerWidth") == 390
+    width = page.evaluate("document.documentElement.scrollWidth")
+    assert width <= 420, f"/docs is {width} px wide on a 390 px phone"
+    page.goto(f"{site.url}/redoc")
+    page.locator("h2", has_text="Upload a flight log (uploader)").wait_for(timeout=15_000)
+    assert page.evaluate("window.innerWidth") == 390
+    width = page.evaluate("document.documentElement.scrollWidth")
+    assert width <= 420, f"/redoc is {width} px wide on a 390 px phone"
+    context.close()
