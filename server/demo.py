@@ -202,8 +202,10 @@ def run_demo(settings: Settings, *, host: str, port: int, n_aircraft: int, rate:
     print(f"  {n_aircraft} simulated aircraft fly {rate:g} flights a minute; faults injected: "
           + ", ".join(f"{t}/{p} {m}" for t, p, m, _, _ in DEMO_INJECTIONS
                       if int(t[3:]) <= n_aircraft))
-    print("  the evaluation page fills in about 4 minutes (a small verification campaign is "
-          "simulated and evaluated in the background; logs/evaluation.log)")
+    print("  the evaluation page fills in after about 4 minutes on an idle 2-core machine, "
+          "longer when it is busy (a small verification campaign is simulated and evaluated "
+          "in the background at low priority; the page shows how far it is; "
+          "logs/evaluation.log)")
     print(f"  raw logs: the last {settings.raw_retention_flights} flights of each aircraft and "
           "the flights that raised or changed an alarm are kept")
     print("  Ctrl-C stops everything.\n", flush=True)

@@ -37,7 +37,7 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -174,8 +174,11 @@ def _sanitise(obj: Any) -> Any:
     return obj
 
 
-def run_evaluate(args: argparse.Namespace, settings: Settings) -> int:
-    """Body of ``hmsm evaluate`` (see the module docstring)."""
+def run_evaluate(args: argparse.Namespace, settings: Settings, *,
+                 progress: Callable[[int, int], None] | None = None) -> int:
+    """Body of ``hmsm evaluate`` (see the module docstring); ``progress(done, total)`` is told
+    of each pattern scored (the demo's background evaluation reports it to the dashboard),
+    in place of the progress bar."""
     from .core import evaluate_campaign
 
     campaign = Path(args.campaign)
@@ -185,16 +188,17 @@ def run_evaluate(args: argparse.Namespace, settings: Settings) -> int:
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     out_dir = Path(args.out) if args.out else settings.data_dir / "evaluation" / stamp
     bar = None
-    progress = None
-    if not args.no_progress:
+    if progress is None and not args.no_progress:
         from tqdm import tqdm
 
         bar = tqdm(total=None, unit="pattern", desc="evaluate", file=sys.stderr)
 
-        def progress(done: int, total: int) -> None:
+        def show(done: int, total: int) -> None:
             bar.total = total
             bar.n = done
             bar.refresh()
+
+        progress = show
 
     t0 = time.perf_counter()
     try:

@@ -1,6 +1,10 @@
 """What a background evaluation is doing (``<data_dir>/evaluation/demo-progress.json``): written
 by the demo's background evaluation (:mod:`server.demo_evaluation`), read by the evaluation
-page while ``latest.json`` does not exist yet."""
+page while ``latest.json`` does not exist yet.
+
+The document: ``{"stage": str, "done": int, "total": int, "unit": "patterns", "since":
+seconds since the epoch}`` (the page shows "stage: done of total unit, for N min"); written
+whole to a temporary file that then replaces it, so a reader never sees half of one."""
 
 from __future__ import annotations
 

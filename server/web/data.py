@@ -307,8 +307,17 @@ def evaluation_view(*, data_dir: Path) -> dict[str, Any]:
         since = running.get("since")
         running["minutes"] = (None if not isinstance(since, (int, float))
                               else max(0, round((time.time() - since) / 60)))
+        running["count"] = _progress_count(running)
     return {"rows": rows, "has_ours": ours is not None, "error": error,
             "path": "evaluation/latest.json", "campaign": campaign, "running": running}
+
+
+def _progress_count(status: dict[str, Any]) -> str | None:
+    """``12 of 31 patterns`` from a status file's ``done``, ``total`` and ``unit``."""
+    done, total, unit = status.get("done"), status.get("total"), status.get("unit")
+    if type(done) is not int or type(total) is not int or not 0 <= done <= total or not total:
+        return None  # a bool is no count: type(), not isinstance()
+    return f"{done} of {total}" + (f" {unit}" if isinstance(unit, str) and unit else "")
 
 
 def _horizons(mine: dict[str, Any]) -> tuple[float | None, float | None]:
