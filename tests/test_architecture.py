@@ -17,3 +17,12 @@ def test_import_contracts_are_kept() -> None:
                             text=True, timeout=300)
     assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
     assert "4 kept, 0 broken" in result.stdout
+
+
+def test_the_code_is_lint_clean() -> None:
+    """Ruff (configured in ``pyproject.toml``) on everything: the suite, and so CI, enforces
+    it rather than leaving it to whoever remembers to run it."""
+    ruff = Path(sys.executable).with_name("ruff")
+    result = subprocess.run([str(ruff), "check", "--no-cache", "."], cwd=ROOT,
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
