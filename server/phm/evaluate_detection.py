@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.stats import binomtest
 
 from server.vocabulary import alarming_positions
 
@@ -97,8 +98,6 @@ def healthy_alarm_rate(detector: FaultDetector, sequences: Sequence[np.ndarray],
     """Alarm events per unit-flight on healthy sequences (n_flights, AIRCRAFT_FEATURES) of
     residuals, each unit at risk until its first alarm: the realised rate beside the stated
     ``false_alarm_rate``, with its exact ``level`` interval."""
-    from scipy.stats import binomtest
-
     events = unit_flights = 0
     for seq in sequences:
         for unit in UNITS:
