@@ -18,14 +18,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.stats import binomtest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -33,6 +31,7 @@ from server.campaigns import load_campaign  # noqa: E402
 from server.phm.chain.model import PhmModel, read_model_document  # noqa: E402
 from server.phm.detection import DetectionState, FaultDetector  # noqa: E402
 from server.phm.features import AIRCRAFT_FEATURES, CONDITION_NAMES  # noqa: E402
+from server.phm.metrics import event_rate  # noqa: E402
 from server.phm.sensor_health import evidence_weights  # noqa: E402
 from server.vocabulary import POSITIONS  # noqa: E402
 
@@ -112,14 +111,9 @@ def score(npz: str, model_json: str, detector: FaultDetector | None = None) -> d
             continue
         flights += int(arr[f"{m['id']}/z"].shape[0])
         alarms += replay(det, m, arr)
-    unit_flights = flights * len(POSITIONS)
-    ci = binomtest(len(alarms), max(unit_flights, 1)).proportion_ci(0.90, method="exact")
-    lo, hi = float(ci.low), float(ci.high)
-    rate = len(alarms) / unit_flights if unit_flights else math.nan
     return {"patterns": sum(m["mode"] == "healthy" for m in metas), "flights": flights,
-            "unit_flights": unit_flights, "alarms": len(alarms),
+            **event_rate(len(alarms), flights * len(POSITIONS)),
             "patterns_alarmed": len({a["pattern"] for a in alarms}),
-            "rate_per_unit_flight": rate, "rate_interval_90": [lo, hi],
             "design_rate": det.false_alarm_rate,
             "by_unit": dict(Counter(a["unit"] for a in alarms)),
             "by_feature": dict(Counter(f.split(".")[1] for a in alarms for f in a["features"])),

@@ -15,8 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from scipy.stats import binomtest
-
+from server.phm.metrics import event_rate
 from server.vocabulary import POSITIONS, alarming_positions, is_winglet
 
 __all__ = ["CAUSES", "AGE_BINS", "exposure_of", "summarise_false_alarms"]
@@ -28,19 +27,24 @@ AGE_BINS: tuple[int, ...] = (0, 50, 150, 300)
 LEVEL = 0.90
 
 
-def _cause(trace: Mapping[str, Any], unit: str, index: int) -> str | None:
+def _causes_after_onset(trace: Mapping[str, Any]) -> dict[str, str | None]:
+    """Why each unit has no fault once the pattern's fault is on (None: it has the fault)."""
+    faulty = (set() if trace["mode"] == "healthy" else
+              alarming_positions(trace["mode"], trace["position"],
+                                 pair_rod_ends=bool(trace.get("pair_rod_ends", False))))
+    return {u: None if u in faulty else
+            "partner drive" if any(is_winglet(u) == is_winglet(p) for p in faulty)
+            else "other surface" for u in POSITIONS}
+
+
+def _cause(trace: Mapping[str, Any], after_onset: Mapping[str, str | None], unit: str,
+           index: int) -> str | None:
     """Why ``unit`` has no fault on flight ``index`` of the pattern (None: it has one)."""
     if trace["mode"] == "healthy":
         return "healthy cycle"
-    onset = int(trace["onset"] or 0)
-    if index < onset:
+    if index < int(trace["onset"] or 0):
         return "before onset"
-    faulty = alarming_positions(trace["mode"], trace["position"],
-                                pair_rod_ends=bool(trace.get("pair_rod_ends", False)))
-    if unit in faulty:
-        return None
-    same_surface = any(is_winglet(unit) == is_winglet(p) for p in faulty)
-    return "partner drive" if same_surface else "other surface"
+    return after_onset[unit]
 
 
 def _age_bin(age: int) -> str:
@@ -57,13 +61,14 @@ def exposure_of(trace: Mapping[str, Any]) -> dict[str, Any]:
     at_risk = dict.fromkeys(CAUSES, 0)
     events: list[dict[str, Any]] = []
     alarmed: set[str] = set()
+    after_onset = _causes_after_onset(trace)
     for f in flights:
         index = int(f["index"])
         new = set(f["new_alarms"])
         for unit in POSITIONS:
             if unit in alarmed:
                 continue
-            cause = _cause(trace, unit, index)
+            cause = _cause(trace, after_onset, unit, index)
             if cause is None:
                 continue
             at_risk[cause] += 1
@@ -74,23 +79,15 @@ def exposure_of(trace: Mapping[str, Any]) -> dict[str, Any]:
     return {"unit_flights": at_risk, "events": events}
 
 
-def _rate(events: int, unit_flights: int) -> dict[str, Any]:
-    if unit_flights == 0:
-        return {"events": events, "unit_flights": 0, "rate": None, "interval": None}
-    ci = binomtest(events, unit_flights).proportion_ci(LEVEL, method="exact")
-    return {"events": events, "unit_flights": unit_flights, "rate": events / unit_flights,
-            "interval": [float(ci.low), float(ci.high)]}
-
-
 def summarise_false_alarms(traces: Sequence[Mapping[str, Any]],
                            design_rate: float | None) -> dict[str, Any]:
     """Events per unit-flight over every unit without a fault, with the interval, the design
     rate beside it, and the split by cause and by reference age."""
     per = [exposure_of(t) for t in traces]
     events = [e for p in per for e in p["events"]]
-    by_cause = {c: _rate(sum(e["cause"] == c for e in events),
-                         sum(p["unit_flights"][c] for p in per)) for c in CAUSES}
-    total = _rate(len(events), sum(r["unit_flights"] for r in by_cause.values()))
+    by_cause = {c: event_rate(sum(e["cause"] == c for e in events),
+                              sum(p["unit_flights"][c] for p in per), LEVEL) for c in CAUSES}
+    total = event_rate(len(events), sum(r["unit_flights"] for r in by_cause.values()), LEVEL)
     ages = {b: sum(_age_bin(e["age"]) == b for e in events)
             for b in dict.fromkeys(_age_bin(a) for a in AGE_BINS)}
     return {**total, "level": LEVEL, "design_rate": design_rate,

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.stats import binomtest
 
 from server.vocabulary import alarming_positions
 
@@ -26,6 +25,7 @@ from .baselines import FleetBaseline
 from .dataset import Campaign, FlightRecord, Pattern, healthy_flights, reads_rod_ends_as_pair
 from .detection import UNITS, DetectionState, FaultDetector
 from .features import AIRCRAFT_FEATURES
+from .metrics import event_rate
 
 __all__ = [
     "FlightRecord",
@@ -108,10 +108,7 @@ def healthy_alarm_rate(detector: FaultDetector, sequences: Sequence[np.ndarray],
             hits = np.flatnonzero(conf >= detector.alarm_confidence)
             events += int(hits.size > 0)
             unit_flights += int(hits[0]) + 1 if hits.size else seq.shape[0]
-    ci = binomtest(events, max(unit_flights, 1)).proportion_ci(level, method="exact")
-    return {"events": events, "unit_flights": unit_flights,
-            "rate": events / unit_flights if unit_flights else None,
-            "interval": [float(ci.low), float(ci.high)], "level": level,
+    return {**event_rate(events, unit_flights, level), "level": level,
             "stated_rate": detector.false_alarm_rate}
 
 

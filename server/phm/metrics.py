@@ -24,6 +24,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.stats import binomtest
 
 __all__ = [
     "alpha_bounds_hit",
@@ -34,6 +35,7 @@ __all__ = [
     "convergence",
     "cumulative_relative_accuracy",
     "detection_time",
+    "event_rate",
     "false_alarm_rate",
     "interval_coverage",
     "interval_hits",
@@ -245,6 +247,17 @@ def false_alarm_rate(alarm_raised: ArrayLike, is_faulty: ArrayLike) -> float:
     healthy = ~f
     n = int(healthy.sum())
     return float((a & healthy).sum() / n) if n else math.nan
+
+
+def event_rate(events: int, trials: int, level: float = 0.90) -> dict[str, object]:
+    """False alarms (or any events) per unit-flight with the rate's exact (Clopper-Pearson)
+    ``level`` interval: ``{"events", "unit_flights", "rate", "interval"}``, rate and interval
+    None without a unit-flight."""
+    if trials <= 0:
+        return {"events": events, "unit_flights": 0, "rate": None, "interval": None}
+    ci = binomtest(events, trials).proportion_ci(level, method="exact")
+    return {"events": events, "unit_flights": trials, "rate": events / trials,
+            "interval": [float(ci.low), float(ci.high)]}
 
 
 def missed_detection_rate(alarm_raised: ArrayLike, is_faulty: ArrayLike) -> float:

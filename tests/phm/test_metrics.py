@@ -114,3 +114,12 @@ def test_detection_time_by_hand() -> None:
     # the alarm at 2 precedes the onset 4.5 (a false alarm); first after onset at 6 -> 1.5
     assert m.detection_time(t, alarm, 4.5) == pytest.approx(1.5)
     assert math.isnan(m.detection_time(t, alarm, 8.0))
+
+
+def test_event_rate_has_the_exact_interval() -> None:
+    none = m.event_rate(0, 1000)
+    assert none["rate"] == 0.0 and none["interval"][0] == 0.0
+    assert none["interval"][1] == pytest.approx(1 - 0.05 ** (1 / 1000))  # one-sided 5 %
+    three = m.event_rate(3, 1000)
+    assert three["interval"][0] < 0.003 < three["interval"][1]
+    assert m.event_rate(0, 0)["rate"] is None
