@@ -11,11 +11,6 @@ from __future__ import annotations
 
 import re
 
-from sqlalchemy import select, update
-
-from server.demo_model import load_demo_model
-from server.models import Alarm, AlarmEvent, Flight, HealthRecord
-from server.services import models as model_service
 from server.services import test_station as station_service
 from tests.browser.test_dashboard import (  # noqa: F401  (fixtures of this module's own)
     Console,
@@ -26,7 +21,7 @@ from tests.browser.test_dashboard import (  # noqa: F401  (fixtures of this modu
     live,
     pytestmark,
 )
-from tests.web.seed import add_alarm, seed_results
+from tests.web.seed import add_alarm, seed_class_change, seed_results
 
 
 def test_a_failed_unit_shows_no_life_and_the_pair_row_names_it(live: Live, browser) -> None:  # type: ignore[no-untyped-def]  # noqa: F811
@@ -74,19 +69,7 @@ def test_no_fault_found_leaves_no_stale_fault_and_keeps_the_class_at_raising(  #
     as no fault found from the actuator page; the model's alarm confidence is 0.95."""
     tail = live.tails[2]
     seed = seed_results(live.factory, tail=tail, position="WL1")  # type: ignore[arg-type]
-    doc = load_demo_model()
-    doc["payload"]["detector"]["alarm_confidence"] = 0.95
-    with live.factory() as s:  # type: ignore[operator]
-        model = model_service.store_trained(session=s, name="alarm at 0.95",
-                                            payload=doc["payload"], report=doc["training"],
-                                            make_active=False)
-        s.execute(update(HealthRecord).where(HealthRecord.actuator_id == seed.actuator_id)
-                  .values(model_version_id=model.id))
-        s.get(Alarm, seed.alarm_id).raised_fault_mode = "MTEL"
-        flight = s.scalar(select(Flight).where(Flight.tail == tail, Flight.flight_code == "F0025"))
-        s.add(AlarmEvent(alarm_id=seed.alarm_id, flight_id=flight.id, flight_index=25,
-                         kind="class_change", from_mode="MTEL", to_mode="DMD"))
-        s.commit()
+    seed_class_change(live.factory, seed, tail=tail)  # type: ignore[arg-type]
     context = browser.new_context(viewport={"width": 1280, "height": 800})
     page = context.new_page()
     console = Console(page)

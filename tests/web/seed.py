@@ -17,14 +17,16 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 
 import numpy as np
-from sqlalchemy import select
+from sqlalchemy import select, update
 from sqlalchemy.orm import Session, sessionmaker
 
+from server.demo_model import load_demo_model
 from server.models import (
     Actuator,
     ActuatorState,
     Aircraft,
     Alarm,
+    AlarmEvent,
     Flight,
     GroundTruth,
     HealthRecord,
@@ -33,8 +35,9 @@ from server.models import (
     Prognosis,
 )
 from server.phm.prognosis import RulDistribution
+from server.services import models as model_service
 
-__all__ = ["SeedResult", "seed_results", "add_alarm", "CONFUSION"]
+__all__ = ["SeedResult", "seed_results", "add_alarm", "seed_class_change", "CONFUSION"]
 
 CLASSES = ["BDO", "DMD", "MTEL", "MTWEAR", "REWEAR", "SE", "TTS"]
 _COUNTS = [[9, 0, 0, 0, 0, 1, 0], [0, 8, 1, 1, 0, 0, 0], [0, 1, 7, 2, 0, 0, 0],
@@ -187,3 +190,25 @@ def add_alarm(factory: sessionmaker[Session], *, tail: str, position: str,
         session.add(row)
         session.commit()
         return row.id
+
+
+def seed_class_change(factory: sessionmaker[Session], seed: SeedResult, *, tail: str,
+                      alarm_confidence: float = 0.95) -> None:
+    """The seeded alarm raised as MTEL, its leading class DMD since flight 25 (an alarm
+    event), and its actuator's health judged by a model alarming at ``alarm_confidence``."""
+    doc = load_demo_model()
+    doc["payload"]["detector"]["alarm_confidence"] = alarm_confidence
+    with factory() as s:
+        model = model_service.store_trained(session=s, name=f"alarm at {alarm_confidence}",
+                                            payload=doc["payload"], report=doc["training"],
+                                            make_active=False)
+        s.execute(update(HealthRecord).where(HealthRecord.actuator_id == seed.actuator_id)
+                  .values(model_version_id=model.id))
+        alarm = s.get(Alarm, seed.alarm_id)
+        assert alarm is not None
+        alarm.raised_fault_mode = "MTEL"
+        flight = s.scalar(select(Flight).where(Flight.tail == tail, Flight.flight_code == "F0025"))
+        assert flight is not None
+        s.add(AlarmEvent(alarm_id=seed.alarm_id, flight_id=flight.id, flight_index=25,
+                         kind="class_change", from_mode="MTEL", to_mode="DMD"))
+        s.commit()

@@ -5,15 +5,10 @@ class at raising and its later change; the model's alarm level on the confidence
 
 from __future__ import annotations
 
-from sqlalchemy import select, update
-
 from server.db import session_scope
-from server.demo_model import load_demo_model
-from server.models import Alarm, AlarmEvent, Flight, HealthRecord
-from server.services import models as model_service
 from server.services import test_station as station_service
 from server.web.routes import csrf_token
-from tests.web.seed import add_alarm, seed_results
+from tests.web.seed import add_alarm, seed_class_change, seed_results
 from tests.web.test_honest_diagnosis import _figure
 from tests.web.test_pages import sign_in
 
@@ -49,19 +44,7 @@ def test_no_fault_found_leaves_no_stale_fault_and_keeps_the_class_at_raising(  #
         app, client, keys, aircraft) -> None:
     factory = app.state.session_factory
     seed = seed_results(factory, tail=aircraft, position="WL1")
-    doc = load_demo_model()
-    doc["payload"]["detector"]["alarm_confidence"] = 0.95
-    with session_scope(factory) as s:
-        model = model_service.store_trained(session=s, name="alarm at 0.95",
-                                            payload=doc["payload"], report=doc["training"],
-                                            make_active=False)
-        s.execute(update(HealthRecord).where(HealthRecord.actuator_id == seed.actuator_id)
-                  .values(model_version_id=model.id))
-        s.get(Alarm, seed.alarm_id).raised_fault_mode = "MTEL"
-        flight = s.scalar(select(Flight).where(Flight.tail == aircraft,
-                                               Flight.flight_code == "F0025"))
-        s.add(AlarmEvent(alarm_id=seed.alarm_id, flight_id=flight.id, flight_index=25,
-                         kind="class_change", from_mode="MTEL", to_mode="DMD"))
+    seed_class_change(factory, seed, tail=aircraft)
     sign_in(client, keys["maintainer"])
     url = f"/actuators/{seed.actuator_id}"
     page = client.get(url).text
