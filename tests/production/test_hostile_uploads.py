@@ -63,6 +63,12 @@ class Api:
                              timeout=30).json()["total"])
 
 
+def _gets_at_once(n: int, url: str, headers: dict[str, str]) -> list[httpx.Response]:
+    """``n`` GETs of ``url`` sent together, as that many dashboards would."""
+    with ThreadPoolExecutor(n) as pool:
+        return list(pool.map(lambda _: httpx.get(url, headers=headers, timeout=120), range(n)))
+
+
 def _status_kb(pid: int, field: str) -> int:
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         if line.startswith(field + ":"):
@@ -224,9 +230,7 @@ def test_signals_of_a_long_flight_are_decimated_while_read(api: Api, capsys) -> 
                          timeout=60).status_code == 200
 
         def three_at_once() -> list[httpx.Response]:
-            with ThreadPoolExecutor(3) as pool:
-                return list(pool.map(lambda _: httpx.get(fresh + url, headers=viewer,
-                                                         timeout=120), range(3)))
+            return _gets_at_once(3, fresh + url, viewer)
 
         # the first round also grows one malloc arena per new server thread, for good
         _, first = peak_above_idle(proc.pid, three_at_once)
@@ -255,9 +259,7 @@ def test_twenty_concurrent_signal_reads_stay_bounded(api: Api, capsys) -> None: 
         assert httpx.get(fresh + url, headers=viewer, timeout=60).status_code == 200
 
         def twenty_at_once() -> list[httpx.Response]:
-            with ThreadPoolExecutor(20) as pool:
-                return list(pool.map(lambda _: httpx.get(fresh + url, headers=viewer,
-                                                         timeout=120), range(20)))
+            return _gets_at_once(20, fresh + url, viewer)
 
         answers, above = peak_above_idle(proc.pid, twenty_at_once)
         _, again = peak_above_idle(proc.pid, twenty_at_once)
