@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from server.config import Settings, load_settings
 
@@ -127,9 +128,30 @@ def cmd_worker(args: argparse.Namespace, settings: Settings) -> int:
     return 0
 
 
-def cmd_train(args: argparse.Namespace, settings: Settings) -> int:
+def _train_to_file(design: Path, args: argparse.Namespace) -> int:
+    """``hmsm train DIR --out FILE``: the model document written to a file (the shape of a
+    protocol run's ``model.json``), no database."""
+    import json
     from pathlib import Path
 
+    from server.campaigns import train_from_directory
+    from server.demo_model import trained_model_document
+    from server.phm.chain import MODEL_FORMAT
+
+    manifest = json.loads((design / "manifest.json").read_text())
+    model, report = train_from_directory(design, seed=args.seed)
+    doc = trained_model_document(MODEL_FORMAT, {k: manifest.get(k) for k in
+                                                ("kind", "scale", "seed", "span_flights")},
+                                 args.seed, model.to_dict(), report)
+    out = Path(args.out)
+    tmp = out.with_suffix(".part")
+    tmp.write_text(json.dumps(doc, sort_keys=True, separators=(",", ":")) + "\n")
+    tmp.replace(out)
+    print(f"model trained on {design} written to {out}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace, settings: Settings) -> int:
     from tqdm import tqdm
 
     from server.jobs.training_job import train_into_version
@@ -140,6 +162,8 @@ def cmd_train(args: argparse.Namespace, settings: Settings) -> int:
         print(f"hmsm: {design} has no manifest.json; make one with "
               "`sim-worker campaign --kind design --out DIR`", file=sys.stderr)
         return 2
+    if args.out is not None:
+        return _train_to_file(design, args)
     factory = _session(settings)
     with factory() as session:
         version = service.create_version(session=session, name=args.name or design.name,
@@ -213,7 +237,16 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--name", default=None, help="model version name")
     train.add_argument("--no-activate", action="store_true", help="do not make it active")
     train.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    train.add_argument("--out", default=None, metavar="FILE",
+                       help="write the model document to FILE instead of the database")
     train.set_defaults(func=cmd_train)
+
+    from server.evaluation.band_calibration import add_calibrate_arguments, run_calibrate
+
+    calibrate = sub.add_parser("calibrate", help="fit the RUL bands' calibration layer on "
+                               "replays of calibration design runs (hmsm evaluate)")
+    add_calibrate_arguments(calibrate)
+    calibrate.set_defaults(func=run_calibrate)
 
     from server.evaluation.cli import add_evaluate_arguments, run_evaluate
 

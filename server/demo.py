@@ -37,9 +37,9 @@ __all__ = ["DEMO_INJECTIONS", "DEMO_RAW_KEEP_FLIGHTS", "prepare_demo", "run_demo
 #: points (the rest are pruned after analysis): 10 x about 1.8 MB
 DEMO_RAW_KEEP_FLIGHTS = 10
 
-# (tail, position, mode, onset flight, flights to failure). Lives at the short end of the
-# design campaign's 170-360 flights (the range the model's degradation priors were fitted on):
-# at the default 60 flights a minute (6 per aircraft) alarms come within minutes, RUL cones
+# (tail, position, mode, onset flight, flights to failure). Lives in the lower part of the
+# design campaign's 30-1000 flights (the envelope the model's degradation priors span): at the
+# default 60 flights a minute (6 per aircraft) alarms come within minutes, RUL cones
 # right after, and failures -- which reveal the true RUL in hindsight -- in about half an hour.
 # Onsets come after the 6 reference flights from which detection learns each actuator's own
 # healthy offsets (server/phm/detection.py), as in the campaigns (8 healthy flights first).

@@ -41,6 +41,8 @@ from .faults import (
     A_PRIORI,
     MODES,
     PROGRESSIVE,
+    ENVELOPE_FLIGHTS,
+    SPAN_DRAWS,
     SPAN_FLIGHTS,
     FaultState,
     advance_fault,
@@ -88,6 +90,10 @@ class ScaleConfig:
     lead_flights: int = 8
     #: range of the expected fault-to-failure span drawn per pattern [flights]
     span_flights: tuple[float, float] = SPAN_FLIGHTS
+    #: how a pattern draws its span from ``span_flights``: "uniform", or "log" (log-uniform,
+    #: as many runs between 30 and 100 flights as between 300 and 1000: a design campaign
+    #: over the test station's whole envelope)
+    span_draw: str = "uniform"
 
 
 #: the design campaign's sensor study: per sensor, this many of its healthy patterns flown
@@ -106,7 +112,7 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
     "quick": {
         "design": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=12,
                               patterns_per_mode=6, render_every=21, apriori_flights=6,
-                              apriori_onset=2),
+                              apriori_onset=2, span_flights=ENVELOPE_FLIGHTS, span_draw="log"),
         "verification": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=25,
                                     patterns_per_mode=3, render_every=21, apriori_flights=6,
                                     apriori_onset=2),
@@ -129,7 +135,7 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
         "design": ScaleConfig(duration_s=120.0, healthy_patterns=10,
                               healthy_flights=(300, 400),
                               patterns_per_mode=10, render_every=1, apriori_flights=8,
-                              apriori_onset=2),
+                              apriori_onset=2, span_flights=ENVELOPE_FLIGHTS, span_draw="log"),
         "verification": ScaleConfig(duration_s=120.0, healthy_patterns=25,
                                     healthy_flights=(150, 400),
                                     patterns_per_mode=25, render_every=1, apriori_flights=8,
@@ -548,7 +554,7 @@ def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
     position = _position(spec)
     ref = reference_summary(aircraft, position, duration_s=cfg.duration_s, seed=spec.seed)
     fault = new_fault(spec.mode, position, np.random.default_rng([spec.seed, 7]),
-                      reference=ref, span_range=cfg.span_flights)
+                      reference=ref, span_range=cfg.span_flights, span_draw=cfg.span_draw)
     for index in range(spec.onset):
         render(healthy(), index)
     for index in range(spec.onset, spec.onset + _MAX_FLIGHTS):
@@ -587,7 +593,7 @@ def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[
               sink: FlightSink) -> dict[str, Any]:
     """What determines the campaign's content: a resumed campaign must match it exactly."""
     settings = {"format": FORMAT, "kind": kind, "seed": int(seed), "scale": scale,
-                "config": asdict(cfg),
+                "config": _config_settings(cfg),
                 "bases": list(options["bases"]) if options["bases"] else None,
                 "noise_scale": options["noise_scale"], "sink": sink.describe(),
                 "winglet_mode": DEFAULT_WINGLET_MODE.value}
@@ -599,6 +605,15 @@ def _settings(kind: str, seed: int, scale: str, cfg: ScaleConfig, options: dict[
         # before the option existed, so finished ones are still recognised
         settings["sensor_faults"] = [f.spec for f in options["sensor_faults"]]
     return settings
+
+
+def _config_settings(cfg: ScaleConfig) -> dict[str, Any]:
+    """The scale config as settings; a uniform span draw is left out, so campaigns finished
+    before the draw could be chosen are still recognised."""
+    out = asdict(cfg)
+    if out["span_draw"] == "uniform":
+        del out["span_draw"]
+    return out
 
 
 class _Progress:
@@ -637,6 +652,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                  sensor_faults: Iterable[SensorFault | str] = (),
                  render_every: int | None = None,
                  span_flights: tuple[float, float] | None = None,
+                 span_draw: str | None = None,
                  sink: FlightSink | None = None,
                  executor: Executor | None = None,
                  per_mode: int | None = None) -> dict[str, Any]:
@@ -660,7 +676,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     one sensor of one actuator on every aircraft, written as their specs
     (``["WT.lvdt:noise=2"]``, empty when none). ``render_every`` overrides the scale's
     rendering step of fault-to-failure runs (1 renders every flight, as a fleet in service
-    downloads every one); ``span_flights`` the range of expected fault-to-failure spans. The
+    downloads every one); ``span_flights`` the range of expected fault-to-failure spans,
+    ``span_draw`` how a pattern draws from it ("uniform" or "log", log-uniform; default the
+    scale's: the quick and protocol designs span the envelope log-uniformly). The
     winglet tab flies active-standby (``fleet.DEFAULT_WINGLET_MODE``, recorded in the manifest
     as ``"winglet_mode"``).
     ``per_mode`` flies every healthy pattern and only the first ``per_mode`` patterns of each
@@ -681,7 +699,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
                                  or per_mode < 0):
         raise ValueError(f"per_mode must be a count of patterns (>= 0), got {per_mode!r}")
     faults = _sensor_faults(sensor_faults)
-    cfg = _scale_config(scale, kind, render_every, span_flights)
+    cfg = _scale_config(scale, kind, render_every, span_flights, span_draw)
     sink = sink if sink is not None else ParquetSink()
     from tqdm import tqdm
 
@@ -788,8 +806,13 @@ def _manifest(settings: dict[str, Any], cfg: ScaleConfig, fleet: list[Aircraft],
 
 
 def _scale_config(scale: str, kind: str, render_every: int | None,
-                  span_flights: tuple[float, float] | None) -> ScaleConfig:
+                  span_flights: tuple[float, float] | None,
+                  span_draw: str | None = None) -> ScaleConfig:
     cfg = SCALES[scale][kind]
+    if span_draw is not None:
+        if span_draw not in SPAN_DRAWS:
+            raise ValueError(f"span_draw must be one of {SPAN_DRAWS}, got {span_draw!r}")
+        cfg = replace(cfg, span_draw=span_draw)
     if render_every is not None:
         if isinstance(render_every, bool) or not isinstance(render_every, int) \
                 or render_every < 1 or render_every % 2 == 0:

@@ -115,7 +115,11 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
                       "them)")
     camp.add_argument("--span-range", default=None, metavar="LOW,HIGH",
                       help="range of the expected fault-to-failure span drawn per pattern "
-                      "[flights] (default: the scale's, 170,360)")
+                      "[flights] (default: the scale's; designs 30,1000, the test station's "
+                      "envelope; verifications 170,360)")
+    camp.add_argument("--span-draw", choices=("uniform", "log"), default=None,
+                      help="how a pattern draws its span from the range: uniformly, or "
+                      "log-uniformly (default: the scale's; log for designs)")
     camp.add_argument("--per-mode", type=int, default=None, metavar="N",
                       help="fly every healthy pattern but only the first N patterns of each "
                       "fault mode (0: the healthy ones alone), the same flights as in the "
@@ -192,6 +196,7 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None
                             sensor_faults=tuple(args.sensor_fault or ()),
                             render_every=args.render_every,
                             span_flights=parse_span_range(args.span_range),
+                            span_draw=args.span_draw,
                             sink=sink, executor=executor,  # type: ignore[arg-type]
                             per_mode=args.per_mode)
 

@@ -24,8 +24,9 @@ current loading (DMD); grease life halves per +15 K above 70 degC (MTEL; SKF rel
 Archard wear volume ``K F_N s / H`` grows with force times sliding distance on the screw (MTWEAR)
 and on the rod end (REWEAR). Every driver is multiplied by the flight's block hours over 1.5 h.
 ``rate`` is drawn per pattern so that the expected fault-to-failure span at the base's average
-conditions is ``U(170, 360)`` flights (accelerated ageing, as in the paper); actual spans spread
-further with season and usage. On the active-standby winglet tab each drive carries what its role
+conditions is ``U(170, 360)`` flights (accelerated ageing, as in the paper; verification
+campaigns), or log-uniform over the test station's envelope of 30-1000 flights (design
+campaigns, ``ENVELOPE_FLIGHTS``); actual spans spread further with season and usage. On the active-standby winglet tab each drive carries what its role
 gives it, worn or not, so a worn drive's wear is driven by the work it does in its role.
 """
 
@@ -43,6 +44,8 @@ __all__ = [
     "PROGRESSIVE",
     "A_PRIORI",
     "THRESHOLDS",
+    "ENVELOPE_FLIGHTS",
+    "SPAN_DRAWS",
     "SPAN_FLIGHTS",
     "ActuatorSummary",
     "FlightSummary",
@@ -65,6 +68,13 @@ _ONSET_NORM = 0.05  # onset severity / threshold of the progressive modes
 _GROWTH_C = {"TTS": 0.05, "DMD": 0.3, "MTEL": 0.1, "MTWEAR": 2.0, "REWEAR": 0.8}
 #: default range of expected fault-to-failure spans [flights] (accelerated ageing, as in the paper)
 SPAN_FLIGHTS = (170.0, 360.0)
+#: how a span is drawn from its range: uniformly, or log-uniformly (spans are scales: a
+#: design over 30-1000 flights needs as many fast runs as slow ones)
+SPAN_DRAWS = ("uniform", "log")
+#: the test station's envelope of times to failure a design campaign spans, log-uniformly
+#: [flights]: from a fault that fails within a month of two flights a day to one that takes
+#: over a year (a request outside it is warned of as an extrapolation)
+ENVELOPE_FLIGHTS = (30.0, 1000.0)
 _PROCESS_SD = 0.3
 _BLOCK_HOURS_REF = 1.5
 _WORK_REF_N_M = 300.0  # N m, screw sliding work of a typical recorded flight
@@ -162,11 +172,12 @@ def life_to_go(state: FaultState) -> float:
 
 def new_fault(mode: str, position: str, rng: np.random.Generator, *,
               reference: ActuatorSummary | None = None, span_flights: float | None = None,
-              span_range: tuple[float, float] = SPAN_FLIGHTS,
+              span_range: tuple[float, float] = SPAN_FLIGHTS, span_draw: str = "uniform",
               severity_norm: float | None = None) -> FaultState:
     """A fault at onset. Progressive modes draw the rate so that, at the ``reference`` flight
     (the base's average conditions, estimated), failure comes after ``U(*span_range)`` flights
-    (default U(170, 360)), or after ``span_flights`` when a test-station operator sets it.
+    (default U(170, 360); ``span_draw="log"``: log-uniform over the range), or after
+    ``span_flights`` when a test-station operator sets it.
     ``severity_norm`` imposes the severity of an a priori fault (SE) as a fraction of its
     threshold."""
     if mode not in MODES:
@@ -180,9 +191,20 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
         return FaultState(mode, position, 1.0, thr)
     if reference is None:
         raise ValueError("progressive modes need a reference flight summary to set the rate")
-    span = float(rng.uniform(*span_range)) if span_flights is None else float(span_flights)
+    span = _draw_span(rng, span_range, span_draw) if span_flights is None \
+        else float(span_flights)
     rate = life_integral(_ONSET_NORM, _GROWTH_C[mode]) / (span * reference_driver(mode, reference))
     return FaultState(mode, position, _ONSET_NORM * thr, thr, rate=rate)
+
+
+def _draw_span(rng: np.random.Generator, span_range: tuple[float, float], draw: str) -> float:
+    """One expected span from its range; one uniform draw either way."""
+    if draw == "uniform":
+        return float(rng.uniform(*span_range))
+    if draw == "log":
+        lo, hi = span_range
+        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+    raise ValueError(f"span_draw must be one of {SPAN_DRAWS}, got {draw!r}")
 
 
 def advance_fault(state: FaultState, summary: FlightSummary, rng: np.random.Generator

@@ -78,7 +78,8 @@ def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
                    span_range: str | None) -> argparse.Namespace:
     return argparse.Namespace(kind=kind, out=str(out), seed=seed, scale=args.scale,
                               workers=args.workers, dask=args.dask, render_every=None,
-                              span_range=span_range, no_progress=args.no_progress, bases=None,
+                              span_range=span_range, span_draw=None,
+                              no_progress=args.no_progress, bases=None,
                               noise_scale=1.0, sensor_fault=None, per_mode=args.per_mode)
 
 

@@ -100,8 +100,20 @@ class TrainingConfig:
     #: the long-term prediction's severity random walk: "filter", the filter's process noise;
     #: "design", the design runs' own flight-to-flight scatter about their fitted laws
     prediction_noise: str = "filter"
+    #: how a mode's filter learns the rate: "joint", each particle carries its own rate
+    #: (``PrognoserConfig.joint_rate``); "rls", the paper's RLS on the log-level with the
+    #: mixture prior
+    rate_filter: str = "joint"
+    #: [1/sqrt(flight)] the joint filter's severity random walk: the rate, not the walk,
+    #: follows a fault faster or slower than the prior (0.01, the RLS filter's, let the
+    #: walk absorb the misfit and left the rate unidentified: docs/TUNING.md)
+    joint_process_noise: float = 0.003
+    #: [flights] the online guard's forecast horizon (0: no guard)
+    guard_horizon: int = 10
 
     def __post_init__(self) -> None:
+        if self.rate_filter not in ("joint", "rls"):
+            raise ValueError(f"rate_filter must be 'joint' or 'rls', got {self.rate_filter!r}")
         if self.prediction_noise not in ("filter", "design"):
             raise ValueError(f"prediction_noise must be 'filter' or 'design', got "
                              f"{self.prediction_noise!r}")
@@ -303,12 +315,15 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     sign = 1.0 if c > 0 else -1.0  # r < 0 for a saturating shape: dh/dk = r (h + c) > 0
     r0 = sign * float(max(sign * np.median(rates), 1e-6))
     r_std = training.rate_prior_inflation * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
+    # the joint filter's prior is on ln|r|: the runs' log-spread, not inflated (the design
+    # spans the test station's envelope; the guard and the calibration layer cover the rest)
+    r_log_std = float(max(np.std(np.log(np.maximum(np.abs(rates), 1e-9)), ddof=1), 0.2))
     mid = rates * (0.5 + c)
     noise = _increment_noise(runs, int(jb), c, rates)
     bounds = (max(float(mid.min()) / training.slow_rate_margin, 1e-5),
               max(float(mid.max()) * training.fast_rate_margin, 2e-5))
     return {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
-            "rate": r0, "rate_std": r_std, "n_runs": len(runs),
+            "rate": r0, "rate_std": r_std, "rate_log_std": r_log_std, "n_runs": len(runs),
             "mid_rate_bounds": list(bounds), "increment_noise": noise,
             "misfit_flight_clock": float(misfit[0].min() / len(runs)),
             "misfit": float(misfit[jb, jc] / len(runs))}
@@ -334,12 +349,18 @@ def _level_config(base: PrognoserConfig, law: dict[str, Any], training: Training
                   ) -> PrognoserConfig:
     """The filter of a mode whose rate is tuned on the log-level of ``law`` (its shape c, rate
     prior and mid-life rate bounds, from :func:`_fit_exponential_law`)."""
-    return replace(base, rate_basis="exponential", growth_offset=law["growth_offset"],
-                   initial_theta=(0.0, law["rate"]), initial_rate_std=law["rate_std"],
-                   rls_forgetting=training.level_forgetting,
-                   rate_bounds=tuple(law["mid_rate_bounds"]),
-                   rate_prior_tail=training.rate_prior_tail,
-                   prediction_noise_std=_prediction_noise(law, training))
+    config = replace(base, rate_basis="exponential", growth_offset=law["growth_offset"],
+                     initial_theta=(0.0, law["rate"]), initial_rate_std=law["rate_std"],
+                     rls_forgetting=training.level_forgetting,
+                     rate_bounds=tuple(law["mid_rate_bounds"]),
+                     rate_prior_tail=training.rate_prior_tail,
+                     prediction_noise_std=_prediction_noise(law, training),
+                     guard_horizon=training.guard_horizon)
+    if training.rate_filter == "joint":
+        config = replace(config, joint_rate=True, rate_prior_tail=0.0,
+                         rate_prior_log_std=law.get("rate_log_std"),
+                         process_noise_std=training.joint_process_noise)
+    return config
 
 
 def _prediction_noise(law: dict[str, Any], training: TrainingConfig) -> float | None:

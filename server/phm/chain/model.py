@@ -12,6 +12,7 @@ from ..baselines import FleetBaseline
 from ..classification import FaultClassifier
 from ..detection import DetectionState, FaultDetector
 from ..prognosis import MeasurementModel, PrognoserConfig
+from ..prognosis.calibration import BandCalibration
 from ..season import SeasonalClimate
 from ..sensor_health import SensorModel
 from .inputs import actuator_feature_names, surface_of
@@ -51,6 +52,9 @@ class MeasurementSpec:
     #: surface-specific filters where the design runs showed the degradation law differs by
     #: surface (winglet wear slows down as the partner drive takes the load)
     prognoser_by_surface: dict[str, PrognoserConfig] = field(default_factory=dict)
+    #: the RUL bands' calibration layer, fitted on replays of calibration design runs
+    #: (``hmsm calibrate``); None: the filter's bands as they are
+    band_calibration: BandCalibration | None = None
 
     def model_for(self, position: str) -> MeasurementModel:
         return self.by_surface.get(surface_of(position), self.model)
@@ -65,7 +69,9 @@ class MeasurementSpec:
                 "stress_beta_per_k": self.stress_beta_per_k, "stress_ref_c": self.stress_ref_c,
                 "replay_from_onset": self.replay_from_onset,
                 "prognoser_by_surface": {k: c.to_dict()
-                                         for k, c in self.prognoser_by_surface.items()}}
+                                         for k, c in self.prognoser_by_surface.items()},
+                **({} if self.band_calibration is None
+                   else {"band_calibration": self.band_calibration.to_dict()})}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> MeasurementSpec:
@@ -78,7 +84,9 @@ class MeasurementSpec:
                    None if d.get("stress_ref_c") is None else float(d["stress_ref_c"]),
                    bool(d.get("replay_from_onset", False)),
                    {k: PrognoserConfig.from_dict(dict(c))
-                    for k, c in (d.get("prognoser_by_surface") or {}).items()})
+                    for k, c in (d.get("prognoser_by_surface") or {}).items()},
+                   None if d.get("band_calibration") is None
+                   else BandCalibration.from_dict(d["band_calibration"]))
 
 
 @dataclass

@@ -42,6 +42,8 @@ def prognose(model: PhmModel, h: ActuatorHealth, generic: dict[str, float], posi
         rul = None if state is None else _predict(pf, state, index, clock)
     if state is not None:
         h.prognosis = state.to_dict()
+    if rul is not None and spec.band_calibration is not None:
+        rul = spec.band_calibration.apply(rul)
     return rul
 
 

@@ -132,6 +132,27 @@ class PrognoserConfig:
         the rate within a few flights instead of fighting a light-tailed prior. Left out of
         the config document when 0, so documents and states made before it read back
         unchanged.
+    joint_rate:
+        If True (``"exponential"`` law only), every particle carries its own rate and the
+        rate is filtered with the severity (:mod:`.joint`); the RLS and its mixture prior
+        are not used. The RUL spread is then the particles' spread of severity and rate.
+    rate_prior_log_std:
+        Prior standard deviation of ln|r| of a joint-rate filter [-]; None: the relative
+        spread ``initial_rate_std / |r0|`` (at least 0.35).
+    rate_kernel_shrinkage:
+        Liu-West shrinkage a of the rate kernel [-], in (0, 1): the jitter is
+        sqrt(1 - a^2) of the cloud's log-rate spread. Default 0.98.
+    guard_horizon:
+        Flights ahead of the online guard's feature forecasts (:mod:`.guard`); 0: no guard.
+    guard_gain:
+        Step of the guard's widening per scored forecast [log(1 + RUL)] (conformal PID's
+        learning rate). Default 0.1.
+    guard_miss_rate:
+        Share of forecasts the guard expects to miss (its forecast interval is the central
+        1 - this) [-]. Default 0.1.
+
+    The six fields above are left out of the config document at their defaults, so documents
+    and states made before them read back unchanged.
     """
 
     n_particles: int = 200
@@ -157,6 +178,12 @@ class PrognoserConfig:
     rate_bounds: tuple[float, float] | None = None
     prediction_noise_std: float | None = None
     rate_prior_tail: float = 0.0
+    joint_rate: bool = False
+    rate_prior_log_std: float | None = None
+    rate_kernel_shrinkage: float = 0.98
+    guard_horizon: int = 0
+    guard_gain: float = 0.1
+    guard_miss_rate: float = 0.1
     _version: int = field(default=_CONFIG_VERSION, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -221,8 +248,36 @@ class PrognoserConfig:
             raise ValueError("rate_prior_tail needs rate_basis 'exponential', got "
                              f"{self.rate_basis!r}")
         object.__setattr__(self, "rate_prior_tail", float(tail))
+        self._check_joint_and_guard()
         if self._version != _CONFIG_VERSION:
             raise ValueError(f"unsupported config version {self._version}")
+
+    def _check_joint_and_guard(self) -> None:
+        if not isinstance(self.joint_rate, bool):
+            raise ValueError("joint_rate must be a bool")
+        if self.joint_rate and self.rate_basis != "exponential":
+            raise ValueError("joint_rate needs rate_basis 'exponential', got "
+                             f"{self.rate_basis!r}")
+        if self.rate_prior_log_std is not None:
+            _positive("rate_prior_log_std", self.rate_prior_log_std)
+        if not (isinstance(self.rate_kernel_shrinkage, int | float)
+                and 0.0 < self.rate_kernel_shrinkage < 1.0):
+            raise ValueError("rate_kernel_shrinkage must be in (0, 1), got "
+                             f"{self.rate_kernel_shrinkage!r}")
+        object.__setattr__(self, "guard_horizon", _whole("guard_horizon", self.guard_horizon))
+        if not 0 <= self.guard_horizon <= 100:
+            raise ValueError(f"guard_horizon must be in 0..100 flights, got {self.guard_horizon}")
+        _positive("guard_gain", self.guard_gain)
+        if not (isinstance(self.guard_miss_rate, int | float)
+                and 0.0 < self.guard_miss_rate < 0.5):
+            raise ValueError(f"guard_miss_rate must be in (0, 0.5), got {self.guard_miss_rate!r}")
+
+    @property
+    def rate_log_std(self) -> float:
+        """Prior standard deviation of ln|r| of a joint-rate filter [-]."""
+        if self.rate_prior_log_std is not None:
+            return self.rate_prior_log_std
+        return max(self.rate_prior_std / abs(self.theta0[1]), 0.35)
 
     @property
     def law(self) -> DegradationLaw:
@@ -263,6 +318,9 @@ class PrognoserConfig:
             del data["prediction_noise_std"]
         if self.rate_prior_tail == 0.0:
             del data["rate_prior_tail"]
+        for name, default in _LEFT_OUT_AT_DEFAULT.items():
+            if data[name] == default:
+                del data[name]
         return {"version": _CONFIG_VERSION, "kind": "pf_prognoser_config", **data}
 
     def to_json(self) -> str:
@@ -287,6 +345,12 @@ class PrognoserConfig:
     @classmethod
     def from_json(cls, text: str) -> PrognoserConfig:
         return cls.from_dict(json.loads(text))
+
+
+#: fields written to the config document only when they differ from these defaults
+_LEFT_OUT_AT_DEFAULT: dict[str, Any] = {
+    "joint_rate": False, "rate_prior_log_std": None, "rate_kernel_shrinkage": 0.98,
+    "guard_horizon": 0, "guard_gain": 0.1, "guard_miss_rate": 0.1}
 
 
 def _positive(name: str, value: float) -> None:

@@ -63,6 +63,13 @@ class RulDistribution:
         Mean flight duration [h] when known, else None.
     samples, weights:
         Particle RULs [flight] and their normalised weights (kept in memory; optional in JSON).
+    rate_ratio:
+        The filter's rate over its prior's centre (joint-rate filters: :mod:`.joint`), the
+        calibration layer's group key; nan when the filter does not carry its rate.
+    adjustment:
+        What moved the band from the particles' quantiles (the online guard's widening, the
+        calibration layer's group and margins, :mod:`.calibration`), or None: the quantiles
+        are the particles' own (``samples`` and the histogram always are).
     """
 
     flight_index: int | None
@@ -78,6 +85,8 @@ class RulDistribution:
     hours_per_flight: float | None = None
     samples: NDArray[np.float64] = field(default_factory=lambda: np.empty(0), repr=False)
     weights: NDArray[np.float64] = field(default_factory=lambda: np.empty(0), repr=False)
+    rate_ratio: float = math.nan
+    adjustment: dict[str, Any] | None = None
 
     @property
     def median(self) -> float:
@@ -134,6 +143,10 @@ class RulDistribution:
             "most_probable": _finite_or_none(self.most_probable),
             "hours_per_flight": self.hours_per_flight,
         }
+        if math.isfinite(self.rate_ratio):  # absent otherwise: documents read as before
+            data["rate_ratio"] = self.rate_ratio
+        if self.adjustment is not None:
+            data["adjustment"] = _json_safe(self.adjustment)
         if include_samples:
             data["samples"] = [_finite_or_none(v) for v in self.samples.tolist()]
             data["weights"] = self.weights.tolist()
@@ -165,6 +178,8 @@ class RulDistribution:
             if samples is None
             else np.array([_none_to_inf(v) for v in samples]),
             weights=np.asarray(data.get("weights") or [], dtype=float),
+            rate_ratio=float(data.get("rate_ratio", math.nan)),
+            adjustment=data.get("adjustment"),
         )
 
     @classmethod
@@ -178,6 +193,15 @@ def _finite_or_none(v: float) -> float | None:
 
 def _none_to_inf(v: float | None) -> float:
     return math.inf if v is None else float(v)
+
+
+def _json_safe(obj: Any) -> Any:
+    """Float keys as strings and non-finite floats as None, for a JSON document."""
+    if isinstance(obj, dict):
+        return {str(k): _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, float):
+        return _finite_or_none(obj)
+    return obj
 
 
 def weighted_quantiles(

@@ -1,0 +1,170 @@
+"""``hmsm calibrate``: fit the RUL bands' calibration layer on replays of calibration design runs.
+
+Usage::
+
+    hmsm evaluate --campaign CAL_DESIGN --model-json model.json --out CAL_EVAL
+    hmsm calibrate --evaluation CAL_EVAL --model-json model.json --out model_calibrated.json
+
+The evaluation replays the chain over a design campaign kept for calibration only (never the
+one the model was trained on: ``--model-json``'s training campaign is refused). Each
+progressive run gives up to ``--per-run`` predictions evenly spaced from its first alarm to
+its failure (every run counts alike, however long its life); each prediction's band, the
+filter's rate ratio and the true RUL are the layer's records, grouped by the mode whose filter
+made the prediction (:mod:`server.phm.prognosis.calibration`). The model document is written
+again with each mode's layer in its measurement spec.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from server.phm.chain.model import _unwrap, read_model_document
+from server.phm.prognosis.calibration import (
+    BAND_LEVELS,
+    CalibrationRecord,
+    fit_band_calibration,
+)
+from server.vocabulary import PROGRESSIVE
+
+__all__ = ["add_calibrate_arguments", "calibration_records", "calibrate_model",
+           "run_calibrate"]
+
+_LEVELS = sorted({lv for pair in BAND_LEVELS.values() for lv in pair} | {0.5})
+
+
+def _first_alarm(trace: Mapping[str, Any]) -> int | None:
+    onset = int(trace["onset"] or 0)
+    for f in trace["flights"]:
+        if f["index"] >= onset and f["alarm"]:
+            return int(f["index"])
+    return None
+
+
+def _record(flight: Mapping[str, Any]) -> CalibrationRecord | None:
+    doc = flight.get("rul")
+    if not doc or flight.get("true_rul") is None:
+        return None
+    if doc.get("adjustment") and "conformal_margins" in doc["adjustment"]:
+        raise ValueError("these replays were made with a calibrated model: calibrate on the "
+                         "uncalibrated model's replays")
+    quantiles = {float(q): (math.inf if v is None else float(v)) for q, v in doc["quantiles"]}
+    if not all(lv in quantiles for lv in _LEVELS):
+        return None
+    return CalibrationRecord(quantiles, float(doc.get("rate_ratio", math.nan)),
+                             float(flight["true_rul"]))
+
+
+def calibration_records(traces: Iterable[Mapping[str, Any]], per_run: int
+                        ) -> tuple[dict[str, list[CalibrationRecord]], dict[str, int]]:
+    """Per mode whose filter predicted: the records of up to ``per_run`` predictions per
+    progressive run, evenly spaced from its first alarm to its failure; and the runs per mode."""
+    records: dict[str, list[CalibrationRecord]] = defaultdict(list)
+    runs: dict[str, int] = defaultdict(int)
+    for trace in traces:
+        if trace["mode"] not in PROGRESSIVE or trace.get("failure") is None:
+            continue
+        alarm = _first_alarm(trace)
+        if alarm is None:
+            continue
+        flights = [f for f in trace["flights"]
+                   if alarm <= f["index"] < trace["failure"] and f.get("rul")]
+        if not flights:
+            continue
+        pick = np.unique(np.linspace(0, len(flights) - 1, min(per_run, len(flights)))
+                         .round().astype(int))
+        modes = set()
+        for i in pick:
+            rec = _record(flights[i])
+            if rec is not None and flights[i]["fault_mode"]:
+                records[flights[i]["fault_mode"]].append(rec)
+                modes.add(flights[i]["fault_mode"])
+        for m in modes:
+            runs[m] += 1
+    return dict(records), dict(runs)
+
+
+def calibrate_model(model_doc: dict[str, Any], traces: Sequence[Mapping[str, Any]], *,
+                    per_run: int = 20, edges: tuple[float, ...] = (0.5, 2.0),
+                    min_group: int = 30) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The model document with each mode's layer fitted on ``traces``, and a report."""
+    model = read_model_document(model_doc)
+    if any(s.band_calibration is not None for s in model.measurement.values()):
+        raise ValueError("the model already has a calibration layer: give the uncalibrated one")
+    records, runs = calibration_records(traces, per_run)
+    report: dict[str, Any] = {}
+    payload = _unwrap(model_doc)
+    for mode in model.measurement:
+        recs = records.get(mode, [])
+        if len(recs) < min_group:
+            report[mode] = {"records": len(recs), "fitted": False}
+            continue
+        layer = fit_band_calibration(recs, edges=edges, min_group=min_group,
+                                     n_runs=runs.get(mode, 0))
+        payload["measurement"][mode]["band_calibration"] = layer.to_dict()
+        report[mode] = {"records": len(recs), "runs": runs.get(mode, 0), "fitted": True,
+                        **layer.to_dict()}
+    read_model_document(model_doc)  # the document still reads
+    return model_doc, report
+
+
+def add_calibrate_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("--evaluation", required=True, action="append",
+                        help="evaluation directory (or evaluation.json) of the uncalibrated "
+                        "model on a calibration design campaign; repeatable")
+    parser.add_argument("--model-json", required=True, help="the uncalibrated model document")
+    parser.add_argument("--out", required=True, help="the calibrated model document to write")
+    parser.add_argument("--per-run", type=int, default=20,
+                        help="predictions per run (evenly spaced from alarm to failure)")
+    parser.add_argument("--min-group", type=int, default=30,
+                        help="fewest records for a group's own margins (else the mode's)")
+    return parser
+
+
+def _traces(paths: Sequence[str], model_doc: Mapping[str, Any]) -> list[dict[str, Any]]:
+    design = model_doc.get("design") or {}
+    out: list[dict[str, Any]] = []
+    for p in paths:
+        path = Path(p) / "evaluation.json" if Path(p).is_dir() else Path(p)
+        doc = json.loads(path.read_text())
+        camp = doc.get("campaign") or {}
+        if design and (camp.get("kind"), camp.get("seed")) == (design.get("kind"),
+                                                               design.get("seed")):
+            raise ValueError(f"{path}: replays of the model's own design campaign (seed "
+                             f"{camp.get('seed')}); calibrate on design runs kept apart")
+        out += doc["patterns"]
+    return out
+
+
+def run_calibrate(args: argparse.Namespace, settings: object = None) -> int:
+    if args.per_run < 1 or args.min_group < 1:
+        raise ValueError("--per-run and --min-group must be >= 1")
+    model_doc = json.loads(Path(args.model_json).read_text())
+    traces = _traces(args.evaluation, model_doc)
+    doc, report = calibrate_model(model_doc, traces, per_run=args.per_run,
+                                  min_group=args.min_group)
+    out = Path(args.out)
+    tmp = out.with_suffix(".part")
+    tmp.write_text(json.dumps(doc, sort_keys=True, separators=(",", ":")) + "\n")
+    tmp.replace(out)
+    for mode, r in report.items():
+        if not r["fitted"]:
+            print(f"{mode}: {r['records']} records, not fitted")
+            continue
+        groups = ", ".join(f"{n}: {_fmt(m)}" for n, m in zip(r["counts"], r["margins"],
+                                                            strict=True))
+        print(f"{mode}: {r['records']} records from {r['runs']} runs; pooled "
+              f"{_fmt(r['pooled'])}; by rate group (n: 50 %, 90 %) {groups}")
+    print(f"calibrated model written to {out}")
+    return 0
+
+
+def _fmt(margins: Sequence[Sequence[float]]) -> str:
+    return "/".join(f"{q:+.2f}" for _, q in margins)

@@ -1,0 +1,192 @@
+"""A calibration layer for the RUL bands: group-conditional (Mondrian) conformalized quantile
+regression in log(1 + RUL).
+
+The filter's 50 % and 90 % bands are the particles' central quantiles; whether they hold the
+truth that often depends on how well the design prior and the degradation law fit the fault.
+The layer corrects each band by a margin learned on replays of design runs kept for
+calibration only (Romano, Patterson and Candes, "Conformalized quantile regression", NeurIPS
+2019; Vovk's Mondrian conformal prediction for the groups). For a prediction with band
+[lo, hi] and true RUL y the conformity score is::
+
+    E = max(log(1 + lo) - log(1 + y), log(1 + y) - log(1 + hi))
+
+(negative when the truth lies inside). The margin of a group is the ceil((n + 1) c) / n
+empirical quantile of its n scores (c = 0.5 or 0.9), and the band becomes
+[(1 + lo) e^-Q - 1, (1 + hi) e^Q - 1]: wider where the filter was too sure, narrower where it
+was too cautious. The median is left as the filter gives it.
+
+Groups use only what is known when the prediction is made: the fault mode, and the filter's
+rate relative to the design prior (:func:`.joint.rate_ratio`; ``RulDistribution.rate_ratio``)
+binned at ``edges``: a fault faster than the design runs is miscalibrated differently from one
+in range. A group with fewer than ``min_group`` scores uses the mode's pooled margin.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .predictor import RulDistribution
+
+__all__ = ["BAND_LEVELS", "BandCalibration", "CalibrationRecord", "fit_band_calibration",
+           "widen"]
+
+_FORMAT = "rul-band-calibration/1"
+#: the central bands the layer calibrates: coverage -> (lower level, upper level)
+BAND_LEVELS = {0.5: (0.25, 0.75), 0.9: (0.05, 0.95)}
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """One replayed prediction: its band quantiles {level: RUL}, the filter's rate ratio and
+    the true RUL [flights]."""
+
+    quantiles: Mapping[float, float]
+    rate_ratio: float
+    true_rul: float
+
+
+@dataclass(frozen=True)
+class BandCalibration:
+    """The layer of one fault mode: the rate-ratio bin ``edges`` (ascending), each group's
+    margins {coverage: Q} (log units) and size, and the pooled margins."""
+
+    edges: tuple[float, ...]
+    margins: tuple[dict[float, float], ...]
+    counts: tuple[int, ...]
+    pooled: dict[float, float]
+    min_group: int = 30
+    n_records: int = 0
+    n_runs: int = 0
+    notes: dict[str, Any] = field(default_factory=dict)
+
+    def group_of(self, rate_ratio: float) -> int:
+        if not math.isfinite(rate_ratio):
+            return -1
+        return int(np.searchsorted(np.asarray(self.edges), rate_ratio, side="right"))
+
+    def margins_for(self, rate_ratio: float) -> tuple[int, dict[float, float]]:
+        """(group, margins) of a prediction; group -1 is the pooled fallback."""
+        g = self.group_of(rate_ratio)
+        if g < 0 or self.counts[g] < self.min_group:
+            return -1, self.pooled
+        return g, self.margins[g]
+
+    def apply(self, dist: RulDistribution) -> RulDistribution:
+        group, margins = self.margins_for(dist.rate_ratio)
+        out = widen(dist, margins)
+        return replace(out, adjustment={**(dist.adjustment or {}), "conformal_group": group,
+                                        "conformal_margins": dict(margins)})
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": _FORMAT, "edges": list(self.edges),
+                "margins": [_margins_out(m) for m in self.margins],
+                "counts": list(self.counts), "pooled": _margins_out(self.pooled),
+                "min_group": self.min_group, "n_records": self.n_records,
+                "n_runs": self.n_runs, "notes": self.notes}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> BandCalibration:
+        if d.get("format") != _FORMAT:
+            raise ValueError(f"not a {_FORMAT} document")
+        edges = tuple(float(e) for e in d["edges"])
+        margins = tuple(_margins_in(m) for m in d["margins"])
+        counts = tuple(int(c) for c in d["counts"])
+        if list(edges) != sorted(edges) or len(margins) != len(edges) + 1 \
+                or len(counts) != len(margins):
+            raise ValueError("band calibration: edges must ascend with one group more")
+        return cls(edges, margins, counts, _margins_in(d["pooled"]), int(d["min_group"]),
+                   int(d.get("n_records", 0)), int(d.get("n_runs", 0)),
+                   dict(d.get("notes") or {}))
+
+
+def _margins_out(m: Mapping[float, float]) -> list[list[float]]:
+    return [[float(c), float(q)] for c, q in sorted(m.items())]
+
+
+def _margins_in(rows: Sequence[Sequence[float]]) -> dict[float, float]:
+    out = {float(c): float(q) for c, q in rows}
+    if set(out) != set(BAND_LEVELS) or not all(math.isfinite(q) for q in out.values()):
+        raise ValueError(f"band margins need finite values for coverages {sorted(BAND_LEVELS)}")
+    return out
+
+
+def _scores(records: Sequence[CalibrationRecord], coverage: float) -> np.ndarray:
+    lo_level, hi_level = BAND_LEVELS[coverage]
+    y = np.log1p(np.array([r.true_rul for r in records], dtype=float))
+    lo = np.log1p(np.array([r.quantiles[lo_level] for r in records], dtype=float))
+    hi = np.log1p(np.array([r.quantiles[hi_level] for r in records], dtype=float))
+    with np.errstate(invalid="ignore"):
+        return np.maximum(lo - y, y - hi)  # +inf above an open band is -inf: inside
+
+
+def _margin(scores: np.ndarray, coverage: float) -> float:
+    """The conformal quantile: the ceil((n + 1) c)-th smallest score (the largest if that
+    rank passes n)."""
+    s = np.sort(scores)
+    rank = min(int(math.ceil((s.size + 1) * coverage)), s.size)
+    value = float(s[rank - 1])
+    return value if math.isfinite(value) else 0.0
+
+
+def fit_band_calibration(records: Iterable[CalibrationRecord], *,
+                         edges: tuple[float, ...] = (0.5, 2.0), min_group: int = 30,
+                         n_runs: int = 0) -> BandCalibration:
+    """The layer of one mode from its replayed predictions (each band's quantiles finite
+    below, the truth finite)."""
+    recs = [r for r in records if math.isfinite(r.true_rul) and r.true_rul >= 0]
+    if not recs:
+        raise ValueError("no replayed prediction to calibrate on")
+    edges = tuple(sorted(float(e) for e in edges))
+    pooled = {c: _margin(_scores(recs, c), c) for c in BAND_LEVELS}
+    layer = BandCalibration(edges, (), (), pooled, min_group, len(recs), n_runs)
+    groups: list[list[CalibrationRecord]] = [[] for _ in range(len(edges) + 1)]
+    for r in recs:
+        g = layer.group_of(r.rate_ratio)
+        if g >= 0:
+            groups[g].append(r)
+    margins = tuple({c: _margin(_scores(g, c), c) for c in BAND_LEVELS} if g else dict(pooled)
+                    for g in groups)
+    return replace(layer, margins=margins, counts=tuple(len(g) for g in groups))
+
+
+def widen(dist: RulDistribution, margins: Mapping[float, float]) -> RulDistribution:
+    """``dist`` with each central band's ends moved out by its margin Q in log(1 + RUL)
+    (in by -Q), the median kept, the quantiles kept in order around it; the probabilities of
+    failure within the horizons are read off the new quantiles (linear between levels)."""
+    q = dict(dist.quantiles)
+    median = dist.median
+    for coverage, (lo_level, hi_level) in BAND_LEVELS.items():
+        m = float(margins.get(coverage, 0.0))
+        if lo_level in q:
+            q[lo_level] = min(math.expm1(math.log1p(q[lo_level]) - m), median)
+        if hi_level in q and math.isfinite(q[hi_level]):
+            q[hi_level] = max(math.expm1(math.log1p(q[hi_level]) + m), median)
+    below = sorted((lv for lv in q if lv < 0.5), reverse=True)  # inner to outer
+    above = sorted(lv for lv in q if lv > 0.5)
+    for inner, outer in zip(below, below[1:], strict=False):
+        q[outer] = min(q[outer], q[inner])
+    for inner, outer in zip(above, above[1:], strict=False):
+        q[outer] = max(q[outer], q[inner])
+    q = {lv: max(v, 0.0) for lv, v in q.items()}
+    return replace(dist, quantiles=q, p_fail_within=_pof_from_quantiles(q, dist))
+
+
+def _pof_from_quantiles(q: Mapping[float, float], dist: RulDistribution) -> dict[int, float]:
+    """P(RUL <= k) by linear interpolation of the quantile function's inverse through
+    (0, 0) and the finite quantiles; beyond the last finite one, the particles' value."""
+    pts = sorted((v, lv) for lv, v in q.items() if math.isfinite(v))
+    xs = np.array([0.0] + [v for v, _ in pts])
+    ps = np.array([0.0] + [lv for _, lv in pts])
+    xs = np.maximum.accumulate(xs)
+    out = {}
+    for k, raw in dist.p_fail_within.items():
+        if pts and k <= xs[-1]:
+            out[k] = float(np.interp(k, xs, ps))
+        else:
+            out[k] = max(float(raw), float(ps[-1]))
+    return out
