@@ -108,8 +108,20 @@ def verification_campaign_dir(campaign_root):  # type: ignore[no-untyped-def]
 
 
 @pytest.fixture(scope="session")
+def shipped_model():  # type: ignore[no-untyped-def]
+    """(model JSON, training report) of the model shipped in the package: the same chain as
+    ``trained_model`` (``tests/test_demo.py`` holds them equal), read in milliseconds instead
+    of simulating and training for minutes. Tests that need *a* model use this one."""
+    from server.demo_model import load_demo_model
+
+    doc = load_demo_model()
+    return doc["payload"], doc["training"]
+
+
+@pytest.fixture(scope="session")
 def trained_model(design_campaign_dir):  # type: ignore[no-untyped-def]
-    """(model JSON, training report) of the PHM chain fitted on the quick design campaign."""
+    """(model JSON, training report) of the PHM chain fitted on the quick design campaign:
+    only for the ``slow`` tests about training itself (the others use ``shipped_model``)."""
     import json
 
     from server.campaigns import train_from_directory

@@ -26,6 +26,9 @@ from sim_worker.service import Api, SimFleetRunner
 from tests.conftest import DESIGN_SEED as SUITE_DESIGN_SEED
 
 
+# slow: it simulates and trains the design campaign (minutes). It is the one check of the
+# shipped model against training, which every other test that needs a model relies on.
+@pytest.mark.slow
 def test_the_shipped_demo_model_is_what_its_command_produces(trained_model) -> None:  # type: ignore[no-untyped-def]
     """``trained_model`` is the chain trained with seed 0 on the quick design campaign of seed
     1: what ``hmsm demo-model`` does. A chain or simulator change that moves the model fails

@@ -51,11 +51,11 @@ def aircraft(client: TestClient, keys: dict[str, str]) -> str:
 
 
 @pytest.fixture
-def active_model(app, trained_model) -> None:  # type: ignore[no-untyped-def]
-    """The session's trained chain stored in this app's database as the active model."""
+def active_model(app, shipped_model) -> None:  # type: ignore[no-untyped-def]
+    """The shipped chain stored in this app's database as the active model."""
     from server.services import models as model_service
 
     with app.state.session_factory() as session:
-        model_service.store_trained(session=session, name="t", payload=trained_model[0],
-                                    report=trained_model[1], make_active=True)
+        model_service.store_trained(session=session, name="t", payload=shipped_model[0],
+                                    report=shipped_model[1], make_active=True)
         session.commit()

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import time
 
-import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import update
 
@@ -89,7 +88,6 @@ def test_analysis_abandoned_on_its_last_attempt_fails_and_an_admin_retries_it(
     assert client.post(retry, headers=auth(keys["admin"])).status_code == 409  # queued now
 
 
-@pytest.mark.slow
 def test_analysis_failing_on_every_attempt_fails_then_analyses_once_retried(
         app, client: TestClient, keys: dict[str, str], aircraft: str, settings: Settings,
         active_model: None) -> None:  # type: ignore[no-untyped-def]

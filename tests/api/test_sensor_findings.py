@@ -8,7 +8,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import pytest
 from fastapi.testclient import TestClient
 
 from server.config import Settings
@@ -20,8 +19,6 @@ from sim_worker.flight import simulate_flight
 from tests.api.conftest import auth
 from tests.flightlog_factory import serials_for
 from tests.web.test_pages import sign_in
-
-pytestmark = pytest.mark.slow
 
 PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
 

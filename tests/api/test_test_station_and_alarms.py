@@ -53,8 +53,8 @@ def test_injection_lifecycle_and_roles(client: TestClient, keys: dict[str, str],
 
 def test_a_time_to_failure_outside_the_models_training_spans_is_accepted_with_a_warning(
         client: TestClient, keys: dict[str, str], aircraft: str, active_model: None,
-        trained_model) -> None:  # type: ignore[no-untyped-def]
-    low, high = trained_model[1]["campaign"]["spans_flights"]["MTEL"]
+        shipped_model) -> None:  # type: ignore[no-untyped-def]
+    low, high = shipped_model[1]["campaign"]["spans_flights"]["MTEL"]
     op = auth(keys["operator"])
     body = {"aircraft": aircraft, "position": "WT", "fault_mode": "MTEL"}
     inside = client.post("/api/v1/test-station/injections", headers=op,

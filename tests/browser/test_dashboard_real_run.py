@@ -36,15 +36,15 @@ pytestmark = [pytest.mark.slow, NEEDS_CHROMIUM]
 
 
 @pytest.fixture(scope="module")
-def real_run(tmp_path_factory: pytest.TempPathFactory, trained_model) -> Iterator[dict]:  # type: ignore[no-untyped-def]
+def real_run(tmp_path_factory: pytest.TempPathFactory, shipped_model) -> Iterator[dict]:  # type: ignore[no-untyped-def]
     data_dir = tmp_path_factory.mktemp("real-run") / "data"
     data_dir.mkdir(parents=True)
     settings = Settings(data_dir=data_dir)
     upgrade(settings.effective_database_url)
     engine = create_engine(settings.effective_database_url)
     with session_scope(make_session_factory(engine)) as s:
-        model_service.store_trained(session=s, name="real-run", payload=trained_model[0],
-                                    report=trained_model[1], make_active=True)
+        model_service.store_trained(session=s, name="real-run", payload=shipped_model[0],
+                                    report=shipped_model[1], make_active=True)
         keys = {r: create_key(session=s, name=f"eng-{r}", role=r)[1]
                 for r in ("admin", "operator", "viewer")}
     engine.dispose()

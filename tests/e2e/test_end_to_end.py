@@ -41,13 +41,13 @@ def _env(settings: Settings) -> dict[str, str]:
 
 
 @pytest.fixture
-def system(settings: Settings, trained_model):  # type: ignore[no-untyped-def]
+def system(settings: Settings, shipped_model):  # type: ignore[no-untyped-def]
     """Database at head with the trained model active, and keys for every role."""
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     upgrade(settings.effective_database_url)
     engine = create_engine(settings.effective_database_url)
     factory = make_session_factory(engine)
-    payload, report = trained_model
+    payload, report = shipped_model
     with session_scope(factory) as s:
         model_service.store_trained(session=s, name="e2e", payload=payload, report=report,
                                     make_active=True)

@@ -37,14 +37,14 @@ def _register(session, campaign, pattern) -> dict[int, object]:  # type: ignore[
     return rows
 
 
-def test_fault_pattern_stored_as_the_chain_says(factory, trained_model,  # type: ignore[no-untyped-def]
+def test_fault_pattern_stored_as_the_chain_says(factory, shipped_model,  # type: ignore[no-untyped-def]
                                                 verification_campaign_dir) -> None:
     campaign = load_campaign(verification_campaign_dir)
     pattern = next(p for p in campaign.patterns if p.mode == "DMD")
     with factory() as session:
         version = model_service.store_trained(session=session, name="t",
-                                              payload=trained_model[0],
-                                              report=trained_model[1], make_active=True)
+                                              payload=shipped_model[0],
+                                              report=shipped_model[1], make_active=True)
         flights = _register(session, campaign, pattern)
         session.commit()
         model_id = version.id
@@ -61,7 +61,7 @@ def test_fault_pattern_stored_as_the_chain_says(factory, trained_model,  # type:
             session.commit()
 
     # the same flights through the chain in memory, as the service seeds it (flight ids)
-    chain = read_model_document(trained_model[0])
+    chain = read_model_document(shipped_model[0])
     health = {pos: chain.new_health(pos) for pos in ("WL1", "WL2", "WT")}
     expected = {fid: analyze_flight(chain, r.features, health, seed=fid,
                                     started_at=r.started_at.astimezone(timezone.utc),

@@ -23,8 +23,8 @@ pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
-def model(trained_model) -> PhmModel:  # type: ignore[no-untyped-def]
-    return read_model_document(trained_model[0])
+def model(shipped_model) -> PhmModel:  # type: ignore[no-untyped-def]
+    return read_model_document(shipped_model[0])
 
 
 def _pattern(campaign: Campaign, mode: str) -> Pattern:
@@ -92,8 +92,8 @@ def test_flight_index_must_increase(model, verification_campaign) -> None:  # ty
         analyze_flight(model, r.features, health, flight_index=5)
 
 
-def test_model_document_reader_unwraps_a_version_record(trained_model) -> None:  # type: ignore[no-untyped-def]
-    doc = trained_model[0]
+def test_model_document_reader_unwraps_a_version_record(shipped_model) -> None:  # type: ignore[no-untyped-def]
+    doc = shipped_model[0]
     assert read_model_document({"payload": doc, "id": 3}).to_dict() == \
         read_model_document(doc).to_dict()
     with pytest.raises(ValueError, match="older chain"):

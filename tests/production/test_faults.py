@@ -184,10 +184,9 @@ def test_blob_commit_failure_answers_507_and_leaves_no_flight_without_bytes(loca
 
 # ---------------------------------------------------------------------------- corrupted blob
 
-@pytest.mark.slow
-def test_corrupted_blob_is_rejected_as_blob_corrupt_at_analysis(tmp_path, trained_model) -> None:  # type: ignore[no-untyped-def]
+def test_corrupted_blob_is_rejected_as_blob_corrupt_at_analysis(tmp_path, shipped_model) -> None:  # type: ignore[no-untyped-def]
     settings = Settings(data_dir=tmp_path / "data")
-    keys = seed_system(settings, trained_model[0])
+    keys = seed_system(settings, shipped_model[0])
     with TestClient(create_app(settings)) as client:
         location = _register_and_upload(client, keys, "CORR1")
         flight = client.get(location, headers=_auth(keys["viewer"])).json()
@@ -208,13 +207,12 @@ def test_corrupted_blob_is_rejected_as_blob_corrupt_at_analysis(tmp_path, traine
 
 # ---------------------------------------------------------------------------- stale model
 
-@pytest.mark.slow
 def test_active_model_of_an_older_chain_defers_analysis_and_loses_nothing(
-        tmp_path, trained_model) -> None:  # type: ignore[no-untyped-def]
+        tmp_path, shipped_model) -> None:  # type: ignore[no-untyped-def]
     """A model version trained by the previous chain format must not analyse flights (its
     classifier expects other inputs), nor burn their jobs' attempts: the jobs wait."""
     settings = Settings(data_dir=tmp_path / "data")
-    keys = seed_system(settings, {**trained_model[0], "format": "ema-phm-model/3"})
+    keys = seed_system(settings, {**shipped_model[0], "format": "ema-phm-model/3"})
     with TestClient(create_app(settings)) as client:
         location = _register_and_upload(client, keys, "OLD1")
         _run_worker_once(settings)

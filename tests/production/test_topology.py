@@ -102,12 +102,12 @@ def test_dockerfile_runs_as_non_root_with_a_liveness_healthcheck() -> None:
 @pytest.mark.postgres
 @pytest.mark.skipif(not PG_URL, reason="HMSM_TEST_POSTGRES_URL not set")
 def test_api_and_two_workers_on_postgres_analyse_every_flight_once(tmp_path,
-                                                                   trained_model) -> None:  # type: ignore[no-untyped-def]
+                                                                   shipped_model) -> None:  # type: ignore[no-untyped-def]
     assert PG_URL
     tails, per_tail = ("TOPO1", "TOPO2", "TOPO3"), 4
     with fresh_pg_database(PG_URL) as db_url:
         settings = Settings(data_dir=tmp_path / "data", database_url=db_url)
-        keys = seed_system(settings, trained_model[0])
+        keys = seed_system(settings, shipped_model[0])
         admin = {"Authorization": f"Bearer {keys['admin']}"}
         up = {"Authorization": f"Bearer {keys['uploader']}",
               "Content-Type": "application/vnd.apache.parquet"}

@@ -141,8 +141,8 @@ def test_an_operator_cancels_an_injection_from_the_page(client, keys, aircraft) 
 
 
 def test_the_station_page_warns_of_a_span_outside_the_models_training(
-        client, keys, aircraft, active_model, trained_model) -> None:  # type: ignore[no-untyped-def]
-    low, high = trained_model[1]["campaign"]["spans_flights"]["TTS"]
+        client, keys, aircraft, active_model, shipped_model) -> None:  # type: ignore[no-untyped-def]
+    low, high = shipped_model[1]["campaign"]["spans_flights"]["TTS"]
     sign_in(client, keys["operator"])
     client.post("/test-station/injections", data={
         "csrf": csrf_token(keys["operator"]), "aircraft": aircraft, "position": "WT",
