@@ -38,6 +38,7 @@ from sqlalchemy.orm import Session  # noqa: E402
 
 from server.config import Settings  # noqa: E402
 from server.models import Flight, HealthRecord, Job  # noqa: E402
+from server.vocabulary import FlightStatus, JobStatus  # noqa: E402
 from tests.flightlog_factory import make_parquet, serials_for  # noqa: E402
 from tests.live_server import running_server  # noqa: E402
 from tests.production.helpers import (  # noqa: E402
@@ -115,9 +116,10 @@ def run(args: argparse.Namespace) -> dict:
                 while time.monotonic() < deadline:
                     with Session(engine) as s:
                         analysed = s.scalar(select(func.count()).select_from(Flight)
-                                            .where(Flight.status == "analyzed")) or 0
+                                            .where(Flight.status == FlightStatus.ANALYZED)) or 0
                         pending = s.scalar(select(func.count()).select_from(Flight).where(
-                            Flight.status.in_(("received", "queued", "analyzing")))) or 0
+                            Flight.status.in_((FlightStatus.RECEIVED, FlightStatus.QUEUED,
+                                              FlightStatus.ANALYZING)))) or 0
                     if analysed and first_done is None:
                         first_done = time.monotonic()
                     if pending == 0:
@@ -128,7 +130,7 @@ def run(args: argparse.Namespace) -> dict:
                 n_flights = s.scalar(select(func.count()).select_from(Flight)) or 0
                 n_jobs = s.scalar(select(func.count()).select_from(Job)) or 0
                 n_done = s.scalar(select(func.count()).select_from(Job)
-                                  .where(Job.status == "done")) or 0
+                                  .where(Job.status == JobStatus.DONE)) or 0
                 n_records = s.scalar(select(func.count()).select_from(HealthRecord)) or 0
                 distinct = s.scalar(select(func.count(func.distinct(
                     Flight.tail + ":" + Flight.flight_code)))) or 0

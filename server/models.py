@@ -16,6 +16,7 @@ from sqlalchemy import (
     JSON,
     BigInteger,
     DateTime,
+    Enum,
     Float,
     ForeignKey,
     Index,
@@ -29,7 +30,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-from server.vocabulary import FAULT_MODES
+from server.vocabulary import FAULT_MODES, FlightStatus, JobStatus
 
 __all__ = [
     "JobKind",
@@ -39,8 +40,6 @@ __all__ = [
     "Flight",
     "Job",
     "ApiKey",
-    "FLIGHT_STATUSES",
-    "JOB_STATUSES",
     "ROLES",
     "utcnow",
     "upload_key_of",
@@ -60,8 +59,6 @@ __all__ = [
     "FAULT_MODES",
 ]
 
-FLIGHT_STATUSES = ("received", "queued", "analyzing", "analyzed", "rejected", "failed")
-JOB_STATUSES = ("queued", "running", "done", "dead")
 #: viewer reads; uploader uploads flights; maintainer records maintenance actions (the line
 #: maintenance engineer); operator runs the test station; admin everything
 ROLES = ("viewer", "uploader", "maintainer", "operator", "admin")
@@ -119,6 +116,15 @@ class UTCDateTime(TypeDecorator[datetime]):
         return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else value
 
 
+def status_type(states: type[StrEnum]) -> Enum:
+    """A ``status`` column of ``states``: VARCHAR(16) holding the members' values (the text
+    the API shows), a CHECK constraint ``ck_<table>_status`` so that the database refuses any
+    other, and rows that load as members."""
+    return Enum(states, name="status", native_enum=False, create_constraint=True, length=16,
+                values_callable=lambda members: [m.value for m in members],
+                validate_strings=True)
+
+
 class Base(DeclarativeBase):
     metadata = MetaData(naming_convention=NAMING)
 
@@ -173,6 +179,10 @@ class Actuator(Base):
     aircraft: Mapped[Aircraft] = relationship(back_populates="actuators")
 
 
+#: the flights that hold their (aircraft, flight) slot and their upload key: all but rejected
+_ACCEPTED = text(f"status <> '{FlightStatus.REJECTED.value}'")
+
+
 class Flight(Base):
     """One uploaded flight log. Rejected flights keep their bytes and reasons for forensics and
     hold neither their (aircraft, flight) slot nor their upload key, so the same or a corrected
@@ -189,15 +199,15 @@ class Flight(Base):
             "aircraft_id",
             "flight_code",
             unique=True,
-            sqlite_where=text("status <> 'rejected'"),
-            postgresql_where=text("status <> 'rejected'"),
+            sqlite_where=_ACCEPTED,
+            postgresql_where=_ACCEPTED,
         ),
         Index(
             "uq_flights_accepted_upload_key",
             "upload_key",
             unique=True,
-            sqlite_where=text("status <> 'rejected'"),
-            postgresql_where=text("status <> 'rejected'"),
+            sqlite_where=_ACCEPTED,
+            postgresql_where=_ACCEPTED,
         ),
         Index("ix_flights_aircraft_started", "aircraft_id", "started_at"),
     )
@@ -206,7 +216,7 @@ class Flight(Base):
     aircraft_id: Mapped[int | None] = mapped_column(ForeignKey("aircraft.id"), index=True)
     tail: Mapped[str | None] = mapped_column(String(64))
     flight_code: Mapped[str | None] = mapped_column(String(64))
-    status: Mapped[str] = mapped_column(String(16), index=True)
+    status: Mapped[FlightStatus] = mapped_column(status_type(FlightStatus), index=True)
     reasons: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list)
     sha256: Mapped[str] = mapped_column(String(64), index=True)
     upload_key: Mapped[str] = mapped_column(String(64), default=_stored_upload_key)
@@ -244,7 +254,7 @@ class Job(Base):
     kind: Mapped[str] = mapped_column(String(32))
     flight_id: Mapped[int | None] = mapped_column(ForeignKey("flights.id"))
     lock_key: Mapped[str] = mapped_column(String(64), index=True)
-    status: Mapped[str] = mapped_column(String(16), default="queued")
+    status: Mapped[JobStatus] = mapped_column(status_type(JobStatus), default=JobStatus.QUEUED)
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     max_attempts: Mapped[int] = mapped_column(Integer, default=5)
     run_after: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)

@@ -1,5 +1,5 @@
 """The project's shared vocabulary: actuator positions, fault modes, feature names, the
-winglet-pair rule and the paper's reference figures.
+winglet-pair rule, the paper's reference figures, and the states of a flight and of a job.
 
 One owner for each of these facts; every other module (the simulator, the PHM chain, the
 services, the dashboard) imports them from here. Pure Python, no dependencies, so that
@@ -7,6 +7,8 @@ services, the dashboard) imports them from here. Pure Python, no dependencies, s
 """
 
 from __future__ import annotations
+
+from enum import StrEnum
 
 __all__ = [
     "POSITIONS",
@@ -27,6 +29,8 @@ __all__ = [
     "PAPER_TABLE2",
     "is_winglet",
     "alarming_positions",
+    "FlightStatus",
+    "JobStatus",
 ]
 
 #: actuator positions of the half-wing: two winglet-tab drives and the wingtip drive
@@ -89,6 +93,31 @@ PAPER_TABLE2: dict[str, tuple[float, float]] = {
     "TTS": (0.11, 64.3), "DMD": (0.55, 75.3), "MTEL": (0.15, 78.2), "MTWEAR": (0.82, 81.2),
     "REWEAR": (0.65, 79.3),
 }
+
+
+class FlightStatus(StrEnum):
+    """Where an uploaded flight is. The values are the API's and the database's text (a CHECK
+    constraint holds the column to them): renaming one is a migration and an API change."""
+
+    RECEIVED = "received"
+    QUEUED = "queued"
+    ANALYZING = "analyzing"
+    ANALYZED = "analyzed"
+    #: failed decoding or coherence: kept for forensics, holds no slot (server/services/flights.py)
+    REJECTED = "rejected"
+    #: the analysis gave up after its last attempt, until an admin retries it
+    FAILED = "failed"
+
+
+class JobStatus(StrEnum):
+    """Where a background job is (server/jobs/queue.py); the API's and the database's text,
+    held by a CHECK constraint like the flight's."""
+
+    QUEUED = "queued"
+    RUNNING = "running"
+    DONE = "done"
+    #: failed its last attempt (or its worker vanished during it): never claimed again
+    DEAD = "dead"
 
 
 def is_winglet(position: str | None) -> bool:

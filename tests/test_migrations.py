@@ -143,3 +143,72 @@ def test_flights_keep_their_upload_identity_across_0005(settings: Settings) -> N
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
+
+
+def _status_values(engine, table: str) -> set[str]:  # type: ignore[no-untyped-def]
+    """The values the database's ``ck_<table>_status`` allows, read back from the database
+    (PostgreSQL rewrites ``IN`` as ``= ANY (ARRAY[...])``: the quoted values are what count)."""
+    import re
+
+    checks = {c["name"]: c["sqltext"] for c in inspect(engine).get_check_constraints(table)}
+    return set(re.findall(r"'([^']*)'", str(checks[f"ck_{table}_status"])))
+
+
+def _insert_statuses(conn, id_: int, flight: str, job: str) -> None:  # type: ignore[no-untyped-def]
+    import sqlalchemy as sa
+
+    conn.execute(sa.text(
+        "INSERT INTO flights (id, aircraft_id, flight_code, status, reasons, sha256, upload_key, "
+        "size_bytes, blob_path, content_kind, flight_metadata, received_at, updated_at) VALUES "
+        "(:id, 1, :code, :status, '[]', :key, :key, 1, 'b', 'parquet', '{}', CURRENT_TIMESTAMP, "
+        "CURRENT_TIMESTAMP)"),
+        {"id": id_, "code": f"F{id_}", "status": flight, "key": f"{id_:064d}"})
+    conn.execute(sa.text(
+        "INSERT INTO jobs (id, kind, flight_id, lock_key, status, attempts, max_attempts, "
+        "run_after, payload, created_at, updated_at) VALUES (:id, 'analyze_flight', :id, "
+        "'aircraft:1', :status, 0, 5, CURRENT_TIMESTAMP, '{}', CURRENT_TIMESTAMP, "
+        "CURRENT_TIMESTAMP)"), {"id": id_, "status": job})
+
+
+def test_the_database_refuses_a_status_outside_the_vocabulary_from_0009(
+        settings: Settings) -> None:
+    """0009 holds ``flights.status`` and ``jobs.status`` to FlightStatus and JobStatus: rows
+    written before it pass, a row with another status (or a member's name instead of its
+    value) is refused by the database itself, not only by the code; 0008 again allows it."""
+    from itertools import cycle
+
+    import pytest
+    import sqlalchemy as sa
+    from sqlalchemy.exc import IntegrityError
+
+    from server.vocabulary import FlightStatus, JobStatus
+
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0008")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
+        for i, (flight, job) in enumerate(zip(FlightStatus, cycle(JobStatus)), start=1):
+            _insert_statuses(conn, i, flight, job)  # every status, as the code wrote them
+    upgrade(url)
+    assert _status_values(engine, "flights") == set(FlightStatus)
+    assert _status_values(engine, "jobs") == set(JobStatus)
+    for flight, job in (("lost", JobStatus.DONE), (FlightStatus.QUEUED, "finished"),
+                        ("ANALYZED", JobStatus.DONE), (FlightStatus.QUEUED, "DEAD")):
+        with pytest.raises(IntegrityError, match="ck_"), engine.begin() as conn:
+            _insert_statuses(conn, 99, flight, job)
+    with pytest.raises(IntegrityError, match="ck_flights_status"), engine.begin() as conn:
+        conn.execute(sa.text("UPDATE flights SET status = 'deleted' WHERE id = 1"))
+
+    downgrade(url, "0008")
+    assert not {c["name"] for t in ("flights", "jobs")
+                for c in inspect(engine).get_check_constraints(t)}
+    with engine.begin() as conn:  # free text again, as before 0009
+        _insert_statuses(conn, 99, "lost", "finished")
+        conn.execute(sa.text("DELETE FROM jobs WHERE id = 99"))
+        conn.execute(sa.text("DELETE FROM flights WHERE id = 99"))
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

@@ -30,9 +30,17 @@ from server.errors import (
 )
 from server.flightlog import METADATA_FIELDS
 from server.models import ApiKey
-from server.schemas import FlightAccepted, FlightRead, Offset, Page, SignalsRead
+from server.schemas import (
+    FlightAccepted,
+    FlightRead,
+    FlightStatusFilter,
+    Offset,
+    Page,
+    SignalsRead,
+)
 from server.services import analysis as analysis_service
 from server.services import flights as service
+from server.vocabulary import FlightStatus
 
 router = APIRouter(prefix="/flights", tags=["flights"])
 log = logging.getLogger("hmsm.api")
@@ -124,7 +132,7 @@ async def upload(request: Request, session: SessionDep, blobs: BlobsDep, setting
         raise _storage_unavailable(exc) from None
     body = FlightAccepted(id=flight.id, status=flight.status,
                           status_url=f"/api/v1/flights/{flight.id}", duplicate=duplicate)
-    if flight.status == "rejected":
+    if flight.status == FlightStatus.REJECTED:
         return JSONResponse(error_body("incoherent_flight", "The flight log failed coherence "
                                        "checks and was stored as rejected.",
                                        {**body.model_dump(), "reasons": flight.reasons}),
@@ -157,8 +165,7 @@ def _ingest(session, blobs, spooled, kind, form_metadata, key, limits):  # type:
 @router.get("", response_model=Page[FlightRead], summary="List flights")
 def list_(session: SessionDep, _: Reader,
           aircraft: str | None = None,
-          status: Annotated[str | None, Query(pattern="^(received|queued|analyzing|analyzed|"
-                                              "rejected|failed)$")] = None,
+          status: FlightStatusFilter = None,
           limit: Annotated[int, Query(ge=1, le=500)] = 50,
           offset: Offset = 0) -> Page[FlightRead]:
     rows, total = service.list_flights(session=session, tail=aircraft, status=status,

@@ -12,7 +12,7 @@ from sqlalchemy import func, select
 from server.api.deps import Reader, SessionDep
 from server.errors import NotFound
 from server.models import Job
-from server.schemas import MAX_INT32, Offset, Page
+from server.schemas import MAX_INT32, JobStatusFilter, Offset, Page
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -37,7 +37,7 @@ class JobRead(BaseModel):
 
 @router.get("", response_model=Page[JobRead], summary="List jobs")
 def list_(session: SessionDep, _: Reader,
-          status: Annotated[str | None, Query(pattern="^(queued|running|done|dead)$")] = None,
+          status: JobStatusFilter = None,
           flight_id: Annotated[int | None, Query(ge=1, le=MAX_INT32)] = None,
           limit: Annotated[int, Query(ge=1, le=500)] = 50,
           offset: Offset = 0) -> Page[JobRead]:

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime, timedelta
+from typing import Literal
 
 from sqlalchemy import and_, exists, or_, select, update
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, aliased, sessionmaker
 
 from server.models import Job, utcnow
+from server.vocabulary import JobStatus
 
 __all__ = ["RetryPolicy", "claim_next", "complete", "fail", "defer", "renew_lease",
            "bury_abandoned", "ABANDONED", "ClaimedJob"]
@@ -56,11 +58,11 @@ def _eligible(now: datetime, postgres: bool):  # type: ignore[no-untyped-def]
     cand, earlier = aliased(Job, name="cand"), aliased(Job, name="earlier")
     query = (
         select(cand.id)
-        .where(or_(and_(cand.status == "queued", cand.run_after <= now),
-                   and_(cand.status == "running", cand.lease_until < now,
+        .where(or_(and_(cand.status == JobStatus.QUEUED, cand.run_after <= now),
+                   and_(cand.status == JobStatus.RUNNING, cand.lease_until < now,
                         cand.attempts < cand.max_attempts)))
         .where(~exists().where(earlier.lock_key == cand.lock_key, earlier.id < cand.id,
-                               earlier.status.in_(("queued", "running"))))
+                               earlier.status.in_((JobStatus.QUEUED, JobStatus.RUNNING))))
         .order_by(cand.id)
         .limit(1)
     )
@@ -80,7 +82,7 @@ def claim_next(factory: sessionmaker[Session], *, worker_id: str, lease_s: float
             stmt = (
                 update(Job)
                 .where(Job.id == _eligible(now, postgres))
-                .values(status="running", attempts=Job.attempts + 1, locked_by=worker_id,
+                .values(status=JobStatus.RUNNING, attempts=Job.attempts + 1, locked_by=worker_id,
                         lease_until=now + timedelta(seconds=lease_s), updated_at=now)
                 .returning(Job.id, Job.kind, Job.flight_id, Job.lock_key, Job.attempts,
                            Job.max_attempts, Job.payload)
@@ -105,7 +107,7 @@ def renew_lease(session: Session, *, job_id: int, worker_id: str, lease_s: float
     """Extend a lease we still hold; False when the job was taken from us."""
     now = utcnow()
     result = session.execute(update(Job).where(Job.id == job_id, Job.locked_by == worker_id,
-                                               Job.status == "running")
+                                               Job.status == JobStatus.RUNNING)
                              .values(lease_until=now + timedelta(seconds=lease_s),
                                      updated_at=now))
     return bool(result.rowcount)
@@ -115,14 +117,14 @@ def complete(session: Session, *, job_id: int, worker_id: str) -> bool:
     """Mark our job done; False when the lease was lost and another worker owns it now."""
     now = utcnow()
     result = session.execute(update(Job).where(Job.id == job_id, Job.locked_by == worker_id,
-                                               Job.status == "running")
-                             .values(status="done", finished_at=now, updated_at=now,
+                                               Job.status == JobStatus.RUNNING)
+                             .values(status=JobStatus.DONE, finished_at=now, updated_at=now,
                                      lease_until=None, last_error=None))
     return bool(result.rowcount)
 
 
 def fail(session: Session, *, job: ClaimedJob, worker_id: str, error: str,
-         policy: RetryPolicy = RetryPolicy()) -> str:
+         policy: RetryPolicy = RetryPolicy()) -> JobStatus | Literal["lost"]:
     """Record a failure: back to ``queued`` after a backoff, or ``dead`` after the last try;
     ``lost`` when another worker holds the job now (nothing recorded)."""
     now = utcnow()
@@ -130,14 +132,14 @@ def fail(session: Session, *, job: ClaimedJob, worker_id: str, error: str,
     values = {"last_error": error[-4000:], "updated_at": now, "lease_until": None,
               "locked_by": None}
     if dead:
-        values.update(status="dead", finished_at=now)
+        values.update(status=JobStatus.DEAD, finished_at=now)
     else:
-        values.update(status="queued", run_after=now + policy.delay(job.attempts))
+        values.update(status=JobStatus.QUEUED, run_after=now + policy.delay(job.attempts))
     result = session.execute(update(Job).where(Job.id == job.id, Job.locked_by == worker_id)
                              .values(**values))
     if not result.rowcount:
         return "lost"
-    return "dead" if dead else "queued"
+    return JobStatus.DEAD if dead else JobStatus.QUEUED
 
 
 def bury_abandoned(session: Session, *, limit: int = 20) -> list[ClaimedJob]:
@@ -146,13 +148,13 @@ def bury_abandoned(session: Session, *, limit: int = 20) -> list[ClaimedJob]:
     otherwise take them again without end."""
     now = utcnow()
     ids = list(session.scalars(select(Job.id).where(
-        Job.status == "running", Job.lease_until < now, Job.attempts >= Job.max_attempts)
+        Job.status == JobStatus.RUNNING, Job.lease_until < now, Job.attempts >= Job.max_attempts)
         .limit(limit)))
     if not ids:
         return []
     rows = session.execute(
-        update(Job).where(Job.id.in_(ids), Job.status == "running", Job.lease_until < now)
-        .values(status="dead", finished_at=now, updated_at=now, lease_until=None,
+        update(Job).where(Job.id.in_(ids), Job.status == JobStatus.RUNNING, Job.lease_until < now)
+        .values(status=JobStatus.DEAD, finished_at=now, updated_at=now, lease_until=None,
                 locked_by=None, last_error=ABANDONED)
         .returning(Job.id, Job.kind, Job.flight_id, Job.lock_key, Job.attempts,
                    Job.max_attempts, Job.payload)).all()
@@ -164,6 +166,6 @@ def defer(session: Session, *, job: ClaimedJob, worker_id: str, reason: str,
     """Put a job back without counting the attempt (it could not start, e.g. no model yet)."""
     now = utcnow()
     session.execute(update(Job).where(Job.id == job.id, Job.locked_by == worker_id)
-                    .values(status="queued", attempts=Job.attempts - 1, last_error=reason,
+                    .values(status=JobStatus.QUEUED, attempts=Job.attempts - 1, last_error=reason,
                             run_after=now + timedelta(seconds=delay_s), lease_until=None,
                             locked_by=None, updated_at=now))

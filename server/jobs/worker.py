@@ -25,6 +25,7 @@ from server.jobs import queue
 from server.jobs.context import DeadLetter, Deferred, Handler, JobContext
 from server.jobs.handlers import DEAD_LETTERS, HANDLERS
 from server.migrate import ensure_schema
+from server.vocabulary import JobStatus
 
 __all__ = ["Worker", "run_worker_process"]
 
@@ -93,7 +94,7 @@ class Worker:
             log.warning("job %s (%s) failed on attempt %s", job.id, job.kind, job.attempts)
             with self.ctx.factory() as session:
                 outcome = queue.fail(session, job=job, worker_id=self.worker_id, error=error)
-                if outcome == "dead":
+                if outcome == JobStatus.DEAD:
                     self._given_up(session, job, error)
                 session.commit()
             log.info("job %s -> %s", job.id, outcome)

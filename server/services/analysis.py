@@ -35,12 +35,13 @@ from server.phm.chain import ActuatorHealth, ActuatorOutcome, PhmModel, analyze_
 from server.phm.features import FlightFeatures
 from server.phm.prognosis import RulDistribution
 from server.services.urgency import RUL_LOW_QUANTILE
+from server.vocabulary import FlightStatus, JobStatus
 
 __all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "reject", "mark_failed",
            "retry_failed", "failed_flights", "store_analysis", "json_safe"]
 
 #: flight states after which there is nothing left to analyse (``failed``: until a retry)
-_FINISHED = ("analyzed", "rejected", "failed")
+_FINISHED = (FlightStatus.ANALYZED, FlightStatus.REJECTED, FlightStatus.FAILED)
 _ERROR_CHARS = 500
 
 
@@ -68,7 +69,7 @@ def flight_to_analyse(*, session: Session, flight_id: int) -> FlightToAnalyse | 
 def mark_analyzing(*, session: Session, flight_id: int) -> None:
     flight = session.get(Flight, flight_id)
     if flight is not None:
-        flight.status, flight.updated_at = "analyzing", utcnow()
+        flight.status, flight.updated_at = FlightStatus.ANALYZING, utcnow()
         session.flush()
 
 
@@ -76,7 +77,7 @@ def reject(*, session: Session, flight_id: int, reasons: list[dict[str, Any]]) -
     """The flight cannot be analysed: stored as rejected with machine-readable reasons."""
     flight = session.get(Flight, flight_id)
     if flight is not None:
-        flight.status, flight.reasons, flight.updated_at = "rejected", reasons, utcnow()
+        flight.status, flight.reasons, flight.updated_at = FlightStatus.REJECTED, reasons, utcnow()
         session.flush()
 
 
@@ -84,9 +85,9 @@ def mark_failed(*, session: Session, flight_id: int, error: str, attempts: int) 
     """The analysis was given up (its job is dead): the flight is ``failed`` with the last
     error's final line, never ``analyzing`` for good, until an admin retries it."""
     flight = session.get(Flight, flight_id)
-    if flight is None or flight.status in ("analyzed", "rejected"):
+    if flight is None or flight.status in (FlightStatus.ANALYZED, FlightStatus.REJECTED):
         return
-    flight.status, flight.updated_at = "failed", utcnow()
+    flight.status, flight.updated_at = FlightStatus.FAILED, utcnow()
     flight.reasons = [{
         "code": "analysis_failed",
         "message": f"The analysis failed {attempts} time(s) and was given up; an admin can "
@@ -108,7 +109,7 @@ def retry_failed(*, session: Session, flight_id: int) -> Flight:
     flight = session.get(Flight, flight_id)
     if flight is None:
         raise NotFound(f"Flight {flight_id} does not exist.")
-    if flight.status != "failed":
+    if flight.status != FlightStatus.FAILED:
         raise Conflict(f"Flight {flight_id} is {flight.status}, not failed: there is nothing to "
                        "retry.", code="not_failed", details={"status": flight.status})
     job = session.scalar(select(Job).where(Job.kind == JobKind.ANALYZE_FLIGHT,
@@ -118,16 +119,16 @@ def retry_failed(*, session: Session, flight_id: int) -> Flight:
                   lock_key=f"aircraft:{flight.aircraft_id}")
         session.add(job)
     now = utcnow()
-    job.status, job.attempts, job.run_after, job.updated_at = "queued", 0, now, now
+    job.status, job.attempts, job.run_after, job.updated_at = JobStatus.QUEUED, 0, now, now
     job.last_error = job.lease_until = job.locked_by = job.started_at = job.finished_at = None
-    flight.status, flight.reasons, flight.updated_at = "queued", [], now
+    flight.status, flight.reasons, flight.updated_at = FlightStatus.QUEUED, [], now
     session.flush()
     return flight
 
 
 def failed_flights(*, session: Session, limit: int) -> list[Flight]:
     """The most recently failed flights first (one query; the dashboard lists them)."""
-    return list(session.scalars(select(Flight).where(Flight.status == "failed")
+    return list(session.scalars(select(Flight).where(Flight.status == FlightStatus.FAILED)
                                 .order_by(Flight.updated_at.desc(), Flight.id.desc())
                                 .limit(limit)))
 
@@ -155,7 +156,7 @@ def store_analysis(*, session: Session, flight_id: int, features: FlightFeatures
         _store_state(session, flight, act, out, health[act.position], states[act.id])
         rul = _store_prognosis(session, flight, act, out)
         _store_alarm(session, flight, act, out, rul)
-    flight.status, flight.updated_at = "analyzed", utcnow()
+    flight.status, flight.updated_at = FlightStatus.ANALYZED, utcnow()
     session.flush()
 
 

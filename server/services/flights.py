@@ -42,6 +42,7 @@ from server.flightlog import (
 )
 from server.models import Aircraft, ApiKey, Flight, Job, JobKind, upload_key_of
 from server.services.fleet import installed_serials
+from server.vocabulary import FlightStatus
 
 __all__ = ["ingest_flight", "upload_key", "LostRace", "after_lost_race", "get_flight",
            "flight_codes", "list_flights", "decode_flight", "decimated_signals",
@@ -75,7 +76,7 @@ def _canonical_metadata(form_metadata: Mapping[str, str]) -> dict[str, str]:
 
 def _accepted_upload(session: Session, key: str) -> Flight | None:
     return session.scalar(select(Flight).where(Flight.upload_key == key,
-                                               Flight.status != "rejected"))
+                                               Flight.status != FlightStatus.REJECTED))
 
 
 def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, kind: str,
@@ -111,7 +112,7 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
     if aircraft_id is not None and code is not None:
         clash = session.scalar(select(Flight).where(
             Flight.aircraft_id == aircraft_id, Flight.flight_code == code,
-            Flight.status != "rejected"))
+            Flight.status != FlightStatus.REJECTED))
         if clash is not None:
             upload.discard()
             if clash.upload_key == key:
@@ -128,7 +129,7 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
         aircraft_id=aircraft_id,
         tail=tail,
         flight_code=code,
-        status="rejected" if issues else "queued",
+        status=FlightStatus.REJECTED if issues else FlightStatus.QUEUED,
         reasons=bounded_reasons((i.as_dict() for i in issues), limits),
         sha256=upload.sha256,
         upload_key=key,

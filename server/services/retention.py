@@ -23,6 +23,7 @@ from sqlalchemy.orm import Session
 
 from server.blobstore import BlobStore
 from server.models import Alarm, AlarmEvent, Flight, utcnow
+from server.vocabulary import FlightStatus
 
 __all__ = ["flights_to_prune", "prune_raw"]
 
@@ -32,7 +33,7 @@ log = logging.getLogger("hmsm.retention")
 def flights_to_prune(*, session: Session, aircraft_id: int, keep: int) -> list[Flight]:
     """The aircraft's analysed flights still holding their raw log, beyond its ``keep`` most
     recent analysed ones, that neither raised an alarm nor changed an alarm's class."""
-    analysed = (Flight.aircraft_id == aircraft_id, Flight.status == "analyzed")
+    analysed = (Flight.aircraft_id == aircraft_id, Flight.status == FlightStatus.ANALYZED)
     recent = list(session.scalars(select(Flight.id).where(*analysed)
                                   .order_by(Flight.started_at.desc(), Flight.id.desc())
                                   .limit(keep)))

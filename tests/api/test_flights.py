@@ -14,6 +14,7 @@ import scipy.io
 from fastapi.testclient import TestClient
 
 from server.flightlog import FlightLog
+from server.vocabulary import FlightStatus, JobStatus
 from tests.api.conftest import auth
 from tests.flightlog_factory import make_log, make_parquet, serials_for
 
@@ -180,6 +181,19 @@ def test_every_rejection_reason(client: TestClient, keys: dict[str, str], aircra
     # the service still answers, and a corrected file for a rejected flight is accepted
     ok = post_parquet(client, keys["uploader"], make_parquet(aircraft, "R1", seed=2))
     assert ok.status_code == 202
+
+
+@pytest.mark.parametrize(("path", "states"), [("/api/v1/flights", FlightStatus),
+                                              ("/api/v1/jobs", JobStatus)])
+def test_a_list_filters_on_exactly_the_statuses_of_the_vocabulary(
+        client: TestClient, keys: dict[str, str], path: str, states: type) -> None:
+    """The filter is derived from the enum: each value answers, anything else (another
+    word, a member's name) is a 422 before any query."""
+    viewer = auth(keys["viewer"])
+    for state in states:
+        assert client.get(path, params={"status": state.value}, headers=viewer).status_code == 200
+    for other in ("lost", next(iter(states)).name, "queued|done"):
+        assert client.get(path, params={"status": other}, headers=viewer).status_code == 422
 
 
 def test_rejected_bytes_are_kept(client: TestClient, keys: dict[str, str], aircraft: str,
