@@ -135,12 +135,11 @@ def _train_to_file(design: Path, args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from server.campaigns import train_from_directory
-    from server.demo_model import trained_model_document
-    from server.phm.chain import MODEL_FORMAT
+    from server.demo_model import TRAINED_MODEL_FORMAT, trained_model_document
 
     manifest = json.loads((design / "manifest.json").read_text())
     model, report = train_from_directory(design, seed=args.seed)
-    doc = trained_model_document(MODEL_FORMAT, {k: manifest.get(k) for k in
+    doc = trained_model_document(TRAINED_MODEL_FORMAT, {k: manifest.get(k) for k in
                                                 ("kind", "scale", "seed", "span_flights")},
                                  args.seed, model.to_dict(), report)
     out = Path(args.out)

@@ -20,12 +20,15 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-__all__ = ["DESIGN_SEED", "TRAINING_SEED", "FORMAT", "demo_model_document", "load_demo_model",
+__all__ = ["DESIGN_SEED", "TRAINING_SEED", "FORMAT", "TRAINED_MODEL_FORMAT",
+           "demo_model_document", "load_demo_model",
            "portable_report", "trained_model_document", "write_demo_model"]
 
 DESIGN_SEED = 1
 TRAINING_SEED = 0
 FORMAT = "ema-demo-model/1"
+#: a model trained by ``hmsm train DIR --out FILE``: the chain's document in ``payload``
+TRAINED_MODEL_FORMAT = "ema-trained-model/1"
 _MACHINE_KEYS = ("timings_s",)
 
 

@@ -39,9 +39,9 @@ from server.vocabulary import POSITIONS, SENSORS, WINGLET_PAIR
 
 from .faults import (
     A_PRIORI,
+    ENVELOPE_FLIGHTS,
     MODES,
     PROGRESSIVE,
-    ENVELOPE_FLIGHTS,
     SPAN_DRAWS,
     SPAN_FLIGHTS,
     FaultState,

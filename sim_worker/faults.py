@@ -26,8 +26,9 @@ and on the rod end (REWEAR). Every driver is multiplied by the flight's block ho
 ``rate`` is drawn per pattern so that the expected fault-to-failure span at the base's average
 conditions is ``U(170, 360)`` flights (accelerated ageing, as in the paper; verification
 campaigns), or log-uniform over the test station's envelope of 30-1000 flights (design
-campaigns, ``ENVELOPE_FLIGHTS``); actual spans spread further with season and usage. On the active-standby winglet tab each drive carries what its role
-gives it, worn or not, so a worn drive's wear is driven by the work it does in its role.
+campaigns, ``ENVELOPE_FLIGHTS``); actual spans spread further with season and usage. On the
+active-standby winglet tab each drive carries what its role gives it, worn or not, so a worn
+drive's wear is driven by the work it does in its role.
 """
 
 from __future__ import annotations

@@ -161,10 +161,11 @@ def run_calibrate(args: argparse.Namespace, settings: object = None) -> int:
         groups = ", ".join(f"{n}: {_fmt(m)}" for n, m in zip(r["counts"], r["margins"],
                                                             strict=True))
         print(f"{mode}: {r['records']} records from {r['runs']} runs; pooled "
-              f"{_fmt(r['pooled'])}; by rate group (n: 50 %, 90 %) {groups}")
+              f"{_fmt(r['pooled'])}; by rate group (n: 50 %, 90 % as (lower, upper)) {groups}")
     print(f"calibrated model written to {out}")
     return 0
 
 
 def _fmt(margins: Sequence[Sequence[float]]) -> str:
-    return "/".join(f"{q:+.2f}" for _, q in margins)
+    """Each band's (lower, upper) margins."""
+    return " ".join(f"({lo:+.2f}, {hi:+.2f})" for _, lo, hi in margins)

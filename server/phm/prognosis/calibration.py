@@ -1,19 +1,21 @@
 """A calibration layer for the RUL bands: group-conditional (Mondrian) conformalized quantile
-regression in log(1 + RUL).
+regression in log(1 + RUL), each end of a band on its own.
 
 The filter's 50 % and 90 % bands are the particles' central quantiles; whether they hold the
 truth that often depends on how well the design prior and the degradation law fit the fault.
 The layer corrects each band by a margin learned on replays of design runs kept for
 calibration only (Romano, Patterson and Candes, "Conformalized quantile regression", NeurIPS
-2019; Vovk's Mondrian conformal prediction for the groups). For a prediction with band
-[lo, hi] and true RUL y the conformity score is::
+2019, its asymmetric form; Vovk's Mondrian conformal prediction for the groups). For a
+prediction with band [lo, hi] and true RUL y the two conformity scores are::
 
-    E = max(log(1 + lo) - log(1 + y), log(1 + y) - log(1 + hi))
+    E_lo = log(1 + lo) - log(1 + y)        E_hi = log(1 + y) - log(1 + hi)
 
-(negative when the truth lies inside). The margin of a group is the ceil((n + 1) c) / n
-empirical quantile of its n scores (c = 0.5 or 0.9), and the band becomes
-[(1 + lo) e^-Q - 1, (1 + hi) e^Q - 1]: wider where the filter was too sure, narrower where it
-was too cautious. The median is left as the filter gives it.
+(negative when the truth lies inside). Each end's margin Q is the ceil((n + 1)(1 - a/2))-th
+smallest of its group's n scores (a = 0.5 or 0.1, the band's miss rate), and the band becomes
+[(1 + lo) e^-Q_lo - 1, (1 + hi) e^Q_hi - 1]: an optimistic filter's lower end moves down
+without widening its upper end, a too cautious one's ends move in. The median moves by the
+median of its group's log errors, log(1 + y) - log(1 + median): the point estimate of a
+filter that is systematically optimistic in a group is corrected there too.
 
 Groups use only what is known when the prediction is made: the fault mode, and the filter's
 rate relative to the design prior (:func:`.joint.rate_ratio`; ``RulDistribution.rate_ratio``)
@@ -35,7 +37,9 @@ from .predictor import RulDistribution
 __all__ = ["BAND_LEVELS", "BandCalibration", "CalibrationRecord", "fit_band_calibration",
            "widen"]
 
-_FORMAT = "rul-band-calibration/1"
+_FORMAT = "rul-band-calibration/2"
+#: per band coverage, the margins (Q_lo, Q_hi) of its lower and upper end [log(1 + RUL)]
+Margins = dict[float, tuple[float, float]]
 #: the central bands the layer calibrates: coverage -> (lower level, upper level)
 BAND_LEVELS = {0.5: (0.25, 0.75), 0.9: (0.05, 0.95)}
 
@@ -53,12 +57,15 @@ class CalibrationRecord:
 @dataclass(frozen=True)
 class BandCalibration:
     """The layer of one fault mode: the rate-ratio bin ``edges`` (ascending), each group's
-    margins {coverage: Q} (log units) and size, and the pooled margins."""
+    margins {coverage: (Q_lo, Q_hi)} (log units) and size, and the pooled margins."""
 
     edges: tuple[float, ...]
-    margins: tuple[dict[float, float], ...]
+    margins: tuple[Margins, ...]
     counts: tuple[int, ...]
-    pooled: dict[float, float]
+    pooled: Margins
+    #: each group's and the pooled shift of the median [log(1 + RUL)]
+    shifts: tuple[float, ...] = ()
+    pooled_shift: float = 0.0
     min_group: int = 30
     n_records: int = 0
     n_runs: int = 0
@@ -69,23 +76,26 @@ class BandCalibration:
             return -1
         return int(np.searchsorted(np.asarray(self.edges), rate_ratio, side="right"))
 
-    def margins_for(self, rate_ratio: float) -> tuple[int, dict[float, float]]:
-        """(group, margins) of a prediction; group -1 is the pooled fallback."""
+    def margins_for(self, rate_ratio: float) -> tuple[int, Margins, float]:
+        """(group, margins, median shift) of a prediction; group -1 is the pooled fallback."""
         g = self.group_of(rate_ratio)
         if g < 0 or self.counts[g] < self.min_group:
-            return -1, self.pooled
-        return g, self.margins[g]
+            return -1, self.pooled, self.pooled_shift
+        return g, self.margins[g], self.shifts[g]
 
     def apply(self, dist: RulDistribution) -> RulDistribution:
-        group, margins = self.margins_for(dist.rate_ratio)
-        out = widen(dist, margins)
+        group, margins, shift = self.margins_for(dist.rate_ratio)
+        out = widen(dist, margins, median_shift=shift)
         return replace(out, adjustment={**(dist.adjustment or {}), "conformal_group": group,
-                                        "conformal_margins": dict(margins)})
+                                        "conformal_margins": {c: list(m) for c, m in
+                                                              margins.items()},
+                                        "median_shift": shift})
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": _FORMAT, "edges": list(self.edges),
                 "margins": [_margins_out(m) for m in self.margins],
                 "counts": list(self.counts), "pooled": _margins_out(self.pooled),
+                "shifts": list(self.shifts), "pooled_shift": self.pooled_shift,
                 "min_group": self.min_group, "n_records": self.n_records,
                 "n_runs": self.n_runs, "notes": self.notes}
 
@@ -96,39 +106,51 @@ class BandCalibration:
         edges = tuple(float(e) for e in d["edges"])
         margins = tuple(_margins_in(m) for m in d["margins"])
         counts = tuple(int(c) for c in d["counts"])
+        shifts = tuple(float(v) for v in d["shifts"])
         if list(edges) != sorted(edges) or len(margins) != len(edges) + 1 \
-                or len(counts) != len(margins):
-            raise ValueError("band calibration: edges must ascend with one group more")
-        return cls(edges, margins, counts, _margins_in(d["pooled"]), int(d["min_group"]),
-                   int(d.get("n_records", 0)), int(d.get("n_runs", 0)),
-                   dict(d.get("notes") or {}))
+                or len(counts) != len(margins) or len(shifts) != len(margins) \
+                or not all(math.isfinite(v) for v in (*shifts, float(d["pooled_shift"]))):
+            raise ValueError("band calibration: edges must ascend with one group more, "
+                             "each group with its margins and a finite shift")
+        return cls(edges, margins, counts, _margins_in(d["pooled"]), shifts,
+                   float(d["pooled_shift"]), int(d["min_group"]), int(d.get("n_records", 0)),
+                   int(d.get("n_runs", 0)), dict(d.get("notes") or {}))
 
 
-def _margins_out(m: Mapping[float, float]) -> list[list[float]]:
-    return [[float(c), float(q)] for c, q in sorted(m.items())]
+def _margins_out(m: Margins) -> list[list[float]]:
+    return [[float(c), float(lo), float(hi)] for c, (lo, hi) in sorted(m.items())]
 
 
-def _margins_in(rows: Sequence[Sequence[float]]) -> dict[float, float]:
-    out = {float(c): float(q) for c, q in rows}
-    if set(out) != set(BAND_LEVELS) or not all(math.isfinite(q) for q in out.values()):
+def _margins_in(rows: Sequence[Sequence[float]]) -> Margins:
+    out = {float(c): (float(lo), float(hi)) for c, lo, hi in rows}
+    if set(out) != set(BAND_LEVELS) or not all(math.isfinite(v) for m in out.values()
+                                               for v in m):
         raise ValueError(f"band margins need finite values for coverages {sorted(BAND_LEVELS)}")
     return out
 
 
-def _scores(records: Sequence[CalibrationRecord], coverage: float) -> np.ndarray:
+def _band_margins(records: Sequence[CalibrationRecord], coverage: float) -> tuple[float, float]:
+    """(Q_lo, Q_hi) of one band: each end's conformal quantile at 1 - (1 - coverage) / 2."""
     lo_level, hi_level = BAND_LEVELS[coverage]
     y = np.log1p(np.array([r.true_rul for r in records], dtype=float))
     lo = np.log1p(np.array([r.quantiles[lo_level] for r in records], dtype=float))
     hi = np.log1p(np.array([r.quantiles[hi_level] for r in records], dtype=float))
-    with np.errstate(invalid="ignore"):
-        return np.maximum(lo - y, y - hi)  # +inf above an open band is -inf: inside
+    level = 1.0 - 0.5 * (1.0 - coverage)
+    return _margin(lo - y, level), _margin(y - hi, level)  # an open band's end: -inf, inside
 
 
-def _margin(scores: np.ndarray, coverage: float) -> float:
-    """The conformal quantile: the ceil((n + 1) c)-th smallest score (the largest if that
-    rank passes n)."""
+def _median_shift(records: Sequence[CalibrationRecord]) -> float:
+    """The median of log(1 + y) - log(1 + median) (0 without a finite one)."""
+    err = np.array([math.log1p(r.true_rul) - math.log1p(r.quantiles[0.5]) for r in records])
+    err = err[np.isfinite(err)]
+    return float(np.median(err)) if err.size else 0.0
+
+
+def _margin(scores: np.ndarray, level: float) -> float:
+    """The conformal quantile: the ceil((n + 1) level)-th smallest score (the largest if that
+    rank passes n); 0 where it is not finite (an end open beyond the horizon)."""
     s = np.sort(scores)
-    rank = min(int(math.ceil((s.size + 1) * coverage)), s.size)
+    rank = min(int(math.ceil((s.size + 1) * level)), s.size)
     value = float(s[rank - 1])
     return value if math.isfinite(value) else 0.0
 
@@ -142,30 +164,37 @@ def fit_band_calibration(records: Iterable[CalibrationRecord], *,
     if not recs:
         raise ValueError("no replayed prediction to calibrate on")
     edges = tuple(sorted(float(e) for e in edges))
-    pooled = {c: _margin(_scores(recs, c), c) for c in BAND_LEVELS}
-    layer = BandCalibration(edges, (), (), pooled, min_group, len(recs), n_runs)
+    pooled = {c: _band_margins(recs, c) for c in BAND_LEVELS}
+    layer = BandCalibration(edges, (), (), pooled, (), _median_shift(recs), min_group,
+                            len(recs), n_runs)
     groups: list[list[CalibrationRecord]] = [[] for _ in range(len(edges) + 1)]
     for r in recs:
         g = layer.group_of(r.rate_ratio)
         if g >= 0:
             groups[g].append(r)
-    margins = tuple({c: _margin(_scores(g, c), c) for c in BAND_LEVELS} if g else dict(pooled)
+    margins = tuple({c: _band_margins(g, c) for c in BAND_LEVELS} if g else dict(pooled)
                     for g in groups)
-    return replace(layer, margins=margins, counts=tuple(len(g) for g in groups))
+    shifts = tuple(_median_shift(g) if g else layer.pooled_shift for g in groups)
+    return replace(layer, margins=margins, counts=tuple(len(g) for g in groups), shifts=shifts)
 
 
-def widen(dist: RulDistribution, margins: Mapping[float, float]) -> RulDistribution:
-    """``dist`` with each central band's ends moved out by its margin Q in log(1 + RUL)
-    (in by -Q), the median kept, the quantiles kept in order around it; the probabilities of
-    failure within the horizons are read off the new quantiles (linear between levels)."""
+def widen(dist: RulDistribution, margins: Margins, *, median_shift: float = 0.0
+          ) -> RulDistribution:
+    """``dist`` with each central band's ends moved out by their margins (Q_lo, Q_hi) in
+    log(1 + RUL) (in, where negative), the median moved by ``median_shift`` in the same
+    units, the quantiles kept in order around it; the probabilities of failure within the
+    horizons are read off the new quantiles (linear between levels)."""
     q = dict(dist.quantiles)
     median = dist.median
+    if median_shift and math.isfinite(median):
+        median = math.expm1(math.log1p(median) + median_shift)
+        q[0.5] = median
     for coverage, (lo_level, hi_level) in BAND_LEVELS.items():
-        m = float(margins.get(coverage, 0.0))
+        m_lo, m_hi = margins.get(coverage, (0.0, 0.0))
         if lo_level in q:
-            q[lo_level] = min(math.expm1(math.log1p(q[lo_level]) - m), median)
+            q[lo_level] = min(math.expm1(math.log1p(q[lo_level]) - m_lo), median)
         if hi_level in q and math.isfinite(q[hi_level]):
-            q[hi_level] = max(math.expm1(math.log1p(q[hi_level]) + m), median)
+            q[hi_level] = max(math.expm1(math.log1p(q[hi_level]) + m_hi), median)
     below = sorted((lv for lv in q if lv < 0.5), reverse=True)  # inner to outer
     above = sorted(lv for lv in q if lv > 0.5)
     for inner, outer in zip(below, below[1:], strict=False):

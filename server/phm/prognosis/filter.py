@@ -431,7 +431,7 @@ class ParticleFilterPrognoser:
             if not (math.isfinite(stress) and stress > 0):
                 raise ValueError("stress must be finite and > 0")
             dk = float(stress)  # from here on, the law's clock
-        guard = None if state.guard is None else score(state.guard, k, z, cfg)
+        guard = None if state.guard is None else score(state.guard, k, mm.invert_one(z), cfg)
         # 1. propagate
         # the law is bounded where it is used (propagation, prediction), not inside the RLS:
         # a rescaled RLS estimate feeds back into the regression and drifts
@@ -596,7 +596,8 @@ class ParticleFilterPrognoser:
         if state.log_rates is not None:
             dist = replace(dist, rate_ratio=joint.rate_ratio(self.config, state.log_rates,
                                                             state.weights))
-        if state.guard is not None and state.guard.widening > 0.0:
-            w = state.guard.widening
-            dist = replace(widen(dist, {0.5: w, 0.9: w}), adjustment={"guard_widening": w})
+        guard = state.guard
+        if guard is not None and (guard.widening_fast > 0.0 or guard.widening_slow > 0.0):
+            dist = replace(widen(dist, guard.margins()), adjustment={
+                "guard_widening": [guard.widening_fast, guard.widening_slow]})
         return dist
