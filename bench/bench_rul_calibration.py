@@ -1,7 +1,7 @@
 """Calibration of the generic RUL engine (server.phm.prognosis.forecast) on synthetic families.
 
 Run: ``python bench/bench_rul_calibration.py [--units-per-family 20] [--half tuning|held-out]
-[--progpy] [--out PATH]`` (from the repository root). Writes
+[--progpy] [--out PATH] [--guard-prefixes N ...]`` (from the repository root). Writes
 ``docs/results/rul_calibration_<half>.json`` unless ``--out`` names another file.
 ``--progpy`` scores progpy's particle filter with a linear-fade model on the same units beside
 ours (progpy is the ``bench`` extra).
@@ -15,7 +15,10 @@ chosen on it only), odd ones the held-out half. Each unit is scored at 8 instant
 to 95 % of its life, each prediction from its prefix only: coverage of the central 50 % and
 90 % intervals, the PIT histogram (share of the distribution below the true RUL), relative
 accuracy of the median (RA), its mean over a unit (CRA) and alpha-lambda (alpha 0.2, lambda
-0.5, from 40 % of life).
+0.5, from 40 % of life), the median widths of both intervals relative to the true RUL, and
+the online guard's widening (mean, and the share of forecasts it widened). The ``--guard-*``
+options override the guard's settings (``--guard-prefixes 0``: no guard); choosing them:
+tuning half only.
 """
 
 from __future__ import annotations
@@ -85,10 +88,16 @@ def make_unit(family: str, draw: int) -> dict:
 
 
 CONFIG: LawAverageConfig | None = None
+#: the online guard's settings the command line may override
+GUARD_OPTIONS = {"guard_prefixes": int, "guard_horizon": float, "guard_window": float,
+                 "guard_miss_rate": float, "guard_gain": float}
 
 
-def ours(t: np.ndarray, x: np.ndarray, threshold: float, baseline: float) -> np.ndarray:
-    return forecast_rul(x, threshold, time=t, rng=0, config=CONFIG).samples
+def ours(t: np.ndarray, x: np.ndarray, threshold: float, baseline: float
+         ) -> tuple[np.ndarray, float]:
+    """The RUL samples (the guard's widening applied) and the widening."""
+    f = forecast_rul(x, threshold, time=t, rng=0, config=CONFIG)
+    return f.samples, f.guard_widening
 
 
 def scored_samples(unit: dict) -> list[int]:
@@ -97,7 +106,7 @@ def scored_samples(unit: dict) -> list[int]:
             for f in np.linspace(0.4, 0.95, 8)]
 
 
-def ours_at(unit: dict) -> list[np.ndarray]:
+def ours_at(unit: dict) -> list[tuple[np.ndarray, float]]:
     t, x = unit["time"], unit["series"]
     return [ours(t[:i + 1], x[:i + 1], unit["threshold"], unit["baseline"])
             for i in scored_samples(unit)]
@@ -111,15 +120,20 @@ def progpy_at(unit: dict) -> list[np.ndarray]:
     t, x = unit["time"], unit["series"]
     base = float(np.median(x[:5]))
     at = scored_samples(unit)
-    return progpy_forecasts(t, (x - base) / (unit["threshold"] - base), at,
-                            20.0 * float(t[at[-1]] - t[0]))
+    out = progpy_forecasts(t, (x - base) / (unit["threshold"] - base), at,
+                           20.0 * float(t[at[-1]] - t[0]))
+    return [(samples, 0.0) for samples in out]
 
 
-def score_unit(unit: dict, forecasts: list[np.ndarray]) -> list[dict]:
+def _relative_width(lo: float, hi: float, true_rul: float) -> float | None:
+    return float((hi - lo) / true_rul) if np.isfinite(hi) else None
+
+
+def score_unit(unit: dict, forecasts: list[tuple[np.ndarray, float]]) -> list[dict]:
     t, eol = unit["time"], unit["eol"]
     rows = []
-    for frac, i, samples in zip(np.linspace(0.4, 0.95, 8), scored_samples(unit), forecasts,
-                                strict=True):
+    for frac, i, (samples, widening) in zip(np.linspace(0.4, 0.95, 8), scored_samples(unit),
+                                            forecasts, strict=True):
         true_rul = eol - t[i]
         q = np.quantile(samples, [0.05, 0.25, 0.5, 0.75, 0.95], method="inverted_cdf")
         rows.append({"frac": float(frac), "true": true_rul,
@@ -128,7 +142,9 @@ def score_unit(unit: dict, forecasts: list[np.ndarray]) -> list[dict]:
                      "pit": float(np.mean(samples <= true_rul)),
                      # RA floored at 0: a median beyond the horizon scores as one twice the truth
                      "ra": float(max(1.0 - abs(q[2] - true_rul) / true_rul, 0.0)),
-                     "width90": float((q[4] - q[0]) / true_rul) if np.isfinite(q[4]) else None})
+                     "width90": _relative_width(q[0], q[4], true_rul),
+                     "width50": _relative_width(q[1], q[3], true_rul),
+                     "guard_widening": float(widening)})
     return rows
 
 
@@ -155,7 +171,11 @@ def summarise(results: list[dict]) -> dict:
                 "cra_interval": bootstrap_mean_interval(cra, indices=idx),
                 "alpha_lambda_pass": float(np.mean([abs(1.0 - r["ra"]) <= 0.2 for r in al])),
                 "median_width90_rel": float(np.median(
-                    [r["width90"] if r["width90"] is not None else np.inf for r in rr]))}
+                    [r["width90"] if r["width90"] is not None else np.inf for r in rr])),
+                "median_width50_rel": float(np.median(
+                    [r["width50"] if r["width50"] is not None else np.inf for r in rr])),
+                "mean_guard_widening": float(np.mean([r["guard_widening"] for r in rr])),
+                "guard_widened_share": float(np.mean([r["guard_widening"] > 0 for r in rr]))}
     out = {"all": figures(results), "pit_histogram": hist.round(4).tolist()}
     out["by_family"] = {f: figures([u for u in results if u["family"] == f]) for f in FAMILIES}
     return out
@@ -172,6 +192,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="override the engine's default (choosing it: tuning half only)")
     ap.add_argument("--rate-prior", choices=("log-uniform", "uniform"), default=None,
                     help="override the engine's prior over the affine and exponential rates")
+    for name, kind in GUARD_OPTIONS.items():
+        ap.add_argument(f"--{name.replace('_', '-')}", type=kind, default=None,
+                        help=f"override LawAverageConfig.{name} (0 prefixes: no guard)")
     args = ap.parse_args(argv)
     global CONFIG
     overrides: dict = {}
@@ -179,8 +202,12 @@ def main(argv: list[str] | None = None) -> int:
         overrides["memory_spans"] = args.memory_spans
     if args.rate_prior is not None:
         overrides["rate_prior"] = args.rate_prior
+    for name in GUARD_OPTIONS:
+        if getattr(args, name) is not None:
+            overrides[name] = getattr(args, name)
     if overrides:
         CONFIG = LawAverageConfig(**overrides)
+    cfg = CONFIG or LawAverageConfig()
     parity = 0 if args.half == "tuning" else 1
     start = time.perf_counter()
     results, theirs = [], []
@@ -193,6 +220,7 @@ def main(argv: list[str] | None = None) -> int:
                 theirs.append({"family": family, "draw": draw,
                                "rows": score_unit(unit, progpy_at(unit))})
     summary = {"half": args.half, "engine": "law averaging (server.phm.prognosis.forecast)",
+               "guard": {name: getattr(cfg, name) for name in GUARD_OPTIONS},
                "seconds": round(time.perf_counter() - start, 1), **summarise(results)}
     if theirs:
         summary["progpy_linear_pf"] = summarise(theirs)
@@ -204,7 +232,8 @@ def main(argv: list[str] | None = None) -> int:
     for f, v in summary["by_family"].items():
         print(f"{f:15s} c50 {v['coverage50']:.2f} c90 {v['coverage90']:.2f} "
               f"CRA {v['cra']:.2f} al {v['alpha_lambda_pass']:.2f} "
-              f"w90 {v['median_width90_rel']:.2f}")
+              f"w50 {v['median_width50_rel']:.2f} w90 {v['median_width90_rel']:.2f} "
+              f"guard {v['mean_guard_widening']:.3f} ({v['guard_widened_share']:.2f})")
     return 0
 
 

@@ -6,6 +6,22 @@ not chosen by the caller: :mod:`.law_average` weighs constant-rate, affine-rate,
 exponential, power-law, quadratic and onset (healthy, then growth) laws by their evidence
 on the samples given, and the answer is their mixture. ``backtest_forecasts`` predicts at
 chosen times, each from its prefix only (baseline and noise included).
+
+The online guard: the series scores its own earlier forecasts. Each of
+``guard_prefixes`` earlier prefixes (ending K, 2K, ... samples before the last one,
+K = max(3, round(``guard_horizon`` x n))) is fitted as the forecast is, and the mean of
+the last ``guard_window`` x K of the K samples that followed it is compared with the
+mixture's predictive distribution of that mean (closed form,
+:func:`.law_average.predictive_cdf`): outside its central 1 - alpha interval is a miss.
+Oldest first, the misses drive the quantile-tracking step of conformal PID control
+(Angelopoulos, Candes and Tibshirani, NeurIPS 2023; :func:`.generic.guard_step`, the step
+the chain filter's guard takes on each side): w <- max(0, w + gain (miss - alpha)), and
+the RUL distribution is widened by w in log(1 + RUL) around its median
+(:func:`.generic.widen_about`): below it (1 + r) e^-w - 1, above it (1 + r) e^w - 1. A
+series whose law changed under the fit, whose recent forecasts missed, gets a wider band.
+One the mixture describes still misses about alpha of its forecasts, so about half such
+series see a miss among six and w 0.15-0.27.
+No draw: the guard is deterministic.
 """
 
 from __future__ import annotations
@@ -18,21 +34,41 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .generic import BASELINE_SAMPLES, MIN_INFORMATIVE_SAMPLES, PriorDominatedWarning, as_seed
-from .law_average import LawAverageConfig, fit_laws, rul_samples
+from .generic import (
+    BASELINE_SAMPLES,
+    MIN_INFORMATIVE_SAMPLES,
+    PriorDominatedWarning,
+    as_seed,
+    guard_step,
+    widen_about,
+)
+from .law_average import LawAverageConfig, fit_laws, predictive_cdf, rul_samples
 
 __all__ = ["RulForecast", "backtest_forecasts", "forecast_rul"]
+
+#: the guard scores no prefix shorter than this (its own fit would be mostly the prior's)
+GUARD_MIN_PREFIX = 2 * MIN_INFORMATIVE_SAMPLES
+#: the guard's horizon is never shorter than this many samples
+GUARD_MIN_HORIZON = 3
 
 
 @dataclass(frozen=True)
 class RulForecast:
-    """RUL distribution after the sample at ``time`` (all times in the caller's unit)."""
+    """RUL distribution after the sample at ``time`` (all times in the caller's unit).
+
+    ``samples`` are the mixture's, widened by the online guard: ``guard_widening`` is w
+    [log(1 + RUL)] (0: as the mixture says), ``guard_scored`` and ``guard_missed`` count
+    the earlier forecasts of the series that the guard scored and those that missed.
+    """
 
     time: float
     samples: NDArray[np.float64] = field(repr=False)
     horizon: float
     law_weights: dict[str, float]
     prior_dominated: bool
+    guard_widening: float = 0.0
+    guard_scored: int = 0
+    guard_missed: int = 0
 
     def quantile(self, level: float) -> float:
         """RUL at ``level``, a fraction in (0, 1) (inf where it falls beyond the horizon)."""
@@ -113,11 +149,45 @@ def forecast_rul(series: ArrayLike, threshold: float, *, time: ArrayLike | None 
     cfg = config or LawAverageConfig()
     observed = float(t[-1] - t[0])
     tau = (t - t[0]) / observed
-    mixture = fit_laws(tau, (x - base) / span, cfg)
+    severity = (x - base) / span
+    mixture = fit_laws(tau, severity, cfg)
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(as_seed(rng))
-    rul = rul_samples(mixture, cfg, gen) * observed
-    return RulForecast(float(t[-1]), np.sort(rul), cfg.horizon_spans * observed,
-                       mixture.law_weights, few)
+    rul = np.sort(rul_samples(mixture, cfg, gen) * observed)
+    horizon = cfg.horizon_spans * observed
+    widening, scored, missed = _guard(t, severity, cfg)
+    if widening > 0.0:
+        median = float(np.quantile(rul, 0.5, method="inverted_cdf"))
+        rul = widen_about(rul, median, widening)
+        rul[rul > horizon] = np.inf  # widened past the horizon: beyond it, as the mixture says
+    return RulForecast(float(t[-1]), rul, horizon, mixture.law_weights, few, widening,
+                       scored, missed)
+
+
+def _guard(t: NDArray[np.float64], severity: NDArray[np.float64], cfg: LawAverageConfig
+           ) -> tuple[float, int, int]:
+    """(widening w, forecasts scored, missed) of the online guard (module docstring) on the
+    series (``t``, ``severity``): its earlier prefixes, oldest first, each scored on the
+    samples that followed it."""
+    n = t.size
+    k = max(GUARD_MIN_HORIZON, round(cfg.guard_horizon * n))
+    window = max(1, math.ceil(cfg.guard_window * k))
+    alpha = cfg.guard_miss_rate
+    widening, scored, missed = 0.0, 0, 0
+    for j in range(cfg.guard_prefixes, 0, -1):
+        end = n - 1 - j * k  # the prefix's last sample
+        if end + 1 < GUARD_MIN_PREFIX:
+            continue
+        target = end + k
+        span = float(t[end] - t[0])
+        tau = (t[:target + 1] - t[0]) / span
+        p = predictive_cdf(tau[:end + 1], severity[:end + 1], cfg,
+                           tau[target + 1 - window:target + 1],
+                           float(np.mean(severity[target + 1 - window:target + 1])))
+        miss = not alpha / 2.0 <= p <= 1.0 - alpha / 2.0
+        widening = guard_step(widening, miss, cfg.guard_gain, alpha)
+        scored += 1
+        missed += int(miss)
+    return widening, scored, missed
 
 
 def backtest_forecasts(series: ArrayLike, threshold: float, at: Sequence[float], *,

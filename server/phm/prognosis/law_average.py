@@ -23,7 +23,10 @@ N(0, sigma^2 V0) with V0 = (``coef_scale`` / sigma_hat)^2 I, so their spread is
 ``coef_scale`` severity units whatever the noise; sigma^2 ~ IG centred on the robust noise
 estimate sigma_hat of the prefix, worth ``noise_prior_weight`` samples.
 
-Numbers here are unit-free (severity and spans); :mod:`.forecast` converts to the caller's units.
+``predictive_cdf`` is the mixture's closed-form predictive distribution of the mean of later
+measurements, which the online guard of :mod:`.forecast` scores. Every law's shapes are fitted
+at once (batched linear algebra). Numbers here are unit-free (severity and spans);
+:mod:`.forecast` converts to the caller's units.
 """
 
 from __future__ import annotations
@@ -34,12 +37,13 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import gammaln, logsumexp
+from scipy.special import gammaln, logsumexp, stdtr
 
 from .constants import CONSTANTS
 from .generic import estimate_noise_std
 
-__all__ = ["LAW_NAMES", "LawAverageConfig", "LawMixture", "fit_laws", "rul_samples"]
+__all__ = ["LAW_NAMES", "LawAverageConfig", "LawMixture", "fit_laws", "predictive_cdf",
+           "rul_samples"]
 
 LAW_NAMES = ("constant", "affine", "exponential", "power", "quadratic", "onset")
 
@@ -78,6 +82,15 @@ class LawAverageConfig:
     uniform (0.44 / 0.83 / 0.78), uniform with the likelihood tempered by the residuals'
     lag-1 autocorrelation, no exponential law, and log-uniform on the exponential law's rate
     only (docs/TUNING.md).
+
+    The online guard (:mod:`.forecast`): guard_prefixes: how many earlier prefixes of the
+    series forecast their own near future (0: no guard). guard_horizon: each forecasts
+    K = max(3, round(guard_horizon x n)) samples ahead of its last one, n the series' sample
+    count; the prefixes end K, 2K, ... samples before the last. guard_window: the share of
+    those K samples, the last ones, whose mean is scored. guard_miss_rate: alpha, the
+    forecast's interval is its central 1 - alpha. guard_gain: the widening's step
+    [log(1 + RUL)] per scored forecast. 6 / 0.15 / 0.5 / 0.1 / 0.3 were chosen on the tuning
+    half of bench/bench_rul_calibration.py (docs/TUNING.md).
     """
 
     n_samples: int = 4000
@@ -87,6 +100,11 @@ class LawAverageConfig:
     grid_points: int = 1024
     memory_spans: float | None = 0.25
     rate_prior: str = "log-uniform"
+    guard_prefixes: int = 6
+    guard_horizon: float = 0.15
+    guard_window: float = 0.5
+    guard_miss_rate: float = 0.1
+    guard_gain: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("n_samples", "grid_points"):
@@ -99,10 +117,20 @@ class LawAverageConfig:
             raise ValueError(f"memory_spans must be finite and > 0, got {self.memory_spans!r}")
         if self.rate_prior not in _RATE_PRIORS:
             raise ValueError(f"rate_prior must be one of {_RATE_PRIORS}, got {self.rate_prior!r}")
-        for name in ("horizon_spans", "coef_scale", "noise_prior_weight"):
+        for name in ("horizon_spans", "coef_scale", "noise_prior_weight", "guard_horizon",
+                     "guard_gain"):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        value = self.guard_prefixes
+        if isinstance(value, bool) or not float(value).is_integer() or value < 0:
+            raise ValueError(f"guard_prefixes must be a whole number >= 0, got {value!r}")
+        object.__setattr__(self, "guard_prefixes", int(value))
+        if not 0.0 < float(self.guard_window) <= 1.0:
+            raise ValueError(f"guard_window must be in (0, 1], got {self.guard_window!r}")
+        if not 0.0 < float(self.guard_miss_rate) < 0.5:
+            raise ValueError(f"guard_miss_rate must be in (0, 0.5), got "
+                             f"{self.guard_miss_rate!r}")
 
 
 def _basis(law: str, shape: Any, tau: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -189,39 +217,117 @@ def robust_noise_std(severity: NDArray[np.float64]) -> float:
     return estimate_noise_std(severity)
 
 
-def _fit_one(law: str, shape: Any, tau: NDArray[np.float64], y: NDArray[np.float64],
-             w: NDArray[np.float64], sigma_hat: float, cfg: LawAverageConfig) -> _Posterior:
-    x = _basis(law, shape, tau)
-    p = x.shape[1]
-    xw = x * w[:, None]
+def _basis_stack(law: str, shapes: tuple[Any, ...], tau: NDArray[np.float64]
+                 ) -> NDArray[np.float64]:
+    """Design matrices (S, n, p) of one law at each of its S shapes (:func:`_basis` stacked,
+    computed at once)."""
+    one = np.ones((len(shapes), tau.size))
+    if law in ("constant", "quadratic"):
+        return np.stack([_basis(law, shape, tau) for shape in shapes])
+    if law == "onset":
+        c = np.array([cq[0] for cq in shapes])[:, None]
+        q = np.array([cq[1] for cq in shapes])[:, None]
+        return np.stack([one, np.maximum(tau[None, :] - c, 0.0) ** q], axis=2)
+    k = np.array(shapes, dtype=float)[:, None]
+    if law == "affine":
+        return np.stack([one, np.expm1(np.minimum(k * tau[None, :], 700.0)) / np.expm1(k)],
+                        axis=2)
+    if law == "exponential":
+        return np.exp(np.minimum(k * (tau[None, :] - 1.0), 700.0))[:, :, None]
+    if law == "power":
+        return np.stack([one, np.power(tau[None, :], k)], axis=2)
+    raise ValueError(f"unknown law {law!r}")
+
+
+@dataclass(frozen=True)
+class _LawFit:
+    """Normal-inverse-gamma posteriors of one law at each of its shapes (arrays over shapes)."""
+
+    law: str
+    shapes: tuple[Any, ...]
+    mean: NDArray[np.float64]  # (S, p)
+    cov_unit: NDArray[np.float64]  # (S, p, p): covariance of the coefficients / sigma^2
+    a: NDArray[np.float64]  # (S,)
+    b: NDArray[np.float64]  # (S,)
+    log_evidence: NDArray[np.float64]  # (S,)
+
+
+def _fit_law(law: str, shapes: tuple[Any, ...], tau: NDArray[np.float64],
+             y: NDArray[np.float64], w: NDArray[np.float64], sigma_hat: float,
+             cfg: LawAverageConfig) -> _LawFit:
+    """Every shape of ``law`` fitted at once (one batched linear algebra call per step)."""
+    x = _basis_stack(law, shapes, tau)  # (S, n, p)
+    p = x.shape[2]
+    xw = x * w[None, :, None]
     prior_prec = (sigma_hat / cfg.coef_scale) ** 2  # V0^-1 = (sigma_hat / coef_scale)^2 I
     a0 = cfg.noise_prior_weight / 2.0
     b0 = a0 * sigma_hat ** 2
-    prec = xw.T @ x + prior_prec * np.eye(p)
+    prec = np.einsum("snp,snq->spq", xw, x) + prior_prec * np.eye(p)
     chol = np.linalg.cholesky(prec)
-    mean = np.linalg.solve(prec, xw.T @ y)
+    rhs = np.einsum("snp,n->sp", xw, y)
+    mean = np.linalg.solve(prec, rhs[:, :, None])[:, :, 0]
     n = float(w.sum())
     a = a0 + n / 2.0
-    b = b0 + 0.5 * float(y @ (w * y) - mean @ prec @ mean)
-    b = max(b, 1e-300)
-    log_det_prec = 2.0 * float(np.sum(np.log(np.diag(chol))))
+    b = b0 + 0.5 * (float(y @ (w * y)) - np.einsum("sp,spq,sq->s", mean, prec, mean))
+    b = np.maximum(b, 1e-300)
+    log_det_prec = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
     log_evidence = (0.5 * (p * math.log(prior_prec) - log_det_prec) + a0 * math.log(b0)
-                    - a * math.log(b) + float(gammaln(a) - gammaln(a0))
+                    - a * np.log(b) + float(gammaln(a) - gammaln(a0))
                     - 0.5 * n * math.log(2.0 * math.pi))
-    return _Posterior(law, shape, mean, np.linalg.inv(prec), a, b, log_evidence)
+    return _LawFit(law, shapes, mean, np.linalg.inv(prec), np.full(len(shapes), a), b,
+                   log_evidence)
+
+
+#: the laws in ``COMPONENTS`` order, each with its shapes
+_SHAPES_BY_LAW = {name: tuple(k for law, k in COMPONENTS if law == name)
+                  for name in dict.fromkeys(law for law, _ in COMPONENTS)}
+
+
+def _fit_all(tau: NDArray[np.float64], severity: NDArray[np.float64], cfg: LawAverageConfig
+             ) -> tuple[list[_LawFit], NDArray[np.float64], float]:
+    """Every (law, shape) fitted to the prefix (in ``COMPONENTS`` order), the posterior
+    weight of each and the noise estimate."""
+    sigma_hat = robust_noise_std(severity)
+    w = (np.ones_like(tau) if cfg.memory_spans is None
+         else np.exp(-(1.0 - tau) / cfg.memory_spans))
+    fits = [_fit_law(name, shapes, tau, severity, w, sigma_hat, cfg)
+            for name, shapes in _SHAPES_BY_LAW.items()]
+    log_w = _LOG_PRIORS[cfg.rate_prior] + np.concatenate([f.log_evidence for f in fits])
+    return fits, np.exp(log_w - logsumexp(log_w)), sigma_hat
 
 
 def fit_laws(tau: NDArray[np.float64], severity: NDArray[np.float64],
              cfg: LawAverageConfig) -> LawMixture:
     """Every (law, shape) fitted to the prefix, weighted by its evidence times its prior
     (equal mass per law, shared among its shapes as ``cfg.rate_prior`` says)."""
-    sigma_hat = robust_noise_std(severity)
-    w = (np.ones_like(tau) if cfg.memory_spans is None
-         else np.exp(-(1.0 - tau) / cfg.memory_spans))
-    comps = tuple(_fit_one(law, k, tau, severity, w, sigma_hat, cfg) for law, k in COMPONENTS)
-    log_w = _LOG_PRIORS[cfg.rate_prior] + np.array([c.log_evidence for c in comps])
-    weights = np.exp(log_w - logsumexp(log_w))
+    fits, weights, sigma_hat = _fit_all(tau, severity, cfg)
+    comps = tuple(_Posterior(f.law, shape, f.mean[i], f.cov_unit[i], float(f.a[i]),
+                             float(f.b[i]), float(f.log_evidence[i]))
+                  for f in fits for i, shape in enumerate(f.shapes))
     return LawMixture(comps, weights, sigma_hat)
+
+
+def predictive_cdf(tau: NDArray[np.float64], severity: NDArray[np.float64],
+                   cfg: LawAverageConfig, future_tau: NDArray[np.float64],
+                   future_mean: float) -> float:
+    """P(the mean of measurements at ``future_tau`` <= ``future_mean``) under the mixture
+    fitted to (``tau``, ``severity``). Per component the closed-form Student-t predictive:
+    2a degrees of freedom, location phi_bar' beta and scale^2 (b/a)(1/m + phi_bar' V
+    phi_bar), beta the coefficients' posterior mean, V their covariance / sigma^2, phi_bar the
+    mean basis over the m future times (each sample's noise that of a sample of weight 1, the
+    newest's); summed with the posterior weights. Deterministic; no draw."""
+    fits, weights, _ = _fit_all(tau, severity, cfg)
+    m = float(future_tau.size)
+    cdf = 0.0
+    start = 0
+    for f in fits:
+        phi = _basis_stack(f.law, f.shapes, future_tau).mean(axis=1)  # (S, p)
+        mu = np.einsum("sp,sp->s", phi, f.mean)
+        var = (f.b / f.a) * (1.0 / m + np.einsum("sp,spq,sq->s", phi, f.cov_unit, phi))
+        z = (future_mean - mu) / np.sqrt(var)
+        cdf += float(weights[start:start + f.a.size] @ stdtr(2.0 * f.a, z))
+        start += f.a.size
+    return cdf
 
 
 def _future_grid(cfg: LawAverageConfig) -> NDArray[np.float64]:
