@@ -489,6 +489,17 @@ class ParticleFilterPrognoser:
             guard=guard,
         )
 
+    def _rate_ratio(self, state: PrognoserState) -> float:
+        """The filter's rate over its prior's centre (the calibration layer's group key): the
+        particles' for a joint filter, the RLS estimate's for the exponential law; nan for
+        the polynomial laws, whose rate depends on the severity."""
+        if state.log_rates is not None:
+            return joint.rate_ratio(self.config, state.log_rates, state.weights)
+        if self.config.rate_basis != "exponential":
+            return math.nan
+        ratio = float(state.theta[1]) / self.config.theta0[1]
+        return ratio if ratio > 0 else math.nan
+
     def _particle_law(self, log_rates: NDArray[np.float64] | None, theta: NDArray[np.float64]
                       ) -> NDArray[np.float64]:
         """Growth-rate coefficients to propagate with: each particle's own (N, p) when the
@@ -593,9 +604,9 @@ class ParticleFilterPrognoser:
             flight_index=flight,
             hours_per_flight=state.hours_per_flight,
         )
-        if state.log_rates is not None:
-            dist = replace(dist, rate_ratio=joint.rate_ratio(self.config, state.log_rates,
-                                                            state.weights))
+        ratio = self._rate_ratio(state)
+        if math.isfinite(ratio):
+            dist = replace(dist, rate_ratio=ratio)
         guard = state.guard
         if guard is not None and (guard.widening_fast > 0.0 or guard.widening_slow > 0.0):
             dist = replace(widen(dist, guard.margins()), adjustment={
