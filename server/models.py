@@ -57,6 +57,9 @@ __all__ = [
     "AlarmEvent",
     "ALARM_EVENT_KINDS",
     "FAULT_MODES",
+    "WorkerHeartbeat",
+    "JobTiming",
+    "JobAttempts",
 ]
 
 #: viewer reads; uploader uploads flights; maintainer records maintenance actions (the line
@@ -210,6 +213,8 @@ class Flight(Base):
             postgresql_where=_ACCEPTED,
         ),
         Index("ix_flights_aircraft_started", "aircraft_id", "started_at"),
+        # the rejected bytes a key stores, read before each rejected file is kept (its quota)
+        Index("ix_flights_uploader_status", "uploader_key_id", "status"),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
@@ -479,3 +484,49 @@ class GroundTruth(Base):
     severity_norm: Mapped[float] = mapped_column(Float)
     true_rul_flights: Mapped[int | None] = mapped_column(Integer)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+# ---------------------------------------------------------------------------------------------
+# the workers' own telemetry, read by the API's /metrics (server/services/telemetry.py): in the
+# database because workers run as other processes, possibly on other hosts
+# ---------------------------------------------------------------------------------------------
+
+class WorkerHeartbeat(Base):
+    """One running worker process: its last sign of life and the job it holds. A worker that
+    stops cleanly removes its row; one that died keeps it, its ``beat_at`` ageing."""
+
+    __tablename__ = "worker_heartbeats"
+
+    worker_id: Mapped[str] = mapped_column(String(128), primary_key=True)
+    host: Mapped[str] = mapped_column(String(255))
+    pid: Mapped[int] = mapped_column(Integer)
+    started_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    beat_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    #: the job it runs now (None: idle)
+    job_id: Mapped[int | None] = mapped_column(Integer)
+
+
+class JobTiming(Base):
+    """One bucket of a job-duration histogram: how many finished jobs of ``kind`` spent, in
+    ``stage`` (``job``: the whole attempt), more than the next lower bound and at most ``le``
+    seconds, and their seconds summed. Buckets are not cumulative here; /metrics adds them up."""
+
+    __tablename__ = "job_timings"
+
+    kind: Mapped[str] = mapped_column(String(32), primary_key=True)
+    stage: Mapped[str] = mapped_column(String(32), primary_key=True)
+    #: the bucket's upper bound as text ("0.25", "+Inf")
+    le: Mapped[str] = mapped_column(String(24), primary_key=True)
+    observations: Mapped[int] = mapped_column(BigInteger)
+    seconds: Mapped[float] = mapped_column(Float)
+
+
+class JobAttempts(Base):
+    """How many attempts of jobs of ``kind`` ended with ``outcome`` (done, retried, dead,
+    deferred, abandoned), counted by the workers."""
+
+    __tablename__ = "job_attempts"
+
+    kind: Mapped[str] = mapped_column(String(32), primary_key=True)
+    outcome: Mapped[str] = mapped_column(String(16), primary_key=True)
+    attempts: Mapped[int] = mapped_column(BigInteger)

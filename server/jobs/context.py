@@ -4,13 +4,14 @@ handlers (so that neither imports the other)."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from sqlalchemy.orm import Session, sessionmaker
 
 from server.blobstore import BlobStore
 from server.config import Settings
 from server.jobs.queue import ClaimedJob
+from server.timing import StageClock
 
 __all__ = ["JobContext", "Handler", "DeadLetter", "Deferred"]
 
@@ -20,6 +21,8 @@ class JobContext:
     settings: Settings
     factory: sessionmaker[Session]
     blobs: BlobStore
+    #: this job's stage timings (the worker gives each job a fresh clock and stores them)
+    stages: StageClock = field(default_factory=StageClock)
 
 
 Handler = Callable[[JobContext, ClaimedJob], None]
