@@ -16,7 +16,9 @@ from server.api import (
     health_records,
     jobs,
     keys,
+    metrics,
     models_api,
+    storage,
     test_station,
 )
 from server.api.openapi import document_errors
@@ -25,6 +27,7 @@ from server.boundedpool import BoundedPool
 from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.errors import BodyOverLimit, BodyTimeout, install_error_handlers
+from server.metrics import RequestMetricsMiddleware, RouteTemplates, ServiceMetrics
 from server.migrate import ensure_schema
 from server.ratelimit import AuthFailureLimitMiddleware
 
@@ -155,26 +158,37 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     app.state.blobs = blobs
     app.state.signal_reads = BoundedPool("signals", settings.signals_concurrency,
                                          settings.signals_waiting)
+    app.state.metrics = ServiceMetrics(app.state.session_factory)
     install_error_handlers(app)
     document_errors(app)
-    for module in (health, aircraft, actuators, health_records, flights, jobs, models_api,
-                   keys, test_station):
-        app.include_router(module.router, prefix=API_PREFIX)
-    from fastapi.staticfiles import StaticFiles
-
     from server.web import events as web_events
     from server.web import routes as web_routes
 
-    app.include_router(web_events.router, prefix=API_PREFIX)
-    app.include_router(web_routes.router)  # dashboard pages; "/" redirects to /fleet
-    app.include_router(docs.router)
+    # each router with its prefix, also registered for the route label of /metrics
+    routers = [(m.router, API_PREFIX) for m in (health, aircraft, actuators, health_records,
+                                                 flights, jobs, models_api, keys, test_station,
+                                                 storage, web_events)]
+    routers += [(web_routes.router, ""),  # dashboard pages; "/" redirects to /fleet
+                (docs.router, ""),
+                (metrics.router, "")]  # /metrics: where Prometheus looks by default
+    templates = RouteTemplates()
+    for router, prefix in routers:
+        app.include_router(router, prefix=prefix)
+        templates.add_router(router, prefix)
+    from fastapi.staticfiles import StaticFiles
+
     app.mount("/static", StaticFiles(directory=web_routes.STATIC_DIR), name="static")
     app.mount(docs.DOCS_ASSETS_URL, StaticFiles(directory=docs.DOCS_ASSETS_DIR),
               name="docs-assets")
+    templates.add_mount("/static")
+    templates.add_mount(docs.DOCS_ASSETS_URL)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
     app.add_middleware(BodyIdleTimeoutMiddleware, idle_s=settings.body_idle_timeout_s)
     app.add_middleware(AuthFailureLimitMiddleware, per_minute=settings.auth_failures_per_minute,
                        max_clients=settings.auth_failure_clients)
     app.add_middleware(SecurityHeadersMiddleware)
+    # outermost: a request's latency from arrival, refusals by the middlewares above included
+    app.add_middleware(RequestMetricsMiddleware, metrics=app.state.metrics,
+                       templates=templates)
 
     return app

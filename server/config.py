@@ -10,7 +10,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from pydantic import Field, field_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from server.flightlog import DecodeLimits
@@ -83,6 +83,28 @@ class Settings(BaseSettings):
         "analysed flights' logs are removed after each analysis, their features and results "
         "kept (server/services/retention.py). Unset: every raw log is kept (the default)."))
 
+    rejected_bytes_per_key: int = Field(128 * 1024 * 1024, ge=0, description=(
+        "Most bytes of rejected flight logs kept for one API key (distinct files, summed); a "
+        "rejected file past it is not kept: 507 `rejected_quota_exceeded` with its reasons. "
+        "0: none kept."))
+    metrics_token: SecretStr | None = Field(None, description=(
+        "Bearer token that may read GET /metrics (besides an admin key): at least 32 "
+        "characters, no spaces. Unset: only admin keys may."))
+    metrics_token_file: Path | None = Field(None, description=(
+        "A file holding the metrics token (a compose or Kubernetes secret), read at start; "
+        "instead of HMSM_METRICS_TOKEN."))
+
+    @model_validator(mode="after")
+    def _metrics_token_from_file(self) -> Settings:
+        if self.metrics_token_file is not None:
+            if self.metrics_token is not None:
+                raise ValueError("set HMSM_METRICS_TOKEN or HMSM_METRICS_TOKEN_FILE, not both")
+            text = self.metrics_token_file.read_text(encoding="utf-8").strip()
+            self.metrics_token = SecretStr(text)
+        if self.metrics_token is not None:
+            _check_metrics_token(self.metrics_token.get_secret_value())
+        return self
+
     @field_validator("data_dir")
     @classmethod
     def _absolute(cls, value: Path) -> Path:
@@ -120,6 +142,20 @@ class Settings(BaseSettings):
     @property
     def tmp_dir(self) -> Path:
         return self.data_dir / "tmp"
+
+
+#: the shortest metrics token accepted: 32 characters (128 bits as hex) cannot be guessed within
+#: the failed-authentication budget
+METRICS_TOKEN_MIN_CHARS = 32
+
+
+def _check_metrics_token(token: str) -> None:
+    """A token long enough not to be guessed, of visible ASCII (it travels in a header)."""
+    if len(token) < METRICS_TOKEN_MIN_CHARS or len(token) > 512:
+        raise ValueError(f"the metrics token must have {METRICS_TOKEN_MIN_CHARS} to 512 "
+                         "characters (e.g. `openssl rand -hex 32`)")
+    if not all("!" <= c <= "~" for c in token):
+        raise ValueError("the metrics token must be visible ASCII, without spaces")
 
 
 def load_settings(**overrides: object) -> Settings:

@@ -267,3 +267,69 @@ class InjectionCreate(BaseModel):
             raise ValueError("severity is imposed only for SE and BDO; progressive faults "
                              "start at onset and grow")
         return self
+
+
+# ---------------------------------------------------------------------------------------------
+# GET /api/v1/storage (server/services/storage.py)
+# ---------------------------------------------------------------------------------------------
+
+class FlightLogUsage(BaseModel):
+    state: Literal["accepted", "rejected", "raw_pruned"] = Field(description=(
+        "accepted: a flight with its raw log (any status but rejected); rejected; raw_pruned: "
+        "analysed, its log removed by the raw-log retention (0 bytes)."))
+    reason: str | None = Field(description=(
+        "accepted and raw_pruned: the flight's status; rejected: its first reason's code."))
+    flights: int
+    bytes: int = Field(description="The bytes of the group's distinct files (a file backing "
+                       "several rows counts once).")
+
+
+class RejectedByKey(BaseModel):
+    key_id: int | None
+    key_name: str | None
+    role: str | None
+    flights: int
+    bytes: int
+    charged_bytes: int = Field(description=(
+        "What the key's rejected flights take of its quota: each at least 64 KiB."))
+    quota_bytes: int = Field(description="HMSM_REJECTED_BYTES_PER_KEY.")
+
+
+class BlobStoreUsage(BaseModel):
+    files: int
+    bytes: int
+    referenced_files: int = Field(description="Files a flight row keeping its log refers to.")
+    referenced_bytes: int
+    unreferenced_files: int = Field(description="Files no such row refers to.")
+    unreferenced_bytes: int
+    missing_files: int = Field(description="Files such rows refer to that are not on disk.")
+
+
+class FileUsage(BaseModel):
+    kind: Literal["blobs", "temporary_uploads", "campaign", "evaluation_reports", "database",
+                  "logs", "other"]
+    name: str | None = Field(description="The campaign's name (campaigns are listed one by "
+                             "one); null for the other kinds.")
+    files: int
+    bytes: int
+
+
+class DirectoryUsage(BaseModel):
+    files: int
+    bytes: int = Field(description="Every file under HMSM_DATA_DIR: the sum of `files`.")
+    free_bytes: int
+
+
+class DatabaseUsage(BaseModel):
+    dialect: str
+    bytes: int | None = Field(description="PostgreSQL's database size; null for SQLite, whose "
+                              "file is listed under `files` (kind `database`).")
+
+
+class StorageReport(BaseModel):
+    flight_logs: list[FlightLogUsage]
+    rejected_by_key: list[RejectedByKey]
+    blob_store: BlobStoreUsage
+    files: list[FileUsage]
+    data_dir: DirectoryUsage
+    database: DatabaseUsage

@@ -8,6 +8,7 @@ adds an ``Authorization`` header to a cross-site request by itself."""
 
 from __future__ import annotations
 
+import hmac
 from typing import Annotated
 
 from fastapi import Depends, Request
@@ -27,7 +28,7 @@ from server.errors import Forbidden, Unauthorized
 from server.models import ApiKey
 
 __all__ = ["SessionDep", "SettingsDep", "BlobsDep", "Reader", "Uploader", "Operator",
-           "Maintainer", "Admin", "CurrentKey", "presented_key"]
+           "Maintainer", "Admin", "CurrentKey", "presented_key", "MetricsReader"]
 
 _bearer = HTTPBearer(auto_error=False, description="API key: `Authorization: Bearer hmsm_...`")
 
@@ -89,3 +90,31 @@ Operator = Annotated[ApiKey, Depends(_require("operate"))]
 Admin = Annotated[ApiKey, Depends(_require("admin"))]
 #: maintenance actions (replace, inspect, defer): maintainer or admin
 Maintainer = Annotated[ApiKey, Depends(_require("maintain"))]
+
+
+def metrics_reader(
+    session: SessionDep,
+    settings: SettingsDep,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+) -> None:
+    """Who may read /metrics: the bearer of ``HMSM_METRICS_TOKEN`` (a scraper's credential
+    that can do nothing else) or of an admin key; Bearer only, never the session cookie.
+    A wrong token is a failed authentication (401), counted by the address's budget."""
+    if credentials is None or not credentials.credentials:
+        raise Unauthorized("/metrics needs Authorization: Bearer <metrics token or admin key>.",
+                           headers={"WWW-Authenticate": "Bearer"})
+    presented = credentials.credentials
+    token = settings.metrics_token
+    if token is not None and hmac.compare_digest(presented.encode(),
+                                                 token.get_secret_value().encode()):
+        return
+    key = authenticate(session=session, plaintext=presented)
+    if key is None:
+        raise Unauthorized("The metrics token or API key is wrong or revoked.",
+                           headers={"WWW-Authenticate": "Bearer"})
+    if not may(key.role, "admin"):
+        raise Forbidden(f"Role '{key.role}' may not read /metrics; it needs the metrics token "
+                        "or an admin key.")
+
+
+MetricsReader = Annotated[None, Depends(metrics_reader)]

@@ -64,9 +64,13 @@ _UPLOAD_DOC = {
         "413": {"description": "Body over the size limit, or the file past a decode limit "
                 "(`flight_too_large`, reasons name the limit); nothing was registered."},
         "415": {"description": "Unsupported content type or file kind."},
-        "507": {"description": "The blob store cannot take the file; nothing was registered."},
         "422": {"description": "Failed coherence checks; stored as rejected with reasons (the "
-                "same upload sent again is evaluated again)."},
+                "same upload sent again is evaluated again: rejected again, it answers with the "
+                "same row, `duplicate` true, and nothing more is kept)."},
+        "507": {"description": "The blob store cannot take the file (`storage_unavailable`), "
+                "or the file failed the coherence checks and keeping it would take the key past "
+                "HMSM_REJECTED_BYTES_PER_KEY (`rejected_quota_exceeded`, reasons in the "
+                "details); nothing was registered."},
     },
 }
 
@@ -124,12 +128,17 @@ async def upload(request: Request, session: SessionDep, blobs: BlobsDep, setting
     except OSError as exc:
         raise _storage_unavailable(exc) from None
 
+    outcome = "refused"  # unless ingest says otherwise: conflict, too large, over quota...
     try:
         flight, duplicate = await run_in_threadpool(_ingest, session, blobs, spooled, kind,
-                                                    form_metadata, key, settings.decode_limits)
+                                                    form_metadata, key, settings)
+        outcome = ("rejected" if flight.status == FlightStatus.REJECTED
+                   else "duplicate" if duplicate else "accepted")
     except OSError as exc:
         # The blob store failed before the flight row was flushed: nothing was registered.
         raise _storage_unavailable(exc) from None
+    finally:
+        request.app.state.metrics.observe_upload(outcome, spooled.size)
     body = FlightAccepted(id=flight.id, status=flight.status,
                           status_url=f"/api/v1/flights/{flight.id}", duplicate=duplicate)
     if flight.status == FlightStatus.REJECTED:
@@ -148,11 +157,12 @@ def _storage_unavailable(exc: OSError) -> StorageUnavailable:
                               details={"errno": exc.errno}, headers={"Retry-After": "60"})
 
 
-def _ingest(session, blobs, spooled, kind, form_metadata, key, limits):  # type: ignore[no-untyped-def]
+def _ingest(session, blobs, spooled, kind, form_metadata, key, settings):  # type: ignore[no-untyped-def]
     try:
-        flight, duplicate = service.ingest_flight(session=session, blobs=blobs, upload=spooled,
-                                                  kind=kind, form_metadata=form_metadata,
-                                                  uploader=key, limits=limits)
+        flight, duplicate = service.ingest_flight(
+            session=session, blobs=blobs, upload=spooled, kind=kind,
+            form_metadata=form_metadata, uploader=key, limits=settings.decode_limits,
+            rejected_quota=settings.rejected_bytes_per_key)
         session.commit()
         return flight, duplicate
     except service.LostRace as race:
@@ -209,6 +219,18 @@ async def signals(flight_id: int, request: Request, session: SessionDep, blobs: 
 
     return Response(await request.app.state.signal_reads.run(read),
                     media_type="application/json")
+
+
+@router.delete("/{flight_id}", status_code=204, responses=errors(409),
+               summary="Delete a rejected flight and its file (admin)")
+def delete_rejected(flight_id: int, session: SessionDep, blobs: BlobsDep, _: Admin) -> Response:
+    """Only a rejected flight (409 `not_rejected` otherwise): its row goes, and its file
+    unless another kept flight shares it; its uploader's rejected-bytes quota is freed."""
+    orphan = service.delete_rejected(session=session, flight_id=flight_id)
+    session.commit()
+    if orphan is not None:
+        blobs.delete(orphan)
+    return Response(status_code=204)
 
 
 @router.post("/{flight_id}/retry", status_code=202, response_model=FlightRead,

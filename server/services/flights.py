@@ -6,9 +6,11 @@ flight answers with that flight (idempotent; :func:`upload_key` says what "the s
 file is decoded and checked; the bytes are renamed into the content-addressed store; only then
 the flight row (and, for an accepted flight, its analysis job) is flushed. The caller commits.
 
-A rejected flight neither holds its (aircraft, flight) slot nor makes its upload a duplicate:
-the same bytes sent again (say, once the aircraft is registered) are evaluated afresh and give
-a new row; the rejected row stays as it was, for forensics.
+A rejected flight neither holds its (aircraft, flight) slot nor makes its upload an accepted
+duplicate: the same bytes sent again (say, once the aircraft is registered) are evaluated
+afresh; accepted now, they give a new row and the rejected one stays, for forensics; rejected
+again, they give no new row nor file: the rejected row is brought up to date and answered. A
+rejected file is kept only within its key's quota (:mod:`server.services.storage`).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from sqlalchemy import func, select
+from sqlalchemy import delete, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -40,11 +42,13 @@ from server.flightlog import (
     read_parquet_decimated,
     valid_id,
 )
-from server.models import Aircraft, ApiKey, Flight, Job, JobKind, upload_key_of
+from server.models import Aircraft, ApiKey, Flight, Job, JobKind, upload_key_of, utcnow
 from server.services.fleet import installed_serials
+from server.services.storage import check_rejected_quota
 from server.vocabulary import FlightStatus
 
 __all__ = ["ingest_flight", "upload_key", "LostRace", "after_lost_race", "get_flight",
+           "delete_rejected",
            "flight_codes", "list_flights", "decode_flight", "decimated_signals",
            "flight_signals", "signals_json", "ANALYSIS_JOB"]
 
@@ -81,13 +85,17 @@ def _accepted_upload(session: Session, key: str) -> Flight | None:
 
 def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, kind: str,
                   form_metadata: dict[str, str], uploader: ApiKey,
-                  limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> tuple[Flight, bool]:
+                  limits: DecodeLimits = DEFAULT_DECODE_LIMITS,
+                  rejected_quota: int | None = None) -> tuple[Flight, bool]:
     """Register an uploaded flight; return ``(flight, duplicate)``.
 
     Raises :class:`Conflict` when an accepted flight with the same (aircraft, flight) came from
     another upload, :class:`PayloadTooLarge` (nothing registered) when the file is past one of
     the decode ``limits``. A file that fails decoding or coherence is stored as ``rejected``
-    with its reasons (bounded in number and size).
+    with its reasons (bounded in number and size): the same upload rejected before answers
+    with that row (``duplicate``, nothing added), a new one is kept only within the uploader's
+    ``rejected_quota`` [B] (else :class:`~server.services.storage.RejectedQuotaExceeded`,
+    nothing kept; None: no quota).
     """
     key = upload_key(sha256=upload.sha256, kind=kind, form_metadata=form_metadata)
     existing = _accepted_upload(session, key)
@@ -122,6 +130,14 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
                            code="flight_exists", details={"flight_id": clash.id})
     if log is not None:
         issues = check_coherence(log, fleet_serials=installed_serials(session=session, tail=tail))
+    reasons = bounded_reasons((i.as_dict() for i in issues), limits)
+    if issues:
+        again = _rejected_again(session, blobs, upload, key, reasons, aircraft_id)
+        if again is not None:
+            return again, True
+        if rejected_quota is not None:
+            check_rejected_quota(session, key_id=uploader.id, size=upload.size,
+                                 quota=rejected_quota, reasons=reasons)
 
     blob_path = blobs.commit(upload)
     meta = log.metadata if log else None
@@ -130,7 +146,7 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
         tail=tail,
         flight_code=code,
         status=FlightStatus.REJECTED if issues else FlightStatus.QUEUED,
-        reasons=bounded_reasons((i.as_dict() for i in issues), limits),
+        reasons=reasons,
         sha256=upload.sha256,
         upload_key=key,
         size_bytes=upload.size,
@@ -154,6 +170,22 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
         # (conflict); the caller ends this unit of work and asks again (after_lost_race).
         raise LostRace(tail, code, key) from None
     return flight, False
+
+
+def _rejected_again(session: Session, blobs: BlobStore, upload: SpooledUpload, key: str,
+                    reasons: list[dict[str, Any]], aircraft_id: int | None) -> Flight | None:
+    """The latest rejected row of the same upload, now rejected again: its reasons and
+    aircraft brought up to this evaluation, its stored copy checked (a damaged one replaced
+    by these bytes, in place); no new row, no new file. None when there is no such row."""
+    previous = session.scalar(select(Flight).where(
+        Flight.upload_key == key, Flight.status == FlightStatus.REJECTED)
+        .order_by(Flight.id.desc()).limit(1))
+    if previous is None:
+        return None
+    blobs.commit(upload)
+    previous.reasons, previous.aircraft_id, previous.updated_at = reasons, aircraft_id, utcnow()
+    session.flush()
+    return previous
 
 
 def _too_large(exc: FlightLogError, limits: DecodeLimits) -> PayloadTooLarge:
@@ -187,6 +219,24 @@ def get_flight(*, session: Session, flight_id: int) -> Flight:
     if flight is None:
         raise NotFound(f"Flight {flight_id} does not exist.")
     return flight
+
+
+def delete_rejected(*, session: Session, flight_id: int) -> str | None:
+    """Delete a rejected flight (and its analysis job, when the worker rejected it): what
+    frees its key's rejected-bytes quota. Returns the blob path to remove once the caller has
+    committed (never a row without its bytes), or None when another row keeping its log
+    still refers to the file. Conflict unless the flight is rejected."""
+    flight = get_flight(session=session, flight_id=flight_id)
+    if flight.status != FlightStatus.REJECTED:
+        raise Conflict(f"Flight {flight_id} is {flight.status}: only a rejected flight is "
+                       "deleted.", code="not_rejected", details={"status": flight.status})
+    sha256, blob_path = flight.sha256, flight.blob_path
+    session.execute(delete(Job).where(Job.flight_id == flight_id))
+    session.delete(flight)
+    session.flush()
+    shared = session.scalar(select(Flight.id).where(Flight.sha256 == sha256,
+                                                    Flight.raw_pruned_at.is_(None)).limit(1))
+    return None if shared is not None else blob_path
 
 
 def flight_codes(*, session: Session, flight_ids: list[int]) -> dict[int, str]:

@@ -204,10 +204,13 @@ def test_rejected_bytes_are_kept(client: TestClient, keys: dict[str, str], aircr
     stored = client.get(f"/api/v1/flights/{r.json()['error']['details']['id']}",
                         headers=auth(keys["viewer"])).json()
     assert app.state.blobs.path_of(stored["sha256"]).read_bytes() == data
-    again = post_parquet(client, keys["uploader"], data)  # evaluated again: a new rejected row
+    # evaluated again and rejected again: the same row answers, no new row nor file
+    again = post_parquet(client, keys["uploader"], data)
     details = again.json()["error"]["details"]
-    assert again.status_code == 422 and details["duplicate"] is False
-    assert details["id"] != stored["id"]
+    assert again.status_code == 422 and details["duplicate"] is True
+    assert details["id"] == stored["id"] and details["reasons"] == stored["reasons"]
+    rows = client.get("/api/v1/flights?status=rejected", headers=auth(keys["viewer"])).json()
+    assert rows["total"] == 1
     first = client.get(f"/api/v1/flights/{stored['id']}", headers=auth(keys["viewer"])).json()
     assert first["status"] == "rejected" and first["reasons"] == stored["reasons"]
 
