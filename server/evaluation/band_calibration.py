@@ -21,6 +21,7 @@ import json
 import math
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -93,8 +94,10 @@ def calibration_records(traces: Iterable[Mapping[str, Any]], per_run: int
 
 def calibrate_model(model_doc: dict[str, Any], traces: Sequence[Mapping[str, Any]], *,
                     per_run: int = 20, edges: tuple[float, ...] = (0.5, 2.0),
-                    min_group: int = 30) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The model document with each mode's layer fitted on ``traces``, and a report."""
+                    min_group: int = 30, replays: Sequence[Mapping[str, Any]] = ()
+                    ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The model document with each mode's layer fitted on ``traces``, and a report;
+    ``replays`` (the campaigns replayed) go into each layer's notes."""
     model = read_model_document(model_doc)
     if any(s.band_calibration is not None for s in model.measurement.values()):
         raise ValueError("the model already has a calibration layer: give the uncalibrated one")
@@ -106,8 +109,9 @@ def calibrate_model(model_doc: dict[str, Any], traces: Sequence[Mapping[str, Any
         if len(recs) < min_group:
             report[mode] = {"records": len(recs), "fitted": False}
             continue
-        layer = fit_band_calibration(recs, edges=edges, min_group=min_group,
-                                     n_runs=runs.get(mode, 0))
+        layer = replace(fit_band_calibration(recs, edges=edges, min_group=min_group,
+                                             n_runs=runs.get(mode, 0)),
+                        notes={"replays": [dict(r) for r in replays], "per_run": per_run})
         payload["measurement"][mode]["band_calibration"] = layer.to_dict()
         report[mode] = {"records": len(recs), "runs": runs.get(mode, 0), "fitted": True,
                         **layer.to_dict()}
@@ -128,9 +132,12 @@ def add_calibrate_arguments(parser: argparse.ArgumentParser) -> argparse.Argumen
     return parser
 
 
-def _traces(paths: Sequence[str], model_doc: Mapping[str, Any]) -> list[dict[str, Any]]:
+def _traces(paths: Sequence[str], model_doc: Mapping[str, Any]
+            ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The replays' traces, and what each replayed campaign was (its directory left out)."""
     design = model_doc.get("design") or {}
     out: list[dict[str, Any]] = []
+    campaigns: list[dict[str, Any]] = []
     for p in paths:
         path = Path(p) / "evaluation.json" if Path(p).is_dir() else Path(p)
         doc = json.loads(path.read_text())
@@ -140,16 +147,19 @@ def _traces(paths: Sequence[str], model_doc: Mapping[str, Any]) -> list[dict[str
             raise ValueError(f"{path}: replays of the model's own design campaign (seed "
                              f"{camp.get('seed')}); calibrate on design runs kept apart")
         out += doc["patterns"]
-    return out
+        campaigns.append({k: v for k, v in camp.items()
+                          if k in ("kind", "seed", "scale", "render_every", "patterns",
+                                   "flights")})
+    return out, campaigns
 
 
 def run_calibrate(args: argparse.Namespace, settings: object = None) -> int:
     if args.per_run < 1 or args.min_group < 1:
         raise ValueError("--per-run and --min-group must be >= 1")
     model_doc = json.loads(Path(args.model_json).read_text())
-    traces = _traces(args.evaluation, model_doc)
+    traces, replays = _traces(args.evaluation, model_doc)
     doc, report = calibrate_model(model_doc, traces, per_run=args.per_run,
-                                  min_group=args.min_group)
+                                  min_group=args.min_group, replays=replays)
     out = Path(args.out)
     tmp = out.with_suffix(".part")
     tmp.write_text(json.dumps(doc, sort_keys=True, separators=(",", ":")) + "\n")
