@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .degradation import growth_rate
+from .generic import guard_step
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .config import PrognoserConfig
@@ -90,8 +91,8 @@ def score(guard: GuardState, flight: int, severity: float, config: PrognoserConf
             keep.append((target, lo, hi))
         elif flight <= target + tolerance:
             fast, slow = severity > hi, severity < lo
-            g = replace(g, widening_fast=max(0.0, g.widening_fast + gain * (fast - half)),
-                        widening_slow=max(0.0, g.widening_slow + gain * (slow - half)),
+            g = replace(g, widening_fast=guard_step(g.widening_fast, fast, gain, half),
+                        widening_slow=guard_step(g.widening_slow, slow, gain, half),
                         scored=g.scored + 1, missed_fast=g.missed_fast + int(fast),
                         missed_slow=g.missed_slow + int(slow))
     return replace(g, pending=tuple(keep))
