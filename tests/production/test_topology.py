@@ -84,6 +84,68 @@ def test_compose_file_is_valid_and_has_the_production_topology() -> None:
     text = (ROOT / "docker-compose.yml").read_text()
     assert "s3cret" not in text and "${POSTGRES_PASSWORD:?" in text
 
+    # /metrics: the API reads the token from the secret Prometheus scrapes it with
+    assert api["environment"]["HMSM_METRICS_TOKEN_FILE"] == "/run/secrets/metrics_token"
+    assert "HMSM_METRICS_TOKEN" not in api["environment"]  # never a literal
+    assert config["secrets"]["metrics_token"]["file"].endswith("secrets/metrics_token")
+    prom = services["prometheus"]
+    assert [s.get("source", s) if isinstance(s, dict) else s
+            for s in prom["secrets"]] == ["metrics_token"]
+    mounts = " ".join(str(v) for v in prom["volumes"])
+    assert "deploy/prometheus/prometheus.yml:/etc/prometheus/prometheus.yml" in mounts
+    assert any("retention.size" in arg for arg in prom["command"])
+    assert prom["depends_on"]["api"]["condition"] == "service_healthy"
+    assert all(str(p).startswith("127.0.0.1:") for p in prom["ports"]) or all(
+        isinstance(p, dict) and p.get("host_ip") == "127.0.0.1" for p in prom["ports"])
+    scrape = yaml.safe_load((ROOT / "deploy/prometheus/prometheus.yml").read_text())
+    (job,) = scrape["scrape_configs"]
+    assert job["metrics_path"] == "/metrics"
+    assert job["authorization"] == {"type": "Bearer",
+                                    "credentials_file": "/run/secrets/metrics_token"}
+    assert job["dns_sd_configs"][0]["names"] == ["api"] and job["dns_sd_configs"][0][
+        "port"] == 8000
+    with_monitoring = _compose_config({"POSTGRES_PASSWORD": "x"}, "--profile", "monitoring")
+    assert with_monitoring.returncode == 0, with_monitoring.stderr
+    grafana = yaml.safe_load(with_monitoring.stdout)["services"]["grafana"]
+    assert "GF_SECURITY_ADMIN_PASSWORD:?" in " ".join(grafana["entrypoint"])
+    assert grafana["profiles"] == ["monitoring"]
+
+
+def test_the_dashboard_and_alerts_use_only_metrics_the_service_exposes(tmp_path) -> None:
+    """Every hmsm_ metric named in deploy/ (Grafana panels, Prometheus alerts) is one that
+    /metrics serves, and the dashboard reads the data source the provisioning defines."""
+    import json
+    import re
+
+    yaml = pytest.importorskip("yaml")
+    from server.app import create_app
+    from server.config import Settings
+
+    app = create_app(Settings(data_dir=tmp_path / "data"))
+    exposition = app.state.metrics.exposition().decode()
+    app.state.engine.dispose()
+    # a counter is typed under its name with _total in this format: one name per family
+    exposed = {re.sub(r"_total$", "", n)
+               for n in re.findall(r"^# TYPE (\S+) ", exposition, re.MULTILINE)}
+    assert {"hmsm_job_stage_duration_seconds", "hmsm_queue_depth",
+            "hmsm_worker_last_heartbeat_timestamp_seconds"} <= exposed
+
+    def families(expr: str) -> set[str]:
+        names = set(re.findall(r"\b((?:hmsm|process)_[a-z_]+)", expr))
+        return {re.sub(r"_(bucket|sum|count|total)$", "", n) for n in names}
+
+    dashboard = json.loads((ROOT / "deploy/grafana/hmsm.json").read_text())
+    exprs = [t["expr"] for p in dashboard["panels"] for t in p.get("targets", [])]
+    alerts = yaml.safe_load((ROOT / "deploy/prometheus/alerts.yml").read_text())
+    exprs += [r["expr"] for g in alerts["groups"] for r in g["rules"]]
+    used = set().union(*(families(e) for e in exprs))
+    assert used and used <= exposed, used - exposed
+    assert any("hmsm_job_stage_duration_seconds" in e for e in exprs)
+    source = yaml.safe_load((ROOT / "deploy/grafana/provisioning/datasources/prometheus.yml")
+                            .read_text())["datasources"][0]
+    assert {p["datasource"]["uid"] for p in dashboard["panels"] if "datasource" in p} == {
+        source["uid"]}
+
 
 def test_dockerfile_runs_as_non_root_with_a_liveness_healthcheck() -> None:
     lines = [ln.strip() for ln in (ROOT / "Dockerfile").read_text().splitlines()
