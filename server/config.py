@@ -99,7 +99,11 @@ class Settings(BaseSettings):
         if self.metrics_token_file is not None:
             if self.metrics_token is not None:
                 raise ValueError("set HMSM_METRICS_TOKEN or HMSM_METRICS_TOKEN_FILE, not both")
-            text = self.metrics_token_file.read_text(encoding="utf-8").strip()
+            try:
+                text = self.metrics_token_file.read_text(encoding="utf-8").strip()
+            except (OSError, UnicodeDecodeError) as exc:
+                raise ValueError(f"HMSM_METRICS_TOKEN_FILE: cannot read "
+                                 f"{self.metrics_token_file}: {exc}") from None
             self.metrics_token = SecretStr(text)
         if self.metrics_token is not None:
             _check_metrics_token(self.metrics_token.get_secret_value())

@@ -10,7 +10,6 @@ import threading
 import time
 
 from fastapi.testclient import TestClient
-from prometheus_client.parser import text_string_to_metric_families
 from pydantic import SecretStr
 
 from server.app import create_app
@@ -18,20 +17,10 @@ from server.config import Settings
 from server.jobs.worker import Worker
 from tests.api.conftest import auth
 from tests.flightlog_factory import make_parquet
+from tests.scrape import STAGES, samples, value
 
 PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
 TOKEN = "m" * 40
-STAGES = ("decode", "features", "detection", "classification", "prognosis")
-
-
-def samples(text: str) -> dict[tuple[str, frozenset], float]:  # type: ignore[type-arg]
-    """Every sample of a scrape: (name, labels) -> value."""
-    return {(s.name, frozenset(s.labels.items())): s.value
-            for family in text_string_to_metric_families(text) for s in family.samples}
-
-
-def value(scrape: dict, name: str, **labels: str) -> float | None:  # type: ignore[type-arg]
-    return scrape.get((name, frozenset(labels.items())))
 
 
 def scrape(client: TestClient, token: str = TOKEN) -> dict:  # type: ignore[type-arg]
@@ -162,3 +151,21 @@ def test_queue_jobs_stages_and_heartbeats_come_from_the_database(
                  stage="decode") == 2
     assert not any(k[0] == "hmsm_worker_last_heartbeat_timestamp_seconds" for k in after), \
         "a worker that stopped cleanly removes its heartbeat"
+
+
+def test_metrics_token_settings_are_checked(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import pytest
+    from pydantic import ValidationError
+
+    for bad in ("short", "x" * 31, "with space " * 4, "é" * 40):
+        with pytest.raises(ValidationError):
+            Settings(data_dir=tmp_path, metrics_token=bad)
+    path = tmp_path / "token"
+    path.write_text(TOKEN + "\n")  # a trailing newline, as `openssl rand -hex 32 > file` writes
+    assert Settings(data_dir=tmp_path,
+                    metrics_token_file=path).metrics_token.get_secret_value() == TOKEN
+    with pytest.raises(ValidationError, match="not both"):
+        Settings(data_dir=tmp_path, metrics_token=TOKEN, metrics_token_file=path)
+    with pytest.raises(ValidationError, match="cannot read"):
+        Settings(data_dir=tmp_path, metrics_token_file=tmp_path / "missing")
+    assert TOKEN not in repr(Settings(data_dir=tmp_path, metrics_token=TOKEN))

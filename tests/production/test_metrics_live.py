@@ -12,10 +12,10 @@ import httpx
 import pytest
 
 from server.config import Settings
-from tests.api.test_metrics import STAGES, samples, value
 from tests.flightlog_factory import make_parquet, serials_for
 from tests.live_server import running_server
 from tests.production.helpers import env_of, seed_system, wait_until, worker_process
+from tests.scrape import STAGES, samples, value
 
 pytestmark = pytest.mark.slow
 
