@@ -21,7 +21,13 @@ import time
 from collections.abc import Iterable, Iterator
 from typing import Any
 
-from prometheus_client import CollectorRegistry, Counter, Histogram, ProcessCollector
+from prometheus_client import (
+    CollectorRegistry,
+    Counter,
+    Histogram,
+    ProcessCollector,
+    disable_created_metrics,
+)
 from prometheus_client.core import (
     CounterMetricFamily,
     GaugeMetricFamily,
@@ -56,6 +62,9 @@ class ServiceMetrics:
     the database collector."""
 
     def __init__(self, session_factory: sessionmaker[Session]):
+        # no `_created` series beside each counter and histogram: Prometheus needs none of
+        # them and they double what every scrape carries (a process-wide switch of the library)
+        disable_created_metrics()
         self.registry = CollectorRegistry()
         self.latency = Histogram(
             "hmsm_http_request_duration_seconds", "Time from a request's arrival to the end of "
