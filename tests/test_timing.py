@@ -1,10 +1,9 @@
-"""The stage clock: a block timed as a whole, the time inside watched functions set apart as
-their own stages (how the worker splits the PHM chain's one call into detection,
-classification and prognosis without touching the chain's code)."""
+"""The stage clock: stages timed around calls, and a block whose inner stages are set apart
+(how the worker splits the PHM chain's one call into detection, classification and
+prognosis: the chain times the last two itself)."""
 
 from __future__ import annotations
 
-import sys
 import time
 
 import pytest
@@ -12,56 +11,22 @@ import pytest
 from server.timing import StageClock
 
 
-def _inner() -> None:
-    time.sleep(0.02)
-
-
-def _outer() -> None:
-    _inner()
-    time.sleep(0.01)
-
-
-def _raises() -> None:
-    time.sleep(0.01)
-    raise RuntimeError("boom")
-
-
-def test_split_sets_the_watched_functions_apart_and_the_rest_to_the_block() -> None:
+def test_rest_is_the_block_less_the_stages_timed_inside_it() -> None:
     clock = StageClock()
-    with clock.split("rest", {_outer.__code__: "outer", _inner.__code__: "inner"}):
-        _outer()  # _inner runs inside _outer: counted once, for the outer
+    with clock.rest("rest"):
+        with clock.stage("inner"):
+            time.sleep(0.02)
         time.sleep(0.01)
-        _inner()  # on its own: its stage
-    assert set(clock.seconds) == {"outer", "inner", "rest"}
-    assert 0.03 <= clock.seconds["outer"] < 0.3
-    assert 0.02 <= clock.seconds["inner"] < 0.3
-    assert 0.01 <= clock.seconds["rest"] < 0.3
-    assert sys.getprofile() is None  # the hook is gone after the block
+    assert 0.018 < clock.seconds["inner"] < 0.2
+    assert 0.008 < clock.seconds["rest"] < 0.1
 
 
-def test_a_watched_function_that_raises_is_timed_and_the_hook_removed() -> None:
+def test_a_stage_that_raises_is_timed() -> None:
     clock = StageClock()
-    with pytest.raises(RuntimeError), clock.split("rest", {_raises.__code__: "raises"}):
-        _raises()
-    assert clock.seconds["raises"] >= 0.01 and "rest" in clock.seconds
-    assert sys.getprofile() is None
-
-
-def test_someone_elses_profiler_is_left_alone_and_nothing_recorded() -> None:
-    calls = []
-
-    def theirs(frame, event, arg):  # type: ignore[no-untyped-def]
-        calls.append(event)
-
-    clock = StageClock()
-    sys.setprofile(theirs)
-    try:
-        with clock.split("rest", {_inner.__code__: "inner"}):
-            _inner()
-        assert sys.getprofile() is theirs
-    finally:
-        sys.setprofile(None)
-    assert clock.seconds == {} and calls
+    with pytest.raises(RuntimeError), clock.rest("rest"), clock.stage("raises"):
+        time.sleep(0.01)
+        raise RuntimeError("boom")
+    assert clock.seconds["raises"] > 0.008 and clock.seconds["rest"] >= 0.0
 
 
 def test_stages_add_up_and_refuse_impossible_durations() -> None:
@@ -76,23 +41,21 @@ def test_stages_add_up_and_refuse_impossible_durations() -> None:
 
 
 def test_the_chain_is_split_into_detection_classification_and_prognosis(shipped_model) -> None:  # type: ignore[no-untyped-def]
-    """On the chain itself: the names the service watches still exist in
-    ``server.phm.chain.run`` and take the time of classification and prognosis (the factory's
-    sinusoid flights look faulty to the shipped model: alarms within a few flights)."""
+    """On the chain itself: ``analyze_flight`` times its classification and prognosis, the
+    rest of the call is detection (the factory's sinusoid flights look faulty to the shipped
+    model: alarms within a few flights)."""
     from server.campaigns import log_features
     from server.phm.chain import analyze_flight, read_model_document
-    from server.services.analysis import CHAIN_STAGES
     from tests.flightlog_factory import make_log
 
-    assert sorted(CHAIN_STAGES.values()) == ["classification", "prognosis"]
     model = read_model_document(shipped_model[0])
     health = {p: model.new_health(p) for p in ("WL1", "WL2", "WT")}
     clock = StageClock()
     ruls = 0
     for i in range(5):
         features = log_features(make_log("T1", f"F{i}", seed=i, duration_s=20))
-        with clock.split("detection", CHAIN_STAGES):
-            out = analyze_flight(model, features, health, seed=i)
+        with clock.rest("detection"):
+            out = analyze_flight(model, features, health, seed=i, stage=clock.stage)
         ruls += sum(o.rul is not None for o in out.values())
     assert ruls > 0, "the test flights no longer reach prognosis: choose others"
     assert set(clock.seconds) == {"detection", "classification", "prognosis"}

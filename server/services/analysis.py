@@ -13,7 +13,6 @@ import logging
 import math
 from contextlib import nullcontext
 from dataclasses import dataclass
-from types import CodeType
 from typing import Any
 
 import numpy as np
@@ -35,7 +34,6 @@ from server.models import (
     utcnow,
 )
 from server.phm.chain import ActuatorHealth, ActuatorOutcome, PhmModel, analyze_flight
-from server.phm.chain import run as chain_run
 from server.phm.features import FlightFeatures
 from server.phm.prognosis import RulDistribution
 from server.services.urgency import RUL_LOW_QUANTILE
@@ -47,24 +45,6 @@ __all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "reject", "
 
 log = logging.getLogger("hmsm.analysis")
 
-
-def _chain_stages() -> dict[CodeType, str]:
-    """The functions of ``analyze_flight`` whose time is a stage of its own: the ones it calls
-    for classification and prognosis (looked up where it calls them). The rest of the chain,
-    z-scores against the baseline, the sensors judged and the detector's update, is detection.
-    A name gone from the chain leaves its time in detection, with a warning: the chain is
-    another team's code, and its timing must never stop an analysis."""
-    stages = {}
-    for name, stage in (("_classify", "classification"), ("prognose", "prognosis")):
-        code = getattr(getattr(chain_run, name, None), "__code__", None)
-        if code is None:
-            log.warning("server.phm.chain.run.%s is gone: %s is timed as detection", name, stage)
-        else:
-            stages[code] = stage
-    return stages
-
-
-CHAIN_STAGES = _chain_stages()
 
 #: flight states after which there is nothing left to analyse (``failed``: until a retry)
 _FINISHED = (FlightStatus.ANALYZED, FlightStatus.REJECTED, FlightStatus.FAILED)
@@ -164,7 +144,7 @@ def store_analysis(*, session: Session, flight_id: int, features: FlightFeatures
     """Run the chain on the flight's features for every installed actuator not yet analysed
     on this flight, from its stored state, store what it says and mark the flight analysed.
     With a ``clock``, the chain's time is split into detection, classification and prognosis
-    (:data:`CHAIN_STAGES`); the database work around it is in none of them."""
+    (the chain times the last two itself); the database work around it is in none of them."""
     flight = session.get(Flight, flight_id)
     if flight is None:
         return
@@ -173,11 +153,12 @@ def store_analysis(*, session: Session, flight_id: int, features: FlightFeatures
     states = {a.id: session.get(ActuatorState, a.id) for a in todo}
     health = {a.position: _health_of(model, a, states[a.id]) for a in todo}
     aircraft = session.get(Aircraft, flight.aircraft_id)
-    timed = nullcontext() if clock is None else clock.split("detection", CHAIN_STAGES)
+    timed = nullcontext() if clock is None else clock.rest("detection")
     with timed:
         outcomes = analyze_flight(model, features, health, seed=flight_id,
                                   started_at=flight.started_at,  # aware (UTCDateTime)
-                                  base=None if aircraft is None else aircraft.base)
+                                  base=None if aircraft is None else aircraft.base,
+                                  stage=None if clock is None else clock.stage)
     for act in todo:
         out = outcomes[act.position]
         quality = {ch: q for ch, q in features.quality.items()

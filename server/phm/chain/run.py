@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -26,6 +27,12 @@ __all__ = ["MeasurementHook", "ActuatorOutcome", "analyze_flight"]
 
 #: (position, measurement values) -> the values the prognosis sees: see :func:`analyze_flight`
 MeasurementHook = Callable[[str, dict[str, float]], dict[str, float]]
+#: times a named stage of the chain: ``with stage("prognosis"): ...``
+StageTimer = Callable[[str], AbstractContextManager[object]]
+
+
+def _untimed(_stage: str) -> AbstractContextManager[object]:
+    return nullcontext()
 
 
 @dataclass
@@ -55,7 +62,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
                    health: dict[str, ActuatorHealth], *, seed: int = 0,
                    flight_index: int | None = None, started_at: datetime | None = None,
                    base: str | None = None,
-                   measurement_hook: MeasurementHook | None = None
+                   measurement_hook: MeasurementHook | None = None,
+                   stage: StageTimer | None = None
                    ) -> dict[str, ActuatorOutcome]:
     """Advance every actuator's state by one flight (``health`` is updated in place).
 
@@ -71,7 +79,12 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     ``measurement_hook(position, values)`` may replace the values the prognosis of an
     actuator sees (and stores in its history) for an error-budget study: the evaluation's
     noise-free features (``hmsm evaluate --noise-free-features``). Never used in service.
+
+    ``stage(name)`` (a context manager factory) times each actuator's classification and
+    prognosis as the stages "classification" and "prognosis": the service's stage durations
+    (``server.timing.StageClock.stage``). None: untimed.
     """
+    timed = stage or _untimed
     z_all = model.baseline.zscores(features)
     judged = _judge_sensors(model, features, z_all)
     if judged is not None:
@@ -89,9 +102,11 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
             generic = measurement_hook(position, generic)
         h.history.append((index, generic))
         del h.history[:-CHAIN.history_flights]
-        probs = _classify(model, h, position) if det.alarm else None
-        rul = (prognose(model, h, generic, position, index, base=base, seed=seed)
-               if det.alarm else None)
+        with timed("classification"):
+            probs = _classify(model, h, position) if det.alarm else None
+        with timed("prognosis"):
+            rul = (prognose(model, h, generic, position, index, base=base, seed=seed)
+                   if det.alarm else None)
         out[position] = _outcome(features, z_all, det, h, position, index, probs, rul)
         if judged is not None:
             _note_sensors(out[position], judged, position)
