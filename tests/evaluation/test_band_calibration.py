@@ -30,6 +30,14 @@ def _trace(rng: np.random.Generator, mode: str, life: int, bias: float) -> dict:
     return {"mode": mode, "onset": 2, "failure": 10 + life, "flights": flights}
 
 
+def _uncalibrated() -> dict:
+    """The shipped model without the layers it ships with."""
+    doc = load_demo_model()
+    for spec in doc["payload"]["measurement"].values():
+        spec.pop("band_calibration", None)
+    return doc
+
+
 def _evaluation(tmp_path, traces, seed=3):
     path = tmp_path / f"eval_{seed}"
     path.mkdir()
@@ -42,7 +50,7 @@ def test_calibrate_writes_each_modes_layer_and_the_chain_reads_it(tmp_path, caps
     rng = np.random.default_rng(0)
     traces = [_trace(rng, "DMD", int(rng.integers(30, 300)), 0.5) for _ in range(8)]
     model = tmp_path / "model.json"
-    model.write_text(json.dumps(load_demo_model()))
+    model.write_text(json.dumps(_uncalibrated()))
     out = tmp_path / "calibrated.json"
     assert main(["calibrate", "--evaluation", str(_evaluation(tmp_path, traces)),
                  "--model-json", str(model), "--out", str(out)]) == 0
@@ -60,7 +68,7 @@ def test_calibrate_writes_each_modes_layer_and_the_chain_reads_it(tmp_path, caps
 def test_calibrate_refuses_the_models_own_design_and_calibrated_replays(tmp_path, capsys):
     rng = np.random.default_rng(1)
     traces = [_trace(rng, "MTEL", 80, 0.0) for _ in range(4)]
-    doc = load_demo_model()
+    doc = _uncalibrated()
     model = tmp_path / "model.json"
     model.write_text(json.dumps(doc))
     own = _evaluation(tmp_path, traces, seed=doc["design"]["seed"])
@@ -74,4 +82,9 @@ def test_calibrate_refuses_the_models_own_design_and_calibrated_replays(tmp_path
     assert main(["calibrate", "--evaluation", str(_evaluation(tmp_path, calibrated, seed=5)),
                  "--model-json", str(model), "--out", str(tmp_path / "y.json")]) != 0
     assert "calibrated model" in capsys.readouterr().err
+    shipped = tmp_path / "shipped.json"  # a model that has its layers already
+    shipped.write_text(json.dumps(load_demo_model()))
+    assert main(["calibrate", "--evaluation", str(_evaluation(tmp_path, traces, seed=6)),
+                 "--model-json", str(shipped), "--out", str(tmp_path / "z.json")]) != 0
+    assert "already has a calibration layer" in capsys.readouterr().err
     assert not (tmp_path / "x.json").exists() and not (tmp_path / "y.json").exists()
