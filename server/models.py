@@ -486,6 +486,47 @@ class GroundTruth(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 
+class SensorInjection(Base):
+    """A degraded sensor injected by a test-station operator into a simulated actuator: the
+    simulator flies it in the loop (the controller sees the degraded reading). A separate table
+    from :class:`Injection`: a sensor is not a fault mode, has no failure threshold or RUL, and
+    may be live beside an actuator fault (one per actuator sensor at a time)."""
+
+    __tablename__ = "sensor_injections"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)
+    position: Mapped[str] = mapped_column(String(8))
+    sensor: Mapped[str] = mapped_column(String(16))
+    kind: Mapped[str] = mapped_column(String(16))
+    #: noise: factor; drift: metres per flight; quantisation: step in the sensor's unit
+    value: Mapped[float] = mapped_column(Float)
+    onset_flight: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(16), default="pending")
+    #: the first flight the simulator flew it on (a drift counts its flights from there)
+    started_flight: Mapped[int | None] = mapped_column(Integer)
+    created_by: Mapped[str] = mapped_column(String(128))
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    cancelled_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class SensorGroundTruth(Base):
+    """What a sensor injection did to one simulated flight (never in the flight log): the
+    noise factor, the LVDT offset added [m] or the quantisation step applied."""
+
+    __tablename__ = "sensor_ground_truth"
+    __table_args__ = (UniqueConstraint("sensor_injection_id", "flight_code",
+                                       name="uq_sensor_ground_truth_injection_flight"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    sensor_injection_id: Mapped[int] = mapped_column(ForeignKey("sensor_injections.id"),
+                                                     index=True)
+    flight_code: Mapped[str] = mapped_column(String(64))
+    flight_number: Mapped[int] = mapped_column(Integer)
+    applied: Mapped[float] = mapped_column(Float)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
 # ---------------------------------------------------------------------------------------------
 # the workers' own telemetry, read by the API's /metrics (server/services/telemetry.py): in the
 # database because workers run as other processes, possibly on other hosts

@@ -16,7 +16,14 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from server.flightlog import ID_PATTERN, MAX_ID_LEN
 from server.models import ROLES
-from server.vocabulary import ABRUPT, FAULT_MODES, POSITIONS, FlightStatus, JobStatus
+from server.vocabulary import (
+    ABRUPT,
+    FAULT_MODES,
+    POSITIONS,
+    SENSORS,
+    FlightStatus,
+    JobStatus,
+)
 
 __all__ = [
     "Position",
@@ -267,6 +274,90 @@ class InjectionCreate(BaseModel):
             raise ValueError("severity is imposed only for SE and BDO; progressive faults "
                              "start at onset and grow")
         return self
+
+
+#: what a sensor injection does; ``value``: the noise factor, the LVDT offset added each flight
+#: [m per flight], or the coarser quantisation step in the sensor's unit (A, V, rad, m)
+SENSOR_INJECTION_KINDS: tuple[str, ...] = ("noise", "drift", "quantisation", "stuck", "clipped")
+#: the converters' full scales (sim_worker.params.SensorParams): a stuck value lies within
+#: +-range, a clip level within (0, range]
+SENSOR_RANGE = {"current": 64.0, "voltage": 512.0}
+#: a position sensor stuck or clipped opens the loop that closes on it: a real flight computer's
+#: monitors would cut the channel, the simulator (without them, without rod end stops) would
+#: fly the rod or the commutation away to angles no flight reaches, so it is refused
+CLAMPED_SENSORS = tuple(SENSOR_RANGE)
+#: the coarsest step an operator may ask per sensor: far beyond what a sensor finding needs,
+#: short of a reading that no longer closes the loop (a 1 mm LVDT step on a +-62 mm stroke)
+MAX_STEP = {"current": 4.0, "voltage": 50.0, "resolver": 0.1, "lvdt": 1e-3}
+MAX_NOISE_FACTOR = 50.0
+MAX_DRIFT_M_PER_FLIGHT = 1e-3
+
+
+class SensorInjectionCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    aircraft: Identifier
+    position: Position
+    sensor: Literal[SENSORS] = Field(  # type: ignore[valid-type]
+        description="current (channels ia ib ic) | voltage (va vb vc) | resolver (theta) | "
+        "lvdt (x): the sensor names a sensor finding carries")
+    kind: Literal[SENSOR_INJECTION_KINDS] = Field(  # type: ignore[valid-type]
+        description="noise: rms noise x value; drift (LVDT only): offset + value metres per "
+        "flight; quantisation: readings rounded to a step of value (A, V, rad, m)")
+    value: float = Field(allow_inf_nan=False, description=(
+        f"noise: factor, above 1 and at most {MAX_NOISE_FACTOR:g}; drift: metres per flight, "
+        f"non-zero, |value| <= {MAX_DRIFT_M_PER_FLIGHT:g}; quantisation: step, above the "
+        "sensor's own step, at most " + ", ".join(f"{v:g} ({k})" for k, v in MAX_STEP.items())
+        + "; stuck (current, voltage): the reading, within the converter's range (64 A, "
+        "512 V); clipped (current, voltage): the level, above 0, within that range"))
+    onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
+                              description="Aircraft flight number it starts at; 0 = the next "
+                              "flight. It lasts until cancelled.")
+
+    @model_validator(mode="after")
+    def _value_in_bounds(self) -> SensorInjectionCreate:
+        problem = sensor_value_problem(self.sensor, self.kind, self.value)
+        if problem:
+            raise ValueError(problem)
+        return self
+
+
+def sensor_value_problem(sensor: str, kind: str, value: float) -> str | None:
+    """Why ``value`` is out of bounds for this sensor and kind; None when it is fine."""
+    if kind == "noise" and not 1.0 < value <= MAX_NOISE_FACTOR:
+        return f"noise factor must be above 1 and at most {MAX_NOISE_FACTOR:g}"
+    if kind == "drift":
+        if sensor != "lvdt":
+            return "drift is an LVDT fault (its offset against the rod); use sensor lvdt"
+        if value == 0 or abs(value) > MAX_DRIFT_M_PER_FLIGHT:
+            return (f"drift must be non-zero and at most {MAX_DRIFT_M_PER_FLIGHT:g} m per "
+                    "flight in size")
+    if kind in ("stuck", "clipped"):
+        return _clamp_problem(sensor, kind, value)
+    if kind == "quantisation":
+        native = NATIVE_STEP[sensor]
+        if not native < value <= MAX_STEP[sensor]:
+            return (f"a {sensor} quantisation step must be above its own step ({native:.3g}) "
+                    f"and at most {MAX_STEP[sensor]:g}")
+    return None
+
+
+def _clamp_problem(sensor: str, kind: str, value: float) -> str | None:
+    if sensor not in CLAMPED_SENSORS:
+        return (f"{kind} is offered for the current and voltage sensors: a {sensor} {kind} "
+                "opens the loop that closes on it, which the simulator cannot fly (no channel "
+                "monitors, no end stops)")
+    full = SENSOR_RANGE[sensor]
+    if kind == "stuck" and not -full <= value <= full:
+        return f"a stuck {sensor} reading lies within +-{full:g}"
+    if kind == "clipped" and not 0 < value <= full:
+        return f"a {sensor} clip level lies above 0 and at most {full:g}"
+    return None
+
+
+#: the simulated sensors' own steps (sim_worker.params.SensorParams; the API does not import
+#: the simulator, a test keeps the two equal): a coarser step must be coarser than these
+NATIVE_STEP = {"current": 2.0**-5, "voltage": 2.0**-3, "resolver": 2.0 * 3.141592653589793 / 65536,
+               "lvdt": 2.0**-19}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -21,7 +21,8 @@ Subsystems, each a small function below, wired once in :func:`simulate`:
 * surface: one rigid body per surface with aerodynamic force input and hinge damping;
 * thermal: single body, copper + short-circuit losses, to ambient through R_th;
 * sensors: offset, noise (in-kernel xorshift generator seeded from a numpy Generator),
-  quantisation;
+  quantisation; a failed sensor's clamp (stuck, clipped: test-station injections) on the
+  reading the controller uses;
 * control: current PI every step, speed PI every 3 steps, position P every 12 steps;
 * active-standby: a channel flagged standby (``P.STANDBY``) does not drive. Its inverter's gates
   are off and a normally-closed contactor closes its windings on a star of damping resistors
@@ -156,18 +157,28 @@ def _measure(v: float, noise_rms: float, lsb: float, rng: np.ndarray, k: int) ->
 
 
 @njit(cache=True, inline="always")
+def _clamp(v: float, on: float, lo: float, hi: float) -> float:
+    """A failed sensor's reading: held in [lo, hi] when its clamp is on (stuck: lo == hi;
+    clipped: +-level), after noise and quantisation, where a saturated or frozen converter
+    output sits; the controller reads it as it is."""
+    return min(max(v, lo), hi) if on > 0.5 else v
+
+
+@njit(cache=True, inline="always")
 def _sample_currents(par: np.ndarray, k: int, rng: np.ndarray, ia: float, ib: float, ic: float
                      ) -> tuple[float, float, float]:
     ni = par[k, P.N_I]
     lsb_i = par[k, P.LSB_I]
-    return (_measure(ia + par[k, P.OFF_IA], ni, lsb_i, rng, k),
-            _measure(ib + par[k, P.OFF_IB], ni, lsb_i, rng, k),
-            _measure(ic + par[k, P.OFF_IC], ni, lsb_i, rng, k))
+    on, lo, hi = par[k, P.CL_I], par[k, P.LO_I], par[k, P.HI_I]
+    return (_clamp(_measure(ia + par[k, P.OFF_IA], ni, lsb_i, rng, k), on, lo, hi),
+            _clamp(_measure(ib + par[k, P.OFF_IB], ni, lsb_i, rng, k), on, lo, hi),
+            _clamp(_measure(ic + par[k, P.OFF_IC], ni, lsb_i, rng, k), on, lo, hi))
 
 
 @njit(cache=True, inline="always")
 def _sample_lvdt(par: np.ndarray, st: np.ndarray, k: int, rng: np.ndarray) -> float:
-    return _measure(st[k, _XROD] + par[k, P.OFF_X], par[k, P.N_X], par[k, P.LSB_X], rng, k)
+    return _clamp(_measure(st[k, _XROD] + par[k, P.OFF_X], par[k, P.N_X], par[k, P.LSB_X], rng,
+                           k), par[k, P.CL_X], par[k, P.LO_X], par[k, P.HI_X])
 
 
 @njit(cache=True, inline="always")
@@ -178,12 +189,13 @@ def _record_signals(out: np.ndarray, j: int, k: int, par: np.ndarray, rng: np.nd
     after the speed loop)."""
     nv = par[k, P.N_V]
     lsb_v = par[k, P.LSB_V]
+    on, lo, hi = par[k, P.CL_V], par[k, P.LO_V], par[k, P.HI_V]
     out[j, k, 0] = ia_m
     out[j, k, 1] = ib_m
     out[j, k, 2] = ic_m
-    out[j, k, 3] = _measure(ua, nv, lsb_v, rng, k)
-    out[j, k, 4] = _measure(ub, nv, lsb_v, rng, k)
-    out[j, k, 5] = _measure(uc, nv, lsb_v, rng, k)
+    out[j, k, 3] = _clamp(_measure(ua, nv, lsb_v, rng, k), on, lo, hi)
+    out[j, k, 4] = _clamp(_measure(ub, nv, lsb_v, rng, k), on, lo, hi)
+    out[j, k, 5] = _clamp(_measure(uc, nv, lsb_v, rng, k), on, lo, hi)
     out[j, k, 6] = th_m
 
 
@@ -738,7 +750,8 @@ def simulate(
             st[k, _IC] = ic
             # ---- sensors; the controller's frame is the true one rotated by the resolver error
             ia_m, ib_m, ic_m = _sample_currents(par, k, rng, ia, ib, ic)
-            th_m = _measure(th, par[k, P.N_TH], par[k, P.LSB_TH], rng, k)
+            th_m = _clamp(_measure(th, par[k, P.N_TH], par[k, P.LSB_TH], rng, k),
+                          par[k, P.CL_TH], par[k, P.LO_TH], par[k, P.HI_TH])
             cm, sm = _rotate_small(c, sn, pp * (th_m - th))
             cbm, sbm, ccm, scm = _phase_axes(cm, sm)
             id_m, iq_m = _park(ia_m, ib_m, ic_m, cm, sm, cbm, sbm, ccm, scm)

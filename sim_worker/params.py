@@ -137,6 +137,12 @@ class SensorParams:
     lvdt_noise_m: float = 2.0e-6  # m rms
     lvdt_offset_m: float = 5.0e-6  # m, 1 sigma after rigging
     lvdt_lsb_m: float = 2.0**-19  # m (1.9 um), 16-bit over +-62 mm
+    #: a failed sensor's readings held in [low, high] (test-station injections: clipped at a
+    #: level is (-level, level), stuck at a value is (value, value)); None: a sound sensor
+    current_clamp_a: tuple[float, float] | None = None
+    voltage_clamp_v: tuple[float, float] | None = None
+    resolver_clamp_rad: tuple[float, float] | None = None
+    lvdt_clamp_m: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -280,9 +286,22 @@ class P(IntEnum):
     T0_W = 57  # degC, initial winding temperature
     STANDBY = 58  # 1 standby (inverter off, windings on the damping star), 0 active
     R_DAMP = 59  # Ohm per phase, the damping star of a standby channel
+    # a failed sensor's output clamp (SensorParams.*_clamp): on (1) or off (0), low, high
+    CL_I = 60
+    LO_I = 61
+    HI_I = 62
+    CL_V = 63
+    LO_V = 64
+    HI_V = 65
+    CL_TH = 66
+    LO_TH = 67
+    HI_TH = 68
+    CL_X = 69
+    LO_X = 70
+    HI_X = 71
 
 
-N_PAR = 60
+N_PAR = 72
 
 
 class S(IntEnum):
@@ -350,6 +369,10 @@ def pack_ema(
     row[P.T0_W] = t0_winding_c
     row[P.STANDBY] = 1.0 if standby else 0.0
     row[P.R_DAMP] = inv.damping_resistance_ohm
+    for first, clamp in ((P.CL_I, sen.current_clamp_a), (P.CL_V, sen.voltage_clamp_v),
+                         (P.CL_TH, sen.resolver_clamp_rad), (P.CL_X, sen.lvdt_clamp_m)):
+        if clamp is not None:
+            row[first], row[first + 1], row[first + 2] = 1.0, clamp[0], clamp[1]
     return row
 
 

@@ -6,7 +6,9 @@ Per aircraft and flight number ``n`` (flight id ``<tail>-F<n:05d>``), in this or
 1. pick up the aircraft's live injection (pending -> active at its onset flight; a cancelled
    injection or a replaced actuator clears the fault);
 2. report the ground truth of flight ``n`` (true severity during the flight) -- idempotent;
-3. simulate flight ``n`` and upload it -- idempotent: the same seed gives the same bytes, and
+   likewise what each live sensor injection of the aircraft applies on it (:mod:`.sensors`);
+3. simulate flight ``n`` (its sensor injections in the sensor models the loops close on) and
+   upload it -- idempotent: the same seed gives the same bytes, and
    the service answers 200 for bytes it already has;
 4. advance the fault by its law from what the flight did, steered to fail at the planned
    flight (:mod:`.steering`: the operator's time to failure, or one drawn by the campaigns'
@@ -45,6 +47,7 @@ from server.flightlog import write_parquet
 from .faults import FaultState, advance_fault, healthy
 from .fleet import FLEET_BASES, Aircraft, build_aircraft
 from .flight import flight_start, reference_summary, simulate_flight
+from .sensors import SensorInjection, degrade
 from .steering import SteeredFault, plan_fault, steer_and_advance
 
 __all__ = ["Api", "ApiError", "SimFleetRunner", "fleet_plan"]
@@ -227,6 +230,15 @@ class SimFleetRunner:
         run.injection_id = int(injection["id"])
         run.failed_at = None
 
+    def _sensor_injections(self, run: AircraftRun, n: int) -> list[SensorInjection]:
+        """The aircraft's sensor injections live on flight ``n`` (the service holds their
+        state, so a restart or a cancel needs nothing kept here)."""
+        items = self.api.request("GET", f"/test-station/sensor-injections?aircraft="
+                                 f"{run.aircraft.tail}&limit=100").json()["items"]
+        return [SensorInjection.from_api(i, n) for i in reversed(items)  # oldest first
+                if i["status"] == "active" or (i["status"] == "pending"
+                                               and i["onset_flight"] <= n)]
+
     @staticmethod
     def _clear(run: AircraftRun) -> None:
         run.fault, run.injection_id, run.failed_at, run.plan = healthy(), None, None, None
@@ -277,10 +289,15 @@ class SimFleetRunner:
         flight_id = f"{tail}-F{n:05d}"
         if run.injection_id is not None:
             self._report_truth(run, flight_id, n, None)
+        sensors = self._sensor_injections(run, n)
+        for inj in sensors:  # reported before the flight, as a fault's truth is
+            self.api.request("PUT", f"/test-station/sensor-injections/{inj.id}/ground-truth",
+                             operator=True, json={"flight": flight_id, "flight_number": n,
+                                                  "applied": inj.applied(n)})
         rng = np.random.default_rng([self.seed, 13, run.index, n])
-        flight_log, summary = simulate_flight(run.aircraft, run.fault, n, rng,
-                                              flight_id=flight_id, started_at=flight_start(n),
-                                              duration_s=self.duration_s)
+        flight_log, summary = simulate_flight(
+            degrade(run.aircraft, sensors, n), run.fault, n, rng, flight_id=flight_id,
+            started_at=flight_start(n), duration_s=self.duration_s)
         response = self.api.request(
             "POST", "/flights", ok=(200, 202, 409, 422), content=write_parquet(flight_log),
             headers={"Content-Type": "application/vnd.apache.parquet"})

@@ -10,9 +10,18 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Operator, Reader, SessionDep
 from server.api.openapi import errors
-from server.models import GroundTruth, Injection
-from server.schemas import FlightNumber, Identifier, InjectionCreate, Offset, Page
+from server.models import GroundTruth, Injection, SensorGroundTruth, SensorInjection
+from server.schemas import (
+    FlightNumber,
+    Identifier,
+    InjectionCreate,
+    Offset,
+    Page,
+    SensorInjectionCreate,
+)
+from server.services import sensor_injections as sensors
 from server.services import test_station as service
+from server.vocabulary import SENSOR_OF_SIGNAL
 
 router = APIRouter(prefix="/test-station", tags=["test station"])
 MAX_SEVERITY = 10.0  # ground truth: severity and severity_norm (see GroundTruthIn)
@@ -78,7 +87,7 @@ def _truth_read(row: GroundTruth) -> GroundTruthRead:
                            severity_norm=row.severity_norm, true_rul_flights=row.true_rul_flights)
 
 
-def _tail(session: SessionDep, row: Injection) -> str:
+def _tail(session: SessionDep, row: Injection | SensorInjection) -> str:
     from server.models import Aircraft
 
     return session.get(Aircraft, row.aircraft_id).tail  # type: ignore[union-attr]
@@ -154,3 +163,109 @@ def report(injection_id: int, body: GroundTruthIn, session: SessionDep, _: Opera
 def ground_truth(injection_id: int, session: SessionDep, _: Reader) -> list[GroundTruthRead]:
     return [_truth_read(r) for r in service.list_ground_truth(session=session,
                                                               injection_id=injection_id)]
+
+
+# ---- sensor injections (a table of their own: see server/services/sensor_injections.py) ---
+
+class SensorInjectionRead(BaseModel):
+    id: int
+    aircraft: str
+    position: str
+    sensor: str
+    channels: list[str] = Field(description='the flight-log channels it degrades, e.g. "WT.x"')
+    kind: str
+    value: float
+    onset_flight: int
+    started_flight: int | None
+    status: str
+    created_by: str
+    created_at: datetime
+    cancelled_at: datetime | None
+
+
+class SensorTruthIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    flight: Identifier
+    flight_number: FlightNumber
+    applied: float = Field(allow_inf_nan=False, ge=-1e6, le=1e6, description=(
+        "what was applied on the flight: the noise factor, the LVDT offset added [m] or the "
+        "quantisation step"))
+
+
+class SensorTruthRead(SensorTruthIn):
+    model_config = ConfigDict(extra="ignore")
+    sensor_injection_id: int
+
+
+def _sensor_read(row: SensorInjection, tail: str) -> SensorInjectionRead:
+    channels = [f"{row.position}.{s}" for s, of in SENSOR_OF_SIGNAL.items() if of == row.sensor]
+    return SensorInjectionRead(
+        id=row.id, aircraft=tail, position=row.position, sensor=row.sensor, channels=channels,
+        kind=row.kind, value=row.value, onset_flight=row.onset_flight,
+        started_flight=row.started_flight, status=row.status, created_by=row.created_by,
+        created_at=row.created_at, cancelled_at=row.cancelled_at)
+
+
+@router.post("/sensor-injections", status_code=201, response_model=SensorInjectionRead,
+             responses=errors(404, 409), summary="Degrade a sensor (operator)")
+def create_sensor(body: SensorInjectionCreate, session: SessionDep, key: Operator
+                  ) -> SensorInjectionRead:
+    row = sensors.create(session=session, tail=body.aircraft, position=body.position,
+                         sensor=body.sensor, kind=body.kind, value=body.value,
+                         onset_flight=body.onset_flight, created_by=key.name)
+    session.commit()
+    return _sensor_read(row, body.aircraft)
+
+
+@router.get("/sensor-injections", response_model=Page[SensorInjectionRead],
+            summary="List sensor injections")
+def list_sensor(session: SessionDep, _: Reader, aircraft: str | None = None,
+                status: Annotated[str | None, Query(pattern="^(pending|active|cancelled)$")
+                                  ] = None,
+                limit: Annotated[int, Query(ge=1, le=500)] = 100,
+                offset: Offset = 0) -> Page[SensorInjectionRead]:
+    rows, total = sensors.list_(session=session, tail=aircraft, status=status, limit=limit,
+                                offset=offset)
+    return Page(items=[_sensor_read(r, t) for r, t in rows], total=total, limit=limit,
+                offset=offset)
+
+
+@router.get("/sensor-injections/{injection_id}", response_model=SensorInjectionRead,
+            summary="One sensor injection")
+def get_sensor(injection_id: int, session: SessionDep, _: Reader) -> SensorInjectionRead:
+    row = sensors.get(session=session, injection_id=injection_id)
+    return _sensor_read(row, _tail(session, row))
+
+
+@router.post("/sensor-injections/{injection_id}/cancel", response_model=SensorInjectionRead,
+             responses=errors(409), summary="Cancel a pending or active sensor injection "
+             "(operator)")
+def cancel_sensor(injection_id: int, session: SessionDep, _: Operator) -> SensorInjectionRead:
+    row = sensors.cancel(session=session, injection_id=injection_id)
+    session.commit()
+    return _sensor_read(row, _tail(session, row))
+
+
+@router.put("/sensor-injections/{injection_id}/ground-truth", response_model=SensorTruthRead,
+            summary="Sim worker: what the sensor injection did to one flight (operator; "
+            "idempotent; the first report makes it active)")
+def report_sensor(injection_id: int, body: SensorTruthIn, session: SessionDep, _: Operator
+                  ) -> SensorTruthRead:
+    row = sensors.report_truth(session=session, injection_id=injection_id,
+                               flight_code=body.flight, flight_number=body.flight_number,
+                               applied=body.applied)
+    session.commit()
+    return _sensor_truth_read(row)
+
+
+@router.get("/sensor-injections/{injection_id}/ground-truth",
+            response_model=list[SensorTruthRead],
+            summary="Ground truth of a sensor injection, flight by flight")
+def sensor_truth(injection_id: int, session: SessionDep, _: Reader) -> list[SensorTruthRead]:
+    return [_sensor_truth_read(r) for r in sensors.list_truth(session=session,
+                                                              injection_id=injection_id)]
+
+
+def _sensor_truth_read(row: SensorGroundTruth) -> SensorTruthRead:
+    return SensorTruthRead(sensor_injection_id=row.sensor_injection_id, flight=row.flight_code,
+                           flight_number=row.flight_number, applied=row.applied)

@@ -1,0 +1,109 @@
+"""Test station: sensor injections into simulated actuators, and what they did to each flight.
+
+A sensor injection is ``pending`` until the sim worker first flies it (its first ground-truth
+report makes it ``active`` and records that flight as ``started_flight``), then lasts until an
+operator cancels it. Replacing the actuator cancels it too: the new unit's sensors are sound.
+One live injection per actuator sensor (position and sensor); it may fly beside a fault
+injection on the same actuator, as a worn sensor may sit on a degrading drive.
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from server.errors import Conflict, NotFound
+from server.models import Aircraft, SensorGroundTruth, SensorInjection, utcnow
+
+__all__ = ["create", "get", "list_", "cancel", "report_truth", "list_truth", "end_at"]
+
+LIVE = ("pending", "active")
+
+
+def create(*, session: Session, tail: str, position: str, sensor: str, kind: str, value: float,
+           onset_flight: int, created_by: str) -> SensorInjection:
+    aircraft = session.scalar(select(Aircraft).where(Aircraft.tail == tail))
+    if aircraft is None:
+        raise NotFound(f"Aircraft '{tail}' does not exist.")
+    live = session.scalar(select(SensorInjection).where(
+        SensorInjection.aircraft_id == aircraft.id, SensorInjection.position == position,
+        SensorInjection.sensor == sensor, SensorInjection.status.in_(LIVE)))
+    if live is not None:
+        # two transforms of one sensor would compose in an order the operator did not choose
+        raise Conflict(f"The {sensor} of {tail} {position} already has a live sensor injection "
+                       f"({live.kind}); cancel it first.", code="sensor_injection_exists",
+                       details={"sensor_injection_id": live.id})
+    row = SensorInjection(aircraft_id=aircraft.id, position=position, sensor=sensor, kind=kind,
+                          value=value, onset_flight=onset_flight, created_by=created_by,
+                          status="pending")
+    session.add(row)
+    session.flush()
+    return row
+
+
+def get(*, session: Session, injection_id: int) -> SensorInjection:
+    row = session.get(SensorInjection, injection_id)
+    if row is None:
+        raise NotFound(f"Sensor injection {injection_id} does not exist.")
+    return row
+
+
+def list_(*, session: Session, tail: str | None, status: str | None, limit: int, offset: int
+          ) -> tuple[list[tuple[SensorInjection, str]], int]:
+    query = select(SensorInjection, Aircraft.tail).join(Aircraft)
+    if tail:
+        query = query.where(Aircraft.tail == tail)
+    if status:
+        query = query.where(SensorInjection.status == status)
+    total = session.scalar(select(func.count()).select_from(query.subquery())) or 0
+    rows = session.execute(query.order_by(SensorInjection.id.desc()).limit(limit)
+                           .offset(offset)).all()
+    return [(r[0], r[1]) for r in rows], total
+
+
+def cancel(*, session: Session, injection_id: int) -> SensorInjection:
+    row = get(session=session, injection_id=injection_id)
+    if row.status not in LIVE:
+        raise Conflict(f"Sensor injection {injection_id} is {row.status}; only pending or "
+                       "active ones can be cancelled.", code="not_live")
+    row.status = "cancelled"
+    row.cancelled_at = utcnow()
+    return row
+
+
+def report_truth(*, session: Session, injection_id: int, flight_code: str, flight_number: int,
+                 applied: float) -> SensorGroundTruth:
+    """Record (idempotently) what the injection did to one flight; the first report makes a
+    pending injection active from that flight."""
+    injection = get(session=session, injection_id=injection_id)
+    if injection.status == "pending":
+        injection.status = "active"
+        injection.started_flight = flight_number
+    row = session.scalar(select(SensorGroundTruth).where(
+        SensorGroundTruth.sensor_injection_id == injection_id,
+        SensorGroundTruth.flight_code == flight_code))
+    if row is None:
+        row = SensorGroundTruth(sensor_injection_id=injection_id, flight_code=flight_code)
+        session.add(row)
+    row.flight_number = flight_number
+    row.applied = applied
+    session.flush()
+    return row
+
+
+def list_truth(*, session: Session, injection_id: int) -> list[SensorGroundTruth]:
+    get(session=session, injection_id=injection_id)  # 404 for an unknown one
+    return list(session.scalars(select(SensorGroundTruth).where(
+        SensorGroundTruth.sensor_injection_id == injection_id)
+        .order_by(SensorGroundTruth.flight_number)))
+
+
+def end_at(*, session: Session, aircraft_id: int, position: str) -> list[SensorInjection]:
+    """The actuator at ``position`` was replaced: its live sensor injections are cancelled."""
+    rows = list(session.scalars(select(SensorInjection).where(
+        SensorInjection.aircraft_id == aircraft_id, SensorInjection.position == position,
+        SensorInjection.status.in_(LIVE))))
+    now = utcnow()
+    for row in rows:
+        row.status, row.cancelled_at = "cancelled", now
+    return rows
