@@ -23,6 +23,7 @@ from server.services import flights as flight_service
 from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
+from server.services import sensor_injections as sensor_service
 from server.services import test_station as station_service
 from server.services import urgency as urgency_rule
 from server.services.evaluation_status import read_progress
@@ -280,7 +281,20 @@ def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
     aircraft, _ = fleet_service.list_aircraft(session=session, base=None, limit=1000, offset=0)
     return {"items": items, "total": total, "tails": [a.tail for a in aircraft],
             "positions": POSITIONS, "modes": FAULT_MODES,
-            "progressive": PROGRESSIVE}
+            "progressive": PROGRESSIVE, "sensor_items": _sensor_items(session, limit)}
+
+
+def _sensor_items(session: Session, limit: int) -> list[dict[str, Any]]:
+    """The latest sensor injections, each with its last ground truth (what it applied)."""
+    rows, _ = sensor_service.list_(session=session, tail=None, status=None, limit=limit,
+                                   offset=0)
+    items = []
+    for inj, tail in rows:
+        truth = sensor_service.list_truth(session=session, injection_id=inj.id)
+        items.append({"injection": inj, "tail": tail, "truth_count": len(truth),
+                      "truth_latest": truth[-1] if truth else None,
+                      "live": inj.status in sensor_service.LIVE})
+    return items
 
 
 def evaluation_view(*, data_dir: Path) -> dict[str, Any]:

@@ -50,6 +50,7 @@ from server.schemas import (
 from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
+from server.services import sensor_injections as sensor_service
 from server.services import test_station as station_service
 from server.vocabulary import FEATURE_LABELS, MODE_NAMES
 from server.web import data, figures
@@ -444,6 +445,22 @@ def cancel_injection(request: Request, session: SessionDep, injection_id: int,
         return key
     try:
         station_service.cancel_injection(session=session, injection_id=injection_id)
+    except DomainError as exc:
+        session.rollback()
+        return _render(request, "test_station.html", key, status_code=exc.status_code,
+                       error=exc.message, form={}, **data.station_view(session=session))
+    session.commit()
+    return RedirectResponse("/test-station", status_code=303)
+
+
+@router.post("/test-station/sensor-injections/{injection_id}/cancel")
+def cancel_sensor_injection(request: Request, session: SessionDep, injection_id: int,
+                            csrf: str = Form("")) -> Response:
+    key = _check_post(request, session, csrf, "operate")
+    if not isinstance(key, ApiKey):
+        return key
+    try:
+        sensor_service.cancel(session=session, injection_id=injection_id)
     except DomainError as exc:
         session.rollback()
         return _render(request, "test_station.html", key, status_code=exc.status_code,
