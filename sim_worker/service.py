@@ -233,11 +233,13 @@ class SimFleetRunner:
     def _sensor_injections(self, run: AircraftRun, n: int) -> list[SensorInjection]:
         """The aircraft's sensor injections live on flight ``n`` (the service holds their
         state, so a restart or a cancel needs nothing kept here)."""
-        items = self.api.request("GET", f"/test-station/sensor-injections?aircraft="
-                                 f"{run.aircraft.tail}&limit=100").json()["items"]
-        return [SensorInjection.from_api(i, n) for i in reversed(items)  # oldest first
-                if i["status"] == "active" or (i["status"] == "pending"
-                                               and i["onset_flight"] <= n)]
+        # by status: cancelled ones pile up on an aircraft and must not page live ones out
+        items = [i for status in ("active", "pending") for i in self.api.request(
+            "GET", f"/test-station/sensor-injections?aircraft={run.aircraft.tail}"
+            f"&status={status}&limit=500").json()["items"]]
+        return sorted((SensorInjection.from_api(i, n) for i in items
+                       if i["status"] == "active" or i["onset_flight"] <= n),
+                      key=lambda inj: inj.id)  # applied in the order they were made
 
     @staticmethod
     def _clear(run: AircraftRun) -> None:
