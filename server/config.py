@@ -79,7 +79,8 @@ class Settings(BaseSettings):
         "`generate`) must leave besides its own size; less: 507 `insufficient_storage`."))
     raw_retention_flights: int | None = Field(None, ge=0, description=(
         "Keep the raw logs of only this many most recent analysed flights per aircraft, healthy "
-        "or in alarm, and of the flights that raised an alarm or changed its class; the other "
+        "or in alarm, and of the flights that raised an alarm or made one of its last 4 class "
+        "changes; the other "
         "analysed flights' logs are removed after each analysis, their features and results "
         "kept (server/services/retention.py). Unset: every raw log is kept (the default)."))
 

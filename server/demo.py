@@ -10,7 +10,8 @@ active model on it (:mod:`server.demo_evaluation`), which fills the evaluation p
 The sim worker gets the uploader and operator keys in its environment, never on its command
 line (where ``ps`` shows them); the fleet is registered here, so it needs no admin key.
 Disk: the demo keeps the raw logs of the last ``DEMO_RAW_KEEP_FLIGHTS`` flights of each
-aircraft, healthy or in alarm, and of the flights that raised or changed an alarm
+aircraft, healthy or in alarm, and of the flights that raised an alarm or made one of its
+last class changes
 (``HMSM_RAW_RETENTION_FLIGHTS``, :mod:`server.services.retention`): once every aircraft has
 flown that many, the flight logs grow only by those turning points, in alarm or not.
 """

@@ -2,13 +2,15 @@
 
 A fleet in service uploads a log per flight (about 1.8 MB for a 60 s demo flight). With
 ``HMSM_RAW_RETENTION_FLIGHTS=K`` the service keeps, per aircraft, the raw logs of its K most
-recent analysed flights, healthy or in alarm, and of the flights that raised an alarm or
-changed one's leading class (``alarms.flight_id``, ``alarm_events.flight_id``: what an engineer
-would open to see why); flights not analysed (queued, rejected, failed) keep theirs. The other
-analysed flights' logs are removed after each analysis, so an aircraft holds at most K logs
-plus its alarms' turning points, in alarm or not. What was computed from them stays: the
-flight row with its hash and metadata, features, health records, prognoses. A request for the
-signals of a pruned flight answers 410 Gone.
+recent analysed flights, healthy or in alarm, and of the flights that raised an alarm or made
+one of its last ``CLASS_CHANGES_KEPT`` class changes (``alarms.flight_id``,
+``alarm_events.flight_id``: what an engineer would open to see why); flights not analysed
+(queued, rejected, failed) keep theirs. The other analysed flights' logs are removed after
+each analysis, so an aircraft holds at most K logs plus 1 + ``CLASS_CHANGES_KEPT`` per alarm,
+in alarm or not: an alarm whose class flickers between two modes for hours keeps its latest
+changes, not one log per change (the demo's logs grew by 2.4 MB a minute that way). What was
+computed from them stays: the flight row with its hash and metadata, features, health
+records, prognoses. A request for the signals of a pruned flight answers 410 Gone.
 
 A blob is content-addressed and may back several rows; it is deleted only when no row that
 keeps its raw log refers to it.
@@ -18,27 +20,35 @@ from __future__ import annotations
 
 import logging
 
-from sqlalchemy import exists, select
+from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session
 
 from server.blobstore import BlobStore
 from server.models import Alarm, AlarmEvent, Flight, utcnow
 from server.vocabulary import FlightStatus
 
-__all__ = ["flights_to_prune", "prune_raw"]
+__all__ = ["CLASS_CHANGES_KEPT", "flights_to_prune", "prune_raw"]
+
+#: the class changes of one alarm whose flights keep their raw log: the latest ones
+CLASS_CHANGES_KEPT = 4
 
 log = logging.getLogger("hmsm.retention")
 
 
 def flights_to_prune(*, session: Session, aircraft_id: int, keep: int) -> list[Flight]:
     """The aircraft's analysed flights still holding their raw log, beyond its ``keep`` most
-    recent analysed ones, that neither raised an alarm nor changed an alarm's class."""
+    recent analysed ones, that neither raised an alarm nor made one of an alarm's last
+    ``CLASS_CHANGES_KEPT`` class changes."""
     analysed = (Flight.aircraft_id == aircraft_id, Flight.status == FlightStatus.ANALYZED)
     recent = list(session.scalars(select(Flight.id).where(*analysed)
                                   .order_by(Flight.started_at.desc(), Flight.id.desc())
                                   .limit(keep)))
     raised = exists().where(Alarm.flight_id == Flight.id)
-    changed = exists().where(AlarmEvent.flight_id == Flight.id)
+    rank = func.row_number().over(partition_by=AlarmEvent.alarm_id,
+                                  order_by=AlarmEvent.id.desc())
+    latest = select(AlarmEvent.flight_id, rank.label("rank")).subquery()
+    changed = exists().where(latest.c.flight_id == Flight.id,
+                             latest.c.rank <= CLASS_CHANGES_KEPT)
     return list(session.scalars(select(Flight).where(
         *analysed, Flight.raw_pruned_at.is_(None), Flight.id.not_in(recent), ~raised, ~changed)))
 

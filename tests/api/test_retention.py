@@ -89,6 +89,38 @@ def test_raw_logs_beyond_the_last_flights_go_in_alarm_too_turning_points_kept(
     assert len(kept) == 2 + 2  # the bound: K plus the alarm's turning points
 
 
+def test_an_alarm_keeps_the_logs_of_its_last_class_changes_only(
+        app, client: TestClient, keys: dict[str, str], aircraft: str) -> None:  # type: ignore[no-untyped-def]
+    """An alarm raised on flight 0 whose class changed on flights 1-6 (flickering): with keep
+    1, flight 7 is the last, 0 raised the alarm, 3-6 made its last four changes; 1 and 2 go
+    (one log per change would grow without bound while the class flickers)."""
+    from server.services.retention import CLASS_CHANGES_KEPT
+
+    ids = []
+    for i in range(8):
+        r = client.post("/api/v1/flights", content=make_parquet(aircraft, f"C{i:04d}", seed=i),
+                        headers={**PARQUET, **auth(keys["uploader"])})
+        assert r.status_code == 202, r.text
+        ids.append(r.json()["id"])
+        _analysed(app, ids[-1], i, alarm=True)
+    with session_scope(app.state.session_factory) as s:
+        alarm = Alarm(actuator_id=_wt(app, ids[0]), flight_id=ids[0], status="open",
+                      confidence=0.9, fault_mode="DMD")
+        s.add(alarm)
+        s.flush()
+        for i in range(1, 7):
+            s.add(AlarmEvent(alarm_id=alarm.id, flight_id=ids[i], flight_index=i,
+                             kind="class_change", from_mode="DMD" if i % 2 else "MTEL",
+                             to_mode="MTEL" if i % 2 else "DMD"))
+        paths = {f.id: app.state.blobs.root / f.blob_path for f in s.scalars(select(Flight))}
+    with app.state.session_factory() as s:
+        prune_raw(session=s, blobs=app.state.blobs, aircraft_id=_aircraft_id(app, ids[0]),
+                  keep=1)
+    assert CLASS_CHANGES_KEPT == 4
+    kept = {i for i, fid in enumerate(ids) if paths[fid].exists()}
+    assert kept == {0, 3, 4, 5, 6, 7}
+
+
 def _aircraft_id(app, flight_id: int) -> int:  # type: ignore[no-untyped-def]
     with session_scope(app.state.session_factory) as s:
         return int(s.get(Flight, flight_id).aircraft_id)
