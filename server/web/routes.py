@@ -16,6 +16,7 @@ Security:
 from __future__ import annotations
 
 import secrets
+from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -440,27 +441,26 @@ def inject(request: Request, session: SessionDep, csrf: str = Form(""),
 @router.post("/test-station/injections/{injection_id}/cancel")
 def cancel_injection(request: Request, session: SessionDep, injection_id: int,
                      csrf: str = Form("")) -> Response:
-    key = _check_post(request, session, csrf, "operate")
-    if not isinstance(key, ApiKey):
-        return key
-    try:
-        station_service.cancel_injection(session=session, injection_id=injection_id)
-    except DomainError as exc:
-        session.rollback()
-        return _render(request, "test_station.html", key, status_code=exc.status_code,
-                       error=exc.message, form={}, **data.station_view(session=session))
-    session.commit()
-    return RedirectResponse("/test-station", status_code=303)
+    return _cancel_on_station(request, session, csrf, lambda: station_service.cancel_injection(
+        session=session, injection_id=injection_id))
 
 
 @router.post("/test-station/sensor-injections/{injection_id}/cancel")
 def cancel_sensor_injection(request: Request, session: SessionDep, injection_id: int,
                             csrf: str = Form("")) -> Response:
+    return _cancel_on_station(request, session, csrf, lambda: sensor_service.cancel(
+        session=session, injection_id=injection_id))
+
+
+def _cancel_on_station(request: Request, session: SessionDep, csrf: str,
+                       cancel: Callable[[], object]) -> Response:
+    """An operator's cancel from the station page: the page again with the error, or back to
+    it once the cancel is committed."""
     key = _check_post(request, session, csrf, "operate")
     if not isinstance(key, ApiKey):
         return key
     try:
-        sensor_service.cancel(session=session, injection_id=injection_id)
+        cancel()
     except DomainError as exc:
         session.rollback()
         return _render(request, "test_station.html", key, status_code=exc.status_code,
