@@ -22,7 +22,7 @@ from server.api import (
     test_station,
 )
 from server.api.openapi import document_errors
-from server.blobstore import BlobStore
+from server.blobstore import open_blob_store
 from server.boundedpool import BoundedPool
 from server.config import Settings
 from server.db import make_engine, make_session_factory
@@ -143,8 +143,7 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     engine = make_engine(settings.effective_database_url)
     ensure_schema(engine, settings.effective_database_url,
                   auto_upgrade=settings.is_sqlite if auto_upgrade is None else auto_upgrade)
-    blobs = BlobStore(settings.blob_dir, settings.tmp_dir)
-    blobs.ensure_dirs()
+    blobs = open_blob_store(settings)
     blobs.sweep_tmp()  # uploads of a process that was killed mid-way
 
     # /docs, /redoc and /openapi.json are server.api.docs's routes: local assets, a key needed

@@ -1,9 +1,13 @@
-"""Content-addressed storage of raw flight files under ``<data_dir>/blobs``.
+"""Content-addressed storage of raw flight files: a local directory (the default) or an
+S3-compatible object store (``HMSM_BLOB_URL=s3://bucket/prefix``, :mod:`server.blobstore_s3`).
 
-A blob is streamed to a temporary file in ``<data_dir>/tmp`` (same filesystem), fsynced, then
-renamed into place, so a reader never sees a half-written blob and a crash leaves only a
-temporary file, which :meth:`BlobStore.sweep_tmp` removes at the next start. The path is
-derived from the SHA-256 alone: no client string reaches the path.
+Either way a body is first streamed to a temporary file in ``<data_dir>/tmp``, hashed as it
+goes; :meth:`BlobStore.commit` then puts it in place under a key derived from the SHA-256 alone
+(no client string reaches a path or key), so a reader never sees a half-written blob. Locally
+the file is fsynced and renamed; in the object store it is one PUT (multipart past a part's
+size, aborted on failure), which S3 makes visible whole or not at all. A crash leaves only a
+temporary file (or an unfinished multipart upload), which :meth:`BlobStore.sweep_tmp` removes
+at the next start. :func:`open_blob_store` is the one place a store is built from settings.
 """
 
 from __future__ import annotations
@@ -12,19 +16,30 @@ import hashlib
 import os
 import tempfile
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-__all__ = ["BlobStore", "SpooledUpload", "BlobTooLarge"]
+if TYPE_CHECKING:
+    from server.config import Settings
+
+__all__ = ["BlobStore", "LocalBlobStore", "SpooledUpload", "BlobTooLarge",
+           "BlobStoreUnreachable", "open_blob_store", "TMP_MAX_AGE_S"]
 
 _HEX = set("0123456789abcdef")
-#: temporary files older than this at start-up belong to no live upload (one spools in seconds)
+#: temporary files (and unfinished multipart uploads) older than this at start-up belong to
+#: no live upload (one spools in seconds)
 TMP_MAX_AGE_S = 10 * 60
 
 
 class BlobTooLarge(Exception):
     """The stream went past the size limit; nothing was kept."""
+
+
+class BlobStoreUnreachable(ConnectionError):
+    """The object store did not answer, retries included: nothing was written; try later.
+    A ConnectionError (so an OSError): code that treats any store failure alike still may."""
 
 
 @dataclass
@@ -42,13 +57,29 @@ class SpooledUpload:
         self.path.unlink(missing_ok=True)
 
 
+def relative_path(sha256: str) -> str:
+    """The blob's path below the store's root (directory or key prefix), from its digest."""
+    if len(sha256) != 64 or not set(sha256) <= _HEX:
+        raise ValueError("not a sha256 hex digest")
+    return f"{sha256[:2]}/{sha256[2:4]}/{sha256}"
+
+
+def check_relative_path(rel_path: str) -> str:
+    """``rel_path`` if it is one :func:`relative_path` gives (what a row stores), else
+    ValueError: a damaged row never names another object."""
+    if relative_path(rel_path.rsplit("/", 1)[-1]) != rel_path:
+        raise ValueError("not a blob path")
+    return rel_path
+
+
 class BlobStore:
-    def __init__(self, root: Path, tmp_dir: Path):
-        self.root = root
+    """What every store shares: the local spool of uploads and the key scheme. Subclasses put
+    the spooled bytes in place (:meth:`commit`), read, delete and list them."""
+
+    def __init__(self, tmp_dir: Path):
         self.tmp_dir = tmp_dir
 
     def ensure_dirs(self) -> None:
-        self.root.mkdir(parents=True, exist_ok=True)
         self.tmp_dir.mkdir(parents=True, exist_ok=True)
 
     def sweep_tmp(self, *, max_age_s: float = TMP_MAX_AGE_S) -> int:
@@ -65,13 +96,9 @@ class BlobStore:
                 continue
         return removed
 
-    def relative_path(self, sha256: str) -> str:
-        if len(sha256) != 64 or not set(sha256) <= _HEX:
-            raise ValueError("not a sha256 hex digest")
-        return f"{sha256[:2]}/{sha256[2:4]}/{sha256}"
-
-    def path_of(self, sha256: str) -> Path:
-        return self.root / self.relative_path(sha256)
+    @staticmethod
+    def relative_path(sha256: str) -> str:
+        return relative_path(sha256)
 
     async def spool(self, chunks: AsyncIterator[bytes], *, max_bytes: int) -> SpooledUpload:
         """Write ``chunks`` to a temporary file, hashing as it goes; raise past ``max_bytes``."""
@@ -93,8 +120,41 @@ class BlobStore:
         return SpooledUpload(Path(name), digest.hexdigest(), size)
 
     def commit(self, upload: SpooledUpload) -> str:
-        """Move a spooled upload into place atomically; return its relative blob path."""
-        rel = self.relative_path(upload.sha256)
+        """Put a spooled upload in place whole (its temporary file is gone after); return its
+        relative blob path. A stored copy with other bytes (damaged) is replaced."""
+        raise NotImplementedError
+
+    def read(self, rel_path: str) -> bytes:
+        """The blob's bytes; FileNotFoundError when it is not stored."""
+        raise NotImplementedError
+
+    def delete(self, rel_path: str) -> None:
+        """Remove a stored blob (retention); a missing one is already gone."""
+        raise NotImplementedError
+
+    def stored(self) -> Iterator[tuple[str, int]]:
+        """Every object in the store, as (file name, size): what GET /storage counts."""
+        raise NotImplementedError
+
+
+class LocalBlobStore(BlobStore):
+    """Blobs as files under ``root`` (``<data_dir>/blobs``), sharded by the digest's first
+    two bytes."""
+
+    def __init__(self, root: Path, tmp_dir: Path):
+        super().__init__(tmp_dir)
+        self.root = root
+
+    def ensure_dirs(self) -> None:
+        self.root.mkdir(parents=True, exist_ok=True)
+        super().ensure_dirs()
+
+    def path_of(self, sha256: str) -> Path:
+        return self.root / relative_path(sha256)
+
+    def commit(self, upload: SpooledUpload) -> str:
+        """Move a spooled upload into place atomically (fsync, rename, fsync the directory)."""
+        rel = relative_path(upload.sha256)
         final = self.root / rel
         if final.exists() and _sha256_of(final) == upload.sha256:
             upload.discard()
@@ -112,7 +172,6 @@ class BlobStore:
         return rel
 
     def delete(self, rel_path: str) -> None:
-        """Remove a stored blob (retention); a missing one is already gone."""
         path = (self.root / rel_path).resolve()
         if self.root.resolve() not in path.parents:
             raise ValueError("blob path outside the store")
@@ -123,6 +182,38 @@ class BlobStore:
         if self.root.resolve() not in path.parents:
             raise ValueError("blob path outside the store")
         return path.read_bytes()
+
+    def stored(self) -> Iterator[tuple[str, int]]:
+        # symbolic links not followed (a link counts as the link); entries vanishing meanwhile
+        # (retention, uploads) are skipped
+        stack = [self.root]
+        while stack:
+            try:
+                entries = list(os.scandir(stack.pop()))
+            except (FileNotFoundError, NotADirectoryError, PermissionError):
+                continue
+            for entry in entries:
+                try:
+                    if entry.is_dir(follow_symlinks=False):
+                        stack.append(Path(entry.path))
+                    else:
+                        yield entry.name, entry.stat(follow_symlinks=False).st_size
+                except FileNotFoundError:
+                    continue
+
+
+def open_blob_store(settings: Settings) -> BlobStore:
+    """The store the settings name: the object store of ``HMSM_BLOB_URL`` when set, else the
+    data directory's ``blobs``. Its directories exist on return; nothing is contacted."""
+    store: BlobStore
+    if settings.blob_url is not None:
+        from server.blobstore_s3 import S3BlobStore  # boto3 loads only when it is used
+
+        store = S3BlobStore.from_settings(settings)
+    else:
+        store = LocalBlobStore(settings.blob_dir, settings.tmp_dir)
+    store.ensure_dirs()
+    return store
 
 
 def _sha256_of(path: Path) -> str:

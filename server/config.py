@@ -6,6 +6,7 @@ and the app factory takes the settings object it is given.
 
 from __future__ import annotations
 
+import re
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,8 @@ from server.flightlog import DecodeLimits
 __all__ = ["Settings", "load_settings"]
 
 _DECODE = DecodeLimits()
+#: s3://bucket[/prefix]: a DNS-style bucket name and a plain key prefix
+_S3_URL = re.compile(r"s3://[a-z0-9][a-z0-9.-]{1,61}[a-z0-9](/[A-Za-z0-9/_.-]*)?")
 
 
 class Settings(BaseSettings):
@@ -88,6 +91,13 @@ class Settings(BaseSettings):
         "Most bytes of rejected flight logs kept for one API key (distinct files, summed); a "
         "rejected file past it is not kept: 507 `rejected_quota_exceeded` with its reasons. "
         "0: none kept."))
+    blob_url: str | None = Field(None, description=(
+        "Where flight logs are kept: `s3://bucket/prefix` for an S3-compatible object store "
+        "(credentials from the standard AWS_* environment variables), shared by every API "
+        "process and worker; unset: `blobs` under data_dir."))
+    s3_endpoint_url: str | None = Field(None, description=(
+        "The object store's URL (`http://seaweedfs:8333`) when it is not AWS S3 itself; "
+        "path-style addressing is used then."))
     metrics_token: SecretStr | None = Field(None, description=(
         "Bearer token that may read GET /metrics (besides an admin key): at least 32 "
         "characters, no spaces. Unset: only admin keys may."))
@@ -109,6 +119,29 @@ class Settings(BaseSettings):
         if self.metrics_token is not None:
             _check_metrics_token(self.metrics_token.get_secret_value())
         return self
+
+    @field_validator("blob_url")
+    @classmethod
+    def _s3_url(cls, value: str | None) -> str | None:
+        if value is not None and not _S3_URL.fullmatch(value):
+            raise ValueError("HMSM_BLOB_URL must be s3://bucket or s3://bucket/prefix (bucket: "
+                             "3-63 of a-z 0-9 . -; prefix: letters, digits, / _ . -)")
+        return value
+
+    @field_validator("s3_endpoint_url")
+    @classmethod
+    def _endpoint(cls, value: str | None) -> str | None:
+        if value is not None and not re.fullmatch(r"https?://[^\s/?#]+/?", value):
+            raise ValueError("HMSM_S3_ENDPOINT_URL must be http(s)://host[:port]")
+        return value
+
+    @property
+    def blob_bucket(self) -> tuple[str, str]:
+        """``(bucket, prefix)`` of HMSM_BLOB_URL; the prefix without slashes at its ends."""
+        if self.blob_url is None:
+            raise ValueError("HMSM_BLOB_URL is not set")
+        bucket, _, prefix = self.blob_url[len("s3://"):].partition("/")
+        return bucket, prefix.strip("/")
 
     @field_validator("data_dir")
     @classmethod

@@ -12,6 +12,8 @@ from fastapi.responses import JSONResponse
 from sqlalchemy.exc import DataError, DBAPIError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from server.blobstore import BlobStoreUnreachable
+
 log = logging.getLogger("hmsm.api")
 
 __all__ = [
@@ -162,6 +164,15 @@ def install_error_handlers(app: FastAPI) -> None:
         return JSONResponse(error_body("database_unavailable", "The database cannot be reached; "
                                        "try again shortly."), status_code=503,
                             headers={"Retry-After": "5"})
+
+    @app.exception_handler(BlobStoreUnreachable)
+    async def _store_down(request: Request, exc: BlobStoreUnreachable) -> JSONResponse:
+        # the object store's outage, never the request's fault: nothing was registered
+        log.error("blob store unreachable on %s %s: %s", request.method, request.url.path, exc)
+        return JSONResponse(error_body("storage_unreachable", "The flight-log store does not "
+                                       "answer now; nothing was registered. Try again "
+                                       "shortly."), status_code=503,
+                            headers={"Retry-After": "30"})
 
     @app.exception_handler(OverflowError)
     async def _overflow(_: Request, exc: OverflowError) -> JSONResponse:

@@ -20,7 +20,7 @@ from starlette.datastructures import UploadFile
 from server.api.deps import Admin, BlobsDep, Reader, SessionDep, SettingsDep, Uploader
 from server.api.openapi import errors
 from server.api.presenters import flight_read
-from server.blobstore import BlobTooLarge
+from server.blobstore import BlobStoreUnreachable, BlobTooLarge
 from server.errors import (
     BadRequest,
     PayloadTooLarge,
@@ -67,6 +67,8 @@ _UPLOAD_DOC = {
         "422": {"description": "Failed coherence checks; stored as rejected with reasons (the "
                 "same upload sent again is evaluated again: rejected again, it answers with the "
                 "same row, `duplicate` true, and nothing more is kept)."},
+        "503": {"description": "The object store does not answer (`storage_unreachable`); "
+                "nothing was registered: send it again after Retry-After."},
         "507": {"description": "The blob store cannot take the file (`storage_unavailable`), "
                 "or the file failed the coherence checks and keeping it would take the key past "
                 "HMSM_REJECTED_BYTES_PER_KEY (`rejected_quota_exceeded`, reasons in the "
@@ -134,6 +136,8 @@ async def upload(request: Request, session: SessionDep, blobs: BlobsDep, setting
                                                     form_metadata, key, settings)
         outcome = ("rejected" if flight.status == FlightStatus.REJECTED
                    else "duplicate" if duplicate else "accepted")
+    except BlobStoreUnreachable:
+        raise  # 503 (server.errors): the store is away, not full
     except OSError as exc:
         # The blob store failed before the flight row was flushed: nothing was registered.
         raise _storage_unavailable(exc) from None

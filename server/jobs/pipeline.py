@@ -15,6 +15,7 @@ import hashlib
 
 from sqlalchemy.orm import Session
 
+from server.blobstore import BlobStoreUnreachable
 from server.campaigns import log_features
 from server.flightlog import FlightLog, FlightLogError, bounded_reasons, read_flightlog
 from server.jobs.context import Deferred, JobContext
@@ -65,7 +66,10 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
 def _decoded(ctx: JobContext, todo: analysis.FlightToAnalyse) -> FlightLog | None:
     """The stored bytes checked against their SHA-256 and decoded; None when the flight was
     rejected instead (damaged on disk, or not decodable)."""
-    data = ctx.blobs.read(todo.blob_path)
+    try:
+        data = ctx.blobs.read(todo.blob_path)
+    except BlobStoreUnreachable as exc:  # the store's outage is no fault of the flight's
+        raise Deferred(f"The flight-log store does not answer: {exc}.") from exc
     if hashlib.sha256(data).hexdigest() != todo.sha256:
         # The bytes changed on disk after ingest: nothing to retry, the flight is unusable.
         _reject(ctx, todo.flight_id, [{

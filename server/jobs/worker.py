@@ -29,7 +29,7 @@ from datetime import timedelta
 
 from sqlalchemy.orm import Session
 
-from server.blobstore import BlobStore
+from server.blobstore import open_blob_store
 from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.jobs import queue
@@ -63,9 +63,7 @@ class Worker:
         engine = make_engine(settings.effective_database_url)
         ensure_schema(engine, settings.effective_database_url, auto_upgrade=settings.is_sqlite)
         self.engine = engine
-        blobs = BlobStore(settings.blob_dir, settings.tmp_dir)
-        blobs.ensure_dirs()
-        self.ctx = JobContext(settings, make_session_factory(engine), blobs)
+        self.ctx = JobContext(settings, make_session_factory(engine), open_blob_store(settings))
         self.handlers = dict(HANDLERS) if handlers is None else handlers
         self.dead_letters = dict(DEAD_LETTERS) if dead_letters is None else dead_letters
 

@@ -29,6 +29,7 @@ from typing import Any
 from sqlalchemy import case, func, select, text
 from sqlalchemy.orm import Session
 
+from server.blobstore import BlobStore
 from server.errors import DomainError
 from server.models import ApiKey, Flight
 from server.vocabulary import FlightStatus
@@ -175,15 +176,16 @@ def _rejected_by_key(session: Session, quota: int) -> list[dict[str, Any]]:
             for key_id, name, role, count, size, charged in rows]
 
 
-def _blob_store(session: Session, blob_dir: Path) -> dict[str, int]:
-    """The blob directory as it is: files a row keeping its log refers to, files none does
-    (a crash between the bytes and the row, say), and rows whose file is not there."""
+def _blob_store(session: Session, blobs: BlobStore) -> dict[str, int]:
+    """The blob store as it is (directory or object store): files a row keeping its log
+    refers to, files none does (a crash between the bytes and the row, say), and rows whose
+    file is not there."""
     wanted = set(session.scalars(select(Flight.sha256).distinct().where(
         Flight.raw_pruned_at.is_(None))))
     referenced, unreferenced = _Tally(), _Tally()
-    for path, size in _files_under(blob_dir):
-        (referenced if path.name in wanted else unreferenced).add(size)
-        wanted.discard(path.name)
+    for name, size in blobs.stored():
+        (referenced if name in wanted else unreferenced).add(size)
+        wanted.discard(name)
     return {"files": referenced.files + unreferenced.files,
             "bytes": referenced.bytes + unreferenced.bytes,
             "referenced_files": referenced.files, "referenced_bytes": referenced.bytes,
@@ -199,7 +201,7 @@ def _database(session: Session) -> dict[str, Any]:
     return {"dialect": dialect, "bytes": None}  # a file under the data directory: see files
 
 
-def storage_report(session: Session, *, data_dir: Path, blob_dir: Path,
+def storage_report(session: Session, *, data_dir: Path, blobs: BlobStore,
                    rejected_quota: int) -> dict[str, Any]:
     """Everything the service keeps, counted now (the module docstring)."""
     files, total = _file_kinds(data_dir)
@@ -207,7 +209,7 @@ def storage_report(session: Session, *, data_dir: Path, blob_dir: Path,
     return {
         "flight_logs": _flight_logs(session),
         "rejected_by_key": _rejected_by_key(session, rejected_quota),
-        "blob_store": _blob_store(session, blob_dir),
+        "blob_store": _blob_store(session, blobs),
         "files": files,
         "data_dir": {**total.as_dict(), "free_bytes": shutil.disk_usage(existing).free},
         "database": _database(session),

@@ -10,7 +10,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from server.app import create_app
-from server.blobstore import BlobStore
+from server.blobstore import LocalBlobStore
 from server.config import Settings
 from tests.flightlog_factory import make_parquet, serials_for
 from tests.production.helpers import ROLES, seed_system
@@ -126,7 +126,7 @@ def test_path_traversal_in_urls_and_channels_finds_nothing(api) -> None:  # type
     assert r.status_code == 404 and r.json()["error"]["code"] == "unknown_channel"
     # blob paths come from the SHA-256 alone
     flight = client.get(f"/api/v1/flights/{fid}", headers=admin).json()
-    blobs = BlobStore(settings.blob_dir, settings.tmp_dir)
+    blobs = LocalBlobStore(settings.blob_dir, settings.tmp_dir)
     assert blobs.relative_path(flight["sha256"]).endswith(flight["sha256"])
     for bad in ("../" * 3 + "etc/passwd", "ab/cd/" + "g" * 64, "../" + "a" * 62):
         with pytest.raises(ValueError):
