@@ -172,16 +172,10 @@ class LocalBlobStore(BlobStore):
         return rel
 
     def delete(self, rel_path: str) -> None:
-        path = (self.root / rel_path).resolve()
-        if self.root.resolve() not in path.parents:
-            raise ValueError("blob path outside the store")
-        path.unlink(missing_ok=True)
+        (self.root / check_relative_path(rel_path)).unlink(missing_ok=True)
 
     def read(self, rel_path: str) -> bytes:
-        path = (self.root / rel_path).resolve()
-        if self.root.resolve() not in path.parents:
-            raise ValueError("blob path outside the store")
-        return path.read_bytes()
+        return (self.root / check_relative_path(rel_path)).read_bytes()
 
     def stored(self) -> Iterator[tuple[str, int]]:
         # symbolic links not followed (a link counts as the link); entries vanishing meanwhile

@@ -128,3 +128,21 @@ def trained_model(design_campaign_dir):  # type: ignore[no-untyped-def]
 
     model, report = train_from_directory(design_campaign_dir, seed=0, jobs=os.cpu_count() or 1)
     return json.loads(json.dumps(model.to_dict())), report
+
+
+# ---------------------------------------------------------------------------------------------
+# an S3 server over HTTP (moto's), for the object-store backend of the blob store
+# ---------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="session")
+def s3_server():  # type: ignore[no-untyped-def]
+    """moto's S3 server for the session, with the AWS_* variables boto3 reads set."""
+    from tests.s3_server import AWS_ENV, MotoS3
+
+    with pytest.MonkeyPatch.context() as mp:
+        for name, value in AWS_ENV.items():
+            mp.setenv(name, value)
+        server = MotoS3()
+        server.start()
+        yield server
+        server.stop()
