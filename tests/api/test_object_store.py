@@ -1,0 +1,162 @@
+"""Flight logs in an S3-compatible object store (moto's server over HTTP), through the API and
+the worker: an outage answers 503 and loses nothing, and an API process and a worker that
+share only the database and the store (separate data directories) work together, raw-log
+retention included. On SQLite and, when HMSM_TEST_POSTGRES_URL is set, PostgreSQL."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import select
+
+from server.app import create_app
+from server.auth import create_key
+from server.config import Settings
+from server.db import session_scope
+from server.jobs.worker import Worker
+from server.models import Flight, Job
+from server.services import models as model_service
+from tests.api.conftest import auth
+from tests.conftest import truncate_all
+from tests.flightlog_factory import make_parquet, serials_for
+from tests.s3_server import AWS_ENV, MotoS3
+
+PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
+
+
+@pytest.fixture
+def own_s3(monkeypatch: pytest.MonkeyPatch) -> Iterator[MotoS3]:
+    """An S3 server of this test's own, which it may stop and start again."""
+    for name, value in AWS_ENV.items():
+        monkeypatch.setenv(name, value)
+    server = MotoS3()
+    server.start()
+    yield server
+    server.stop()
+
+
+def _database_url(backend: str, tmp_path: Path, request: pytest.FixtureRequest) -> str:
+    if backend == "postgres":
+        url = request.getfixturevalue("pg_database")
+        truncate_all(url)
+        return url
+    return f"sqlite:///{tmp_path / 'shared.sqlite3'}"
+
+
+@pytest.fixture
+def settings(backend: str, tmp_path: Path, request: pytest.FixtureRequest,
+             own_s3: MotoS3) -> Settings:
+    """The API's settings (tests/api/conftest.py builds the app from them): blobs in the
+    object store, the database outside the data directory."""
+    return Settings(data_dir=tmp_path / "api", blob_url=f"s3://{own_s3.new_bucket()}/flights",
+                    s3_endpoint_url=own_s3.endpoint,
+                    database_url=_database_url(backend, tmp_path, request))
+
+
+def _upload(client: TestClient, key: str, tail: str, flight: str, seed: int = 0):  # type: ignore[no-untyped-def]
+    return client.post("/api/v1/flights", content=make_parquet(tail, flight, seed=seed),
+                       headers={**PARQUET, **auth(key)})
+
+
+def _bucket(settings: Settings) -> str:
+    return settings.blob_bucket[0]
+
+
+def test_store_outage_answers_503_loses_nothing_and_recovers(
+        app, client: TestClient, keys: dict[str, str], aircraft: str, settings: Settings,
+        own_s3: MotoS3, active_model: None) -> None:  # type: ignore[no-untyped-def]
+    first = _upload(client, keys["uploader"], aircraft, "F0001")
+    assert first.status_code == 202, first.text
+    first_id = first.json()["id"]
+
+    own_s3.stop()
+    down = _upload(client, keys["uploader"], aircraft, "F0002", seed=1)
+    assert down.status_code == 503, down.text
+    assert down.json()["error"]["code"] == "storage_unreachable"
+    assert down.headers["Retry-After"] == "30"
+    listing = client.get("/api/v1/flights", headers=auth(keys["viewer"])).json()
+    assert [f["id"] for f in listing["items"]] == [first_id]  # no row without its blob
+    assert list(settings.tmp_dir.iterdir()) == []  # nor a spooled file left behind
+    signals = client.get(f"/api/v1/flights/{first_id}/signals?channels=WT.x",
+                         headers=auth(keys["viewer"]))
+    assert signals.status_code == 503 and signals.json()["error"]["code"] == "storage_unreachable"
+    # the worker cannot read the log: the job waits (deferred), no attempt is spent on it
+    worker = Worker(settings.model_copy(update={"data_dir": settings.data_dir.parent / "w"}))
+    try:
+        assert worker.run_once()
+    finally:
+        worker.engine.dispose()
+    with session_scope(app.state.session_factory) as s:
+        job = s.scalar(select(Job).where(Job.flight_id == first_id))
+        assert (job.status, job.attempts) == ("queued", 0), (job.status, job.attempts)
+        assert "does not answer" in (job.last_error or "")
+
+    own_s3.start()
+    again = _upload(client, keys["uploader"], aircraft, "F0002", seed=1)
+    assert again.status_code == 202, again.text
+    back = client.get(f"/api/v1/flights/{first_id}/signals?channels=WT.x",
+                      headers=auth(keys["viewer"]))
+    assert back.status_code == 200 and back.json()["channels"]["WT.x"]
+    assert len(own_s3.keys(_bucket(settings))) == 2
+
+
+@pytest.fixture
+def api_and_worker(backend: str, tmp_path: Path, request: pytest.FixtureRequest,
+                   s3_server: MotoS3, shipped_model):  # type: ignore[no-untyped-def]
+    """An API app and a worker with data directories of their own, sharing only the database
+    and the bucket; the worker keeps the raw logs of 1 analysed flight per aircraft."""
+    shared = {"database_url": _database_url(backend, tmp_path, request),
+              "blob_url": f"s3://{s3_server.new_bucket()}/flights",
+              "s3_endpoint_url": s3_server.endpoint}
+    app = create_app(Settings(data_dir=tmp_path / "api", **shared))
+    worker = Worker(Settings(data_dir=tmp_path / "worker", raw_retention_flights=1, **shared))
+    with session_scope(app.state.session_factory) as s:
+        model_service.store_trained(session=s, name="t", payload=shipped_model[0],
+                                    report=shipped_model[1], make_active=True)
+        keys = {r: create_key(session=s, name=f"t-{r}", role=r)[1]
+                for r in ("admin", "uploader", "viewer")}
+    with TestClient(app, raise_server_exceptions=False) as client:
+        yield app, client, worker, keys
+    worker.engine.dispose()
+    app.state.engine.dispose()
+
+
+def test_api_and_worker_share_only_the_database_and_the_object_store(
+        api_and_worker, s3_server: MotoS3, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    app, client, worker, keys = api_and_worker
+    r = client.post("/api/v1/aircraft", headers=auth(keys["admin"]),
+                    json={"tail": "T001", "base": "Turin", "actuators": serials_for("T001")})
+    assert r.status_code == 201, r.text
+    ids = []
+    for i in range(3):
+        up = _upload(client, keys["uploader"], "T001", f"F{i:04d}", seed=i)
+        assert up.status_code == 202, up.text
+        ids.append(up.json()["id"])
+    while worker.run_once():  # one analysis job per flight, in upload order
+        pass
+
+    bucket = _bucket(app.state.settings)
+    with session_scope(app.state.session_factory) as s:
+        rows = {f.id: f for f in s.scalars(select(Flight).where(Flight.id.in_(ids)))}
+        assert {f.status for f in rows.values()} == {"analyzed"}
+        kept = {f.id for f in rows.values() if f.raw_pruned_at is None}
+        expected = {f"flights/{f.blob_path}" for f in rows.values() if f.id in kept}
+    # retention acted on the object store: only the flights keeping their log have an object
+    assert ids[-1] in kept and len(kept) < len(ids)
+    assert s3_server.keys(bucket) == sorted(expected)
+    for flight_id in ids:
+        sig = client.get(f"/api/v1/flights/{flight_id}/signals?channels=WT.x&max_points=50",
+                         headers=auth(keys["viewer"]))
+        if flight_id in kept:  # read back by the API from the bytes the worker analysed
+            assert sig.status_code == 200 and len(sig.json()["channels"]["WT.x"]) <= 50
+        else:
+            assert sig.status_code == 410 and sig.json()["error"]["code"] == "raw_pruned"
+    # neither process wrote a blob to its own disk
+    assert not (tmp_path / "api" / "blobs").exists()
+    assert not (tmp_path / "worker" / "blobs").exists()
+    storage = client.get("/api/v1/storage", headers=auth(keys["admin"])).json()["blob_store"]
+    assert (storage["referenced_files"], storage["unreferenced_files"],
+            storage["missing_files"]) == (len(kept), 0, 0)
