@@ -19,12 +19,12 @@ import time
 from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 if TYPE_CHECKING:
     from server.config import Settings
 
-__all__ = ["BlobStore", "LocalBlobStore", "SpooledUpload", "BlobTooLarge",
+__all__ = ["BlobStore", "LocalBlobStore", "SpooledUpload", "StoredBlob", "BlobTooLarge",
            "BlobStoreUnreachable", "open_blob_store", "TMP_MAX_AGE_S"]
 
 _HEX = set("0123456789abcdef")
@@ -40,6 +40,15 @@ class BlobTooLarge(Exception):
 class BlobStoreUnreachable(ConnectionError):
     """The object store did not answer, retries included: nothing was written; try later.
     A ConnectionError (so an OSError): code that treats any store failure alike still may."""
+
+
+class StoredBlob(NamedTuple):
+    """One object in the store: its file name (the SHA-256 for a blob we wrote), size [B] and
+    when it was last written (Unix time; a commit of bytes already stored renews it)."""
+
+    name: str
+    size: int
+    modified: float
 
 
 @dataclass
@@ -132,8 +141,9 @@ class BlobStore:
         """Remove a stored blob (retention); a missing one is already gone."""
         raise NotImplementedError
 
-    def stored(self) -> Iterator[tuple[str, int]]:
-        """Every object in the store, as (file name, size): what GET /storage counts."""
+    def stored(self) -> Iterator[StoredBlob]:
+        """Every object in the store: what GET /storage counts, what the orphan sweep
+        (:func:`server.services.retention.sweep_orphans`) looks at."""
         raise NotImplementedError
 
 
@@ -157,6 +167,7 @@ class LocalBlobStore(BlobStore):
         rel = relative_path(upload.sha256)
         final = self.root / rel
         if final.exists() and _sha256_of(final) == upload.sha256:
+            os.utime(final)  # written now, as far as the orphan sweep's age test goes
             upload.discard()
             return rel
         # new bytes, or a stored copy damaged on disk: the upload's own copy takes its place
@@ -177,7 +188,7 @@ class LocalBlobStore(BlobStore):
     def read(self, rel_path: str) -> bytes:
         return (self.root / check_relative_path(rel_path)).read_bytes()
 
-    def stored(self) -> Iterator[tuple[str, int]]:
+    def stored(self) -> Iterator[StoredBlob]:
         # symbolic links not followed (a link counts as the link); entries vanishing meanwhile
         # (retention, uploads) are skipped
         stack = [self.root]
@@ -191,7 +202,8 @@ class LocalBlobStore(BlobStore):
                     if entry.is_dir(follow_symlinks=False):
                         stack.append(Path(entry.path))
                     else:
-                        yield entry.name, entry.stat(follow_symlinks=False).st_size
+                        stat = entry.stat(follow_symlinks=False)
+                        yield StoredBlob(entry.name, stat.st_size, stat.st_mtime)
                 except FileNotFoundError:
                     continue
 

@@ -32,6 +32,7 @@ from server.blobstore import (
     BlobStore,
     BlobStoreUnreachable,
     SpooledUpload,
+    StoredBlob,
     check_relative_path,
     relative_path,
 )
@@ -73,14 +74,15 @@ class S3BlobStore(BlobStore):
     def commit(self, upload: SpooledUpload) -> str:
         rel = relative_path(upload.sha256)
         key = self.prefix + rel
-        if self._stored_sha(key) != upload.sha256:  # new bytes, or a damaged copy: replaced
-            meta = {SHA_META: upload.sha256}
-            if upload.size <= PART_BYTES:
-                with open(upload.path, "rb") as body:
-                    _call(lambda: self.client.put_object(Bucket=self.bucket, Key=key,
-                                                         Body=body, Metadata=meta))
-            else:
-                self._multipart(upload.path, key, meta)
+        meta = {SHA_META: upload.sha256}
+        if self._stored_sha(key) == upload.sha256:
+            self._renew(key, meta)
+        elif upload.size <= PART_BYTES:  # new bytes, or a damaged copy: replaced
+            with open(upload.path, "rb") as body:
+                _call(lambda: self.client.put_object(Bucket=self.bucket, Key=key, Body=body,
+                                                     Metadata=meta))
+        else:
+            self._multipart(upload.path, key, meta)
         upload.discard()
         return rel
 
@@ -90,6 +92,13 @@ class S3BlobStore(BlobStore):
         except FileNotFoundError:
             return None
         return str(head.get("Metadata", {}).get(SHA_META, "")) or None
+
+    def _renew(self, key: str, meta: dict[str, str]) -> None:
+        """The stored object's date brought to now (a copy onto itself, inside the store): it
+        backs a new row, so the orphan sweep must not take it for an old orphan."""
+        _call(lambda: self.client.copy_object(
+            Bucket=self.bucket, Key=key, CopySource={"Bucket": self.bucket, "Key": key},
+            Metadata=meta, MetadataDirective="REPLACE"))
 
     def _multipart(self, path: Path, key: str, meta: dict[str, str]) -> None:
         """Upload ``path`` in parts of :data:`PART_BYTES`; on any failure abort the upload
@@ -125,12 +134,13 @@ class S3BlobStore(BlobStore):
         key = self._key(rel_path)  # S3 answers a missing key with success too
         _call(lambda: self.client.delete_object(Bucket=self.bucket, Key=key))
 
-    def stored(self) -> Iterator[tuple[str, int]]:
+    def stored(self) -> Iterator[StoredBlob]:
         pages = iter(self.client.get_paginator("list_objects_v2").paginate(
             Bucket=self.bucket, Prefix=self.prefix))
         while (page := _call(lambda: next(pages, None))) is not None:  # a page at a time
             for item in page.get("Contents", []):
-                yield item["Key"].rsplit("/", 1)[-1], int(item["Size"])
+                yield StoredBlob(item["Key"].rsplit("/", 1)[-1], int(item["Size"]),
+                                 item["LastModified"].timestamp())
 
     def sweep_tmp(self, *, max_age_s: float = TMP_MAX_AGE_S) -> int:
         """The local spool's old temporary files, and the multipart uploads under the prefix

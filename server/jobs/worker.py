@@ -37,7 +37,7 @@ from server.jobs.context import DeadLetter, Deferred, Handler, JobContext
 from server.jobs.handlers import DEAD_LETTERS, HANDLERS
 from server.migrate import ensure_schema
 from server.models import utcnow
-from server.services import telemetry
+from server.services import retention, telemetry
 from server.timing import StageClock
 from server.vocabulary import JobStatus
 
@@ -181,11 +181,24 @@ class Worker:
             beat.join(timeout=5)
         return True
 
+    def sweep_orphans(self) -> None:
+        """Blobs no row keeps, left by a delete that failed or a crash (retention's
+        sweep_orphans); a store not answering now is left for the next start."""
+        try:
+            with self.ctx.factory() as session:
+                removed = retention.sweep_orphans(session=session, blobs=self.ctx.blobs)
+        except OSError as exc:
+            log.warning("could not sweep orphan blobs: %s", exc)
+            return
+        if removed:
+            log.info("removed %d orphan blobs", removed)
+
     def run(self, stop: threading.Event | None = None, *, max_jobs: int | None = None,
             exit_when_idle: bool = False) -> int:
         """Loop until ``stop`` is set (or ``max_jobs`` done, or idle with ``exit_when_idle``)."""
         stop = stop or threading.Event()
         count = 0
+        self.sweep_orphans()
         with self._beating(stop):
             while not stop.is_set() and (max_jobs is None or count < max_jobs):
                 if self.run_once():

@@ -13,21 +13,25 @@ computed from them stays: the flight row with its hash and metadata, features, h
 records, prognoses. A request for the signals of a pruned flight answers 410 Gone.
 
 A blob is content-addressed and may back several rows; it is deleted only when no row that
-keeps its raw log refers to it.
+keeps its raw log refers to it. The rows say "pruned" before the bytes go, so a delete that
+fails (the object store away, say) leaves an orphan, not a row without bytes; so does a crash
+between an upload's blob and its row. :func:`sweep_orphans` (each worker at its start) removes
+what no such row refers to, in the local directory and the object store alike.
 """
 
 from __future__ import annotations
 
 import logging
+import time
 
 from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session
 
-from server.blobstore import BlobStore
+from server.blobstore import TMP_MAX_AGE_S, BlobStore, relative_path
 from server.models import Alarm, AlarmEvent, Flight, utcnow
 from server.vocabulary import FlightStatus
 
-__all__ = ["CLASS_CHANGES_KEPT", "flights_to_prune", "prune_raw"]
+__all__ = ["CLASS_CHANGES_KEPT", "flights_to_prune", "prune_raw", "sweep_orphans"]
 
 #: the class changes of one alarm whose flights keep their raw log: the latest ones
 CLASS_CHANGES_KEPT = 4
@@ -73,3 +77,31 @@ def prune_raw(*, session: Session, blobs: BlobStore, aircraft_id: int, keep: int
         except OSError as exc:  # the row is pruned either way; the file is only disk
             log.warning("could not delete pruned blob %s: %s", rel, exc)
     return len(rows)
+
+
+def _kept_by_a_row(session: Session, sha256: str) -> bool:
+    return session.scalar(select(Flight.id).where(
+        Flight.sha256 == sha256, Flight.raw_pruned_at.is_(None)).limit(1)) is not None
+
+
+def sweep_orphans(*, session: Session, blobs: BlobStore,
+                  min_age_s: float = TMP_MAX_AGE_S) -> int:
+    """Delete the blobs no row keeping its raw log refers to, unwritten for ``min_age_s``
+    (a younger one may be an upload whose row is being committed; a commit of bytes already
+    stored renews the date); return how many. Each is checked against the rows again just
+    before it goes. Objects whose name is no SHA-256 are not ours to remove: left."""
+    cutoff = time.time() - min_age_s
+    kept = set(session.scalars(select(Flight.sha256).distinct().where(
+        Flight.raw_pruned_at.is_(None))))
+    removed = 0
+    for blob in blobs.stored():
+        if blob.name in kept or blob.modified >= cutoff:
+            continue
+        try:
+            rel = relative_path(blob.name)
+        except ValueError:
+            continue
+        if not _kept_by_a_row(session, blob.name):
+            blobs.delete(rel)
+            removed += 1
+    return removed

@@ -183,7 +183,7 @@ def _blob_store(session: Session, blobs: BlobStore) -> dict[str, int]:
     wanted = set(session.scalars(select(Flight.sha256).distinct().where(
         Flight.raw_pruned_at.is_(None))))
     referenced, unreferenced = _Tally(), _Tally()
-    for name, size in blobs.stored():
+    for name, size, _ in blobs.stored():
         (referenced if name in wanted else unreferenced).add(size)
         wanted.discard(name)
     return {"files": referenced.files + unreferenced.files,

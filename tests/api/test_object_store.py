@@ -19,6 +19,7 @@ from server.db import session_scope
 from server.jobs.worker import Worker
 from server.models import Flight, Job
 from server.services import models as model_service
+from server.services import retention
 from tests.api.conftest import auth
 from tests.conftest import truncate_all
 from tests.flightlog_factory import make_parquet, serials_for
@@ -101,6 +102,34 @@ def test_store_outage_answers_503_loses_nothing_and_recovers(
                       headers=auth(keys["viewer"]))
     assert back.status_code == 200 and back.json()["channels"]["WT.x"]
     assert len(own_s3.keys(_bucket(settings))) == 2
+
+
+def test_a_blob_whose_delete_failed_is_swept_once_old(
+        app, client: TestClient, keys: dict[str, str], aircraft: str, settings: Settings,
+        own_s3: MotoS3) -> None:  # type: ignore[no-untyped-def]
+    """A rejected flight deleted while the store is away: the row goes (204), its object
+    stays; the orphan sweep removes it once older than its age limit, and nothing a row
+    keeps."""
+    kept = _upload(client, keys["uploader"], aircraft, "F0001")
+    assert kept.status_code == 202, kept.text
+    stray = _upload(client, keys["uploader"], "NOSUCH", "F0001", seed=3)  # unknown aircraft
+    assert stray.status_code == 422, stray.text
+    bucket = _bucket(settings)
+    assert len(own_s3.keys(bucket)) == 2
+
+    own_s3.stop()
+    gone = client.delete(f"/api/v1/flights/{stray.json()['error']['details']['id']}",
+                         headers=auth(keys["admin"]))
+    assert gone.status_code == 204, gone.text
+    own_s3.start()
+    assert len(own_s3.keys(bucket)) == 2  # the orphan
+
+    with session_scope(app.state.session_factory) as s:
+        assert retention.sweep_orphans(session=s, blobs=app.state.blobs) == 0  # young: kept
+        assert retention.sweep_orphans(session=s, blobs=app.state.blobs, min_age_s=0) == 1
+    with session_scope(app.state.session_factory) as s:
+        row = s.get(Flight, kept.json()["id"])
+        assert own_s3.keys(bucket) == [f"flights/{row.blob_path}"]
 
 
 @pytest.fixture
