@@ -68,6 +68,19 @@ class S3BlobStore(BlobStore):
         bucket, prefix = settings.blob_bucket
         return cls(make_client(settings.s3_endpoint_url), bucket, prefix, settings.tmp_dir)
 
+    def ensure_bucket(self) -> bool:
+        """Create the bucket unless it exists (``hmsm store init``); True when created."""
+        try:
+            _call(lambda: self.client.head_bucket(Bucket=self.bucket))
+            return False
+        except FileNotFoundError:
+            pass
+        region = self.client.meta.region_name
+        where = ({} if region in (None, "us-east-1") else
+                 {"CreateBucketConfiguration": {"LocationConstraint": region}})
+        _call(lambda: self.client.create_bucket(Bucket=self.bucket, **where))
+        return True
+
     def _key(self, rel_path: str) -> str:
         return self.prefix + check_relative_path(rel_path)
 

@@ -40,6 +40,35 @@ def cmd_db(args: argparse.Namespace, settings: Settings) -> int:
     return 0
 
 
+def cmd_store(args: argparse.Namespace, settings: Settings) -> int:
+    """Make the blob store ready: the directories, and the bucket of HMSM_BLOB_URL unless it
+    exists, waiting up to ``--wait`` seconds for the object store to answer (it may start
+    beside us, as in docker-compose.yml)."""
+    import time
+
+    from server.blobstore import BlobStoreUnreachable, open_blob_store
+
+    store = open_blob_store(settings)
+    if settings.blob_url is None:
+        print(f"blob store: {settings.blob_dir}")
+        return 0
+    from server.blobstore_s3 import S3BlobStore
+
+    assert isinstance(store, S3BlobStore)
+    deadline = time.monotonic() + args.wait
+    while True:
+        try:
+            created = store.ensure_bucket()
+            break
+        except BlobStoreUnreachable as exc:
+            if time.monotonic() > deadline:
+                print(f"hmsm: the object store does not answer: {exc}", file=sys.stderr)
+                return 2
+            time.sleep(2)
+    print(f"blob store: {settings.blob_url} (bucket {'created' if created else 'exists'})")
+    return 0
+
+
 def cmd_keys(args: argparse.Namespace, settings: Settings) -> int:
     from sqlalchemy import select
 
@@ -217,6 +246,12 @@ def build_parser() -> argparse.ArgumentParser:
     db.add_argument("action", choices=["upgrade", "downgrade", "current"])
     db.add_argument("revision", nargs="?", help="target revision (default head / base)")
     db.set_defaults(func=cmd_db)
+
+    store = sub.add_parser("store", help="the flight-log store (HMSM_BLOB_URL)")
+    store.add_argument("action", choices=["init"], help="create the bucket unless it exists")
+    store.add_argument("--wait", type=float, default=60.0,
+                       help="seconds to wait for the object store to answer")
+    store.set_defaults(func=cmd_store)
 
     from server.models import ROLES
 

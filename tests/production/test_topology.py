@@ -34,7 +34,7 @@ COMPOSE = shutil.which("docker-compose")
 def _compose_config(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
     assert COMPOSE
     clean = {k: v for k, v in os.environ.items()
-             if not k.startswith(("POSTGRES_", "HMSM_SIM_", "COMPOSE_"))}
+             if not k.startswith(("POSTGRES_", "HMSM_SIM_", "COMPOSE_", "S3_"))}
     return subprocess.run([COMPOSE, "-f", str(ROOT / "docker-compose.yml"), *args, "config"],
                           env={**clean, **env}, capture_output=True, text=True, timeout=60,
                           cwd=ROOT)
@@ -83,6 +83,21 @@ def test_compose_file_is_valid_and_has_the_production_topology() -> None:
         assert env["HMSM_DATA_DIR"] == "/data"
     text = (ROOT / "docker-compose.yml").read_text()
     assert "s3cret" not in text and "${POSTGRES_PASSWORD:?" in text
+
+    # flight logs in the object store: the API and the workers share no volume, only it
+    s3 = services["seaweedfs"]
+    entry = " ".join(s3["entrypoint"])
+    assert "S3_ACCESS_KEY:?" in entry and "S3_SECRET_KEY:?" in entry and "-s3" in entry
+    assert services["bucket"]["command"][:3] == ["hmsm", "store", "init"]
+    assert services["bucket"]["depends_on"]["seaweedfs"]["condition"] == "service_healthy"
+    assert int(worker["deploy"]["replicas"]) == 2 and "volumes" not in worker
+    for name in ("api", "worker"):
+        env = services[name]["environment"]
+        assert env["HMSM_BLOB_URL"].startswith("s3://")
+        assert env["HMSM_S3_ENDPOINT_URL"] == "http://seaweedfs:8333"
+        assert env["AWS_SECRET_ACCESS_KEY"] == ""  # from .env, never a literal here
+        assert services[name]["depends_on"]["bucket"]["condition"] == (
+            "service_completed_successfully")
 
     # /metrics: the API reads the token from the secret Prometheus scrapes it with
     assert api["environment"]["HMSM_METRICS_TOKEN_FILE"] == "/run/secrets/metrics_token"

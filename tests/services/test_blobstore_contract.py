@@ -174,3 +174,17 @@ def test_a_store_down_is_unreachable_not_missing(tmp_path) -> None:  # type: ign
                 call()
         assert time.monotonic() - start < 30
         assert upload.path.exists()  # a failed commit leaves the upload to its owner
+
+
+def test_store_init_creates_the_bucket_once(tmp_path, s3_server, monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
+    from server.cli import main
+
+    bucket = f"hmsm-init-{os.urandom(4).hex()}"
+    monkeypatch.setenv("HMSM_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("HMSM_BLOB_URL", f"s3://{bucket}/flights")
+    monkeypatch.setenv("HMSM_S3_ENDPOINT_URL", s3_server.endpoint)
+    assert main(["store", "init"]) == 0
+    assert "bucket created" in capsys.readouterr().out
+    assert s3_server.keys(bucket) == []  # it exists (a missing bucket would raise)
+    assert main(["store", "init"]) == 0
+    assert "bucket exists" in capsys.readouterr().out
