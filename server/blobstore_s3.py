@@ -180,9 +180,16 @@ class S3BlobStore(BlobStore):
 def make_client(endpoint_url: str | None) -> Any:
     """A boto3 S3 client: credentials and region from the standard AWS_* variables (or the
     instance's role); path-style addressing on a server of our own (no wildcard DNS needed)."""
+    own_server = endpoint_url is not None
+    # On a server of our own, checksums only where S3 requires them: botocore's default
+    # trailing CRC32 (aws-chunked uploads, boto3 >= 1.36) is not supported by some
+    # S3-compatible servers; the worker checks the bytes' SHA-256 before analysis either way.
+    checksums = "when_required" if own_server else "when_supported"
     config = Config(retries={"max_attempts": ATTEMPTS, "mode": "standard"},
                     connect_timeout=3, read_timeout=30,
-                    s3={"addressing_style": "path" if endpoint_url else "auto"})
+                    request_checksum_calculation=checksums,
+                    response_checksum_validation=checksums,
+                    s3={"addressing_style": "path" if own_server else "auto"})
     return boto3.session.Session().client("s3", endpoint_url=endpoint_url, config=config)
 
 
