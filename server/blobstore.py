@@ -16,6 +16,7 @@ import hashlib
 import os
 import tempfile
 import time
+from abc import ABC, abstractmethod
 from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -81,7 +82,7 @@ def check_relative_path(rel_path: str) -> str:
     return rel_path
 
 
-class BlobStore:
+class BlobStore(ABC):
     """What every store shares: the local spool of uploads and the key scheme. Subclasses put
     the spooled bytes in place (:meth:`commit`), read, delete and list them."""
 
@@ -128,19 +129,23 @@ class BlobStore:
             raise
         return SpooledUpload(Path(name), digest.hexdigest(), size)
 
+    @abstractmethod
     def commit(self, upload: SpooledUpload) -> str:
         """Put a spooled upload in place whole (its temporary file is gone after); return its
         relative blob path. A stored copy with other bytes (damaged) is replaced."""
         raise NotImplementedError
 
+    @abstractmethod
     def read(self, rel_path: str) -> bytes:
         """The blob's bytes; FileNotFoundError when it is not stored."""
         raise NotImplementedError
 
+    @abstractmethod
     def delete(self, rel_path: str) -> None:
         """Remove a stored blob (retention); a missing one is already gone."""
         raise NotImplementedError
 
+    @abstractmethod
     def stored(self) -> Iterator[StoredBlob]:
         """Every object in the store: what GET /storage counts, what the orphan sweep
         (:func:`server.services.retention.sweep_orphans`) looks at."""
