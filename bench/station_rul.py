@@ -38,8 +38,10 @@ from sim_worker.steering import plan_fault, steer_and_advance  # noqa: E402
 
 
 def fly_and_analyse(case: SpanCase, model_doc: dict[str, Any], seed: int, duration_s: float,
-                    lead: int) -> dict[str, Any]:
-    """One injection flown to failure with the chain over every flight; its predictions."""
+                    lead: int, flat_season: bool = False) -> dict[str, Any]:
+    """One injection flown to failure with the chain over every flight; its predictions
+    (``flat_season``: steered as if every flight to come were the reference flight, not
+    following the base's season)."""
     model = read_model_document(model_doc)
     aircraft = fleet_plan(_N_AIRCRAFT, seed)[case.aircraft]
     rng = np.random.default_rng([seed, 41, hash_case(case)])
@@ -49,12 +51,13 @@ def fly_and_analyse(case: SpanCase, model_doc: dict[str, Any], seed: int, durati
     fault = healthy()
     health = {p: model.new_health(p) for p in POSITIONS}
     rows = []
-    n = case.start_flight - lead
+    n = max(case.start_flight - lead, 0)  # a unit installed at flight 0 flies fewer
     while n < case.start_flight + 3 * case.span:
         if n == case.start_flight:
             fault, plan = plan_fault(case.mode, case.position, rng, reference=reference,
                                      start_flight=case.start_flight,
-                                     span_flights=float(case.span))
+                                     span_flights=float(case.span),
+                                     base=None if flat_season else aircraft.base)
         flight_rng = np.random.default_rng([seed, 13, hash_case(case), n])
         log, summary = simulate_flight(aircraft, fault, n, flight_rng,
                                        started_at=flight_start(n), duration_s=duration_s)
@@ -121,7 +124,7 @@ def summarise(records: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def _job(args: tuple[SpanCase, dict[str, Any], int, float, int]) -> dict[str, Any]:
+def _job(args: tuple[SpanCase, dict[str, Any], int, float, int, bool]) -> dict[str, Any]:
     return fly_and_analyse(*args)
 
 
@@ -135,13 +138,16 @@ def main() -> int:
     parser.add_argument("--duration", type=float, default=60.0, help="recording length [s]")
     parser.add_argument("--lead", type=int, default=20, help="healthy flights first")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--flat-season", action="store_true",
+                        help="steer as if the flights to come had the reference flight's "
+                        "driver (the station's rule before it followed the season)")
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
     lo, hi = (int(v) for v in args.span_range.split(","))
     modes = tuple(m for m in args.modes.split(",") if m)
     cases = span_cases(args.per_mode, args.seed, (lo, hi), modes=modes)
     doc = json.loads(Path(args.model).read_text())
-    jobs = [(c, doc, args.seed, args.duration, args.lead) for c in cases]
+    jobs = [(c, doc, args.seed, args.duration, args.lead, args.flat_season) for c in cases]
     with ProcessPoolExecutor(args.workers) as pool:
         records = list(pool.map(_job, jobs))
     summary = summarise(records)

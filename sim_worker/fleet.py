@@ -35,6 +35,7 @@ __all__ = [
     "monthly_climate",
     "draw_ground_temperature",
     "annual_mean_temperature",
+    "seasonal_offset_c",
 ]
 
 BASES: dict[str, str] = {"Turin": "temperate", "Vancouver": "cold", "Abu Dhabi": "hot"}
@@ -191,6 +192,16 @@ def draw_ground_temperature(base: str, month: int, rng: np.random.Generator) -> 
 def annual_mean_temperature(base: str) -> float:
     mean, _ = monthly_climate(base)
     return float(np.mean(mean))
+
+
+def seasonal_offset_c(base: str, day_of_year: float | np.ndarray) -> np.ndarray:
+    """The base's expected daily mean temperature on ``day_of_year`` (0 = 1 January, any
+    real, wrapping over the year) minus its annual mean [K]: the monthly means placed at
+    mid-month and interpolated linearly around the year, so a planned season has no steps."""
+    mean, _ = monthly_climate(base)
+    mid_month = (np.arange(12) + 0.5) * (365.25 / 12)
+    return np.interp(np.asarray(day_of_year, dtype=float) % 365.25, mid_month,
+                     mean - mean.mean(), period=365.25)
 
 
 def reflected_mass_kg(p: EmaParams) -> float:

@@ -34,6 +34,7 @@ from .scenario import REFERENCE_DURATION_S, Scenario, Warp, build_scenario, draw
 
 __all__ = [
     "EPOCH",
+    "days_of_year",
     "FlightConditions",
     "SimResult",
     "draw_conditions",
@@ -57,6 +58,14 @@ def flight_start(flight_index: int, *, epoch: datetime = EPOCH, day_offset: floa
                  ) -> datetime:
     """Take-off time of flight ``flight_index``: two flights a day from ``epoch + day_offset``."""
     return epoch + timedelta(days=day_offset + 0.5 * flight_index)
+
+
+def days_of_year(flight_indices: np.ndarray) -> np.ndarray:
+    """Day of the year [days since 1 January 00:00] of each flight's take-off
+    (:func:`flight_start`)."""
+    starts = [flight_start(int(n)) for n in flight_indices]
+    return np.array([(t - t.replace(month=1, day=1, hour=0, minute=0)).total_seconds() / 86400
+                     for t in starts])
 
 
 @dataclass(frozen=True)

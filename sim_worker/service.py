@@ -226,7 +226,7 @@ class SimFleetRunner:
         run.fault, run.plan = plan_fault(
             injection["fault_mode"], injection["position"], rng, reference=reference,
             start_flight=start_flight, span_flights=injection["time_to_failure_flights"],
-            severity_norm=injection.get("severity"))
+            severity_norm=injection.get("severity"), base=run.aircraft.base)
         run.injection_id = int(injection["id"])
         run.failed_at = None
 

@@ -68,7 +68,8 @@ def fly_case(case: SpanCase, *, seed: int, duration_s: float, steered: bool = Tr
     reference = reference_summary(aircraft, case.position, duration_s=duration_s,
                                   seed=(seed, 12, case.aircraft))
     fault, plan = plan_fault(case.mode, case.position, rng, reference=reference,
-                             start_flight=case.start_flight, span_flights=float(case.span))
+                             start_flight=case.start_flight, span_flights=float(case.span),
+                             base=aircraft.base)
     n = case.start_flight
     while not fault.failed and n < case.start_flight + 3 * case.span:
         flight_rng = np.random.default_rng([seed, 13, hash_case(case), n])

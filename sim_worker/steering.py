@@ -16,13 +16,25 @@ planned flight. The law of the mode is untouched -- each flight still grows the 
 drive more than a cold one -- only the constant is re-estimated. The planned failure flight
 is known to the station from onset: it is the live "true RUL" the test station shows.
 
-Mean driver: ``D = (w0 d_ref + sum_k d_k) / (w0 + n)``, with ``d_k`` the driver of flight ``k``
-measured at 12 kHz and the reference driver ``d_ref`` as a prior worth ``w0 = 3`` flights (one
-flight alone is a noisy estimate of a mean).
+The flights to come are expected to follow the base's season, as a campaign's faults do: a
+thermal mode's expected driver on flight ``j`` is the reference flight's at the winding
+temperature shifted by the base's climatological offset for that date, ``e_j``
+(:func:`~sim_worker.fleet.seasonal_offset_c`; wear modes do not depend on temperature, so
+``e_j = d_ref``). The flights flown so far scale that expectation by their measured ratio
+``K = (w0 + sum_k d_k / e_k) / (w0 + n)``, ``d_k`` the driver of flight ``k`` measured at
+12 kHz, with a prior worth ``w0 = 3`` flights of "as expected" (one flight alone is a noisy
+estimate of a mean). The rate constant is then the one whose expected progression,
+``rate K sum_j e_j`` over the flights left, reaches the threshold. A fault injected in August
+at Turin therefore slows into the autumn as a real one would (a hotter rate early, a colder
+season later) instead of holding the summer's pace by a rate raised flight after flight: the
+law the prognosis learned from the campaigns' faults, on its stress clock, still holds for a
+steered one (with the flights' mean in place of the season's, a 148-flight TTS from August
+was predicted 45 flights late at mid-life).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -39,6 +51,8 @@ from .faults import (
     new_fault,
     reference_driver,
 )
+from .fleet import seasonal_offset_c
+from .flight import days_of_year
 
 __all__ = ["SteeredFault", "plan_fault", "steer_and_advance"]
 
@@ -53,22 +67,41 @@ class SteeredFault:
 
     state: FaultState
     target_flight: int
-    reference_driver: float
-    driver_sum: float = 0.0
+    reference: ActuatorSummary
+    #: the aircraft's base, whose season the flights to come are expected to follow; None:
+    #: every flight expected at the reference driver
+    base: str | None = None
+    #: sum over the flights flown of their driver over the driver expected for their date
+    ratio_sum: float = 0.0
     flights: int = 0
 
     @property
-    def mean_driver(self) -> float:
-        return ((_PRIOR_FLIGHTS * self.reference_driver + self.driver_sum)
-                / (_PRIOR_FLIGHTS + self.flights))
+    def mean_ratio(self) -> float:
+        """``K``: how much harder than expected for their season the flights flown so far
+        drove the fault, with a prior of ``_PRIOR_FLIGHTS`` flights as expected."""
+        return (_PRIOR_FLIGHTS + self.ratio_sum) / (_PRIOR_FLIGHTS + self.flights)
+
+    def expected_drivers(self, flights: np.ndarray) -> np.ndarray:
+        """The driver each of ``flights`` is expected to have at the base's climate for its
+        date (the reference flight's winding temperature shifted by the season's offset)."""
+        mode = self.state.mode
+        if self.base is None:
+            return np.full(len(flights), reference_driver(mode, self.reference))
+        # a wear mode's driver ignores the winding temperature: its expectation stays flat
+        offsets = seasonal_offset_c(self.base, days_of_year(flights))
+        return np.array([reference_driver(mode, replace(
+            self.reference, winding_mean_c=self.reference.winding_mean_c + float(dt)))
+            for dt in offsets])
 
 
 def plan_fault(mode: str, position: str, rng: np.random.Generator, *,
                reference: ActuatorSummary, start_flight: int, span_flights: float | None = None,
-               severity_norm: float | None = None) -> tuple[FaultState, SteeredFault | None]:
+               severity_norm: float | None = None, base: str | None = None
+               ) -> tuple[FaultState, SteeredFault | None]:
     """A test-station fault at its start, and for a progressive mode its plan: failure
     ``span_flights`` after ``start_flight`` (drawn from the campaigns' range when None, with the
-    draw :func:`~sim_worker.faults.new_fault` would make)."""
+    draw :func:`~sim_worker.faults.new_fault` would make), the flights to come expected to
+    follow the season of ``base``."""
     if mode in PROGRESSIVE and span_flights is None:
         span_flights = float(rng.uniform(*SPAN_FLIGHTS))
     fault = new_fault(mode, position, rng, reference=reference, span_flights=span_flights,
@@ -76,7 +109,7 @@ def plan_fault(mode: str, position: str, rng: np.random.Generator, *,
     if mode not in PROGRESSIVE or span_flights is None:
         return fault, None
     return fault, SteeredFault(fault, target_flight=start_flight + round(span_flights),
-                               reference_driver=reference_driver(mode, reference))
+                               reference=reference, base=base)
 
 
 def steer_and_advance(fault: SteeredFault, summary: FlightSummary, flight: int,
@@ -87,12 +120,13 @@ def steer_and_advance(fault: SteeredFault, summary: FlightSummary, flight: int,
     if st.position is None or st.failed:
         return fault
     flown_driver = driver(st.mode, summary.actuators[st.position], summary.block_hours)
-    measured = replace(fault, driver_sum=fault.driver_sum + flown_driver,
-                       flights=fault.flights + 1)
     # flight n covers [n, n + 1): failing at the target flight T means crossing the threshold
     # during flight T - 1, so the plan aims at its middle; an overdue fault is planned to
     # finish within a tenth of a flight (a calm flight can still leave it short)
     flights_left = max(fault.target_flight - 0.5 - flight, _OVERDUE_FLIGHTS)
-    rate = life_to_go(st) / (flights_left * max(measured.mean_driver, 1e-9))
+    expected = fault.expected_drivers(np.arange(flight, flight + math.ceil(flights_left)))
+    measured = replace(fault, ratio_sum=fault.ratio_sum + flown_driver / expected[0],
+                       flights=fault.flights + 1)
+    rate = life_to_go(st) / (flights_left * max(measured.mean_ratio * expected.mean(), 1e-9))
     return replace(measured, state=advance_fault(replace(st, rate=rate), summary, rng))
 

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 from sim_worker.faults import ActuatorSummary, FlightSummary, advance_fault, driver
+from sim_worker.fleet import monthly_climate, seasonal_offset_c
+from sim_worker.flight import days_of_year
 from sim_worker.steering import plan_fault, steer_and_advance
 
 _REF = ActuatorSummary(winding_mean_c=55.0, winding_max_c=70.0, current_rms_a=3.0,
@@ -79,3 +81,45 @@ def test_an_abrupt_fault_has_no_plan() -> None:
     fault, plan = plan_fault("BDO", "WT", np.random.default_rng(0), reference=_REF,
                              start_flight=1)
     assert plan is None and fault.mode == "BDO"
+
+
+def _fly_season(base: str | None, *, start: int, span: int, seed: int) -> tuple[int, list[float]]:
+    """A TTS fault at Turin steered over flights whose winding temperature follows the
+    season (the reference is the annual mean); the flights it took and its rate per flight."""
+    rng = np.random.default_rng(seed)
+    fault, plan = plan_fault("TTS", "WT", rng, reference=_REF, start_flight=start,
+                             span_flights=float(span), base=base)
+    season = seasonal_offset_c("Turin", days_of_year(np.arange(start, start + 3 * span)))
+    rates, n = [], start
+    while not fault.failed and n < start + 3 * span:
+        plan = steer_and_advance(plan, _flight("WT", season[n - start] + rng.normal(0.0, 2.0),
+                                               1.0, 1.5), n, rng)
+        fault = plan.state
+        rates.append(fault.rate)
+        n += 1
+    return n - start, rates
+
+
+def test_a_steered_thermal_fault_follows_the_season_and_still_fails_on_time() -> None:
+    """From mid-August to October at Turin the flights cool by about 10 K: followed, the rate
+    constant holds while the fault slows with the season, as a campaign's fault does; with
+    every flight to come expected at the flights' mean so far, the rate climbs flight after
+    flight to hold the summer's pace (the law the prognosis learned no longer holds)."""
+    start, span = 454, 148  # flight 454: mid-August at two flights a day from 1 January
+    for seed in range(4):
+        took, rates = _fly_season("Turin", start=start, span=span, seed=seed)
+        flat_took, flat_rates = _fly_season(None, start=start, span=span, seed=seed)
+        assert abs(took - span) <= 0.1 * span and abs(flat_took - span) <= 0.1 * span
+        q = len(rates) // 4
+        drift = np.median(rates[-q:]) / np.median(rates[:q])
+        flat_drift = np.median(flat_rates[-q:]) / np.median(flat_rates[:q])
+        assert 0.8 < drift < 1.25 and flat_drift > 1.5, (drift, flat_drift)
+
+
+def test_the_season_offset_is_the_climate_less_its_annual_mean() -> None:
+    mean, _ = monthly_climate("Turin")
+    mid_july = (6 + 0.5) * 365.25 / 12
+    assert seasonal_offset_c("Turin", mid_july) == pytest.approx(mean[6] - mean.mean())
+    # continuous over the new year
+    assert seasonal_offset_c("Turin", 365.2) == pytest.approx(seasonal_offset_c("Turin", 0.0),
+                                                             abs=0.05)
