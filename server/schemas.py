@@ -18,6 +18,8 @@ from server.flightlog import ID_PATTERN, MAX_ID_LEN
 from server.models import ROLES
 from server.vocabulary import (
     ABRUPT,
+    BASES,
+    CONDITION_KINDS,
     FAULT_MODES,
     POSITIONS,
     SENSORS,
@@ -29,6 +31,7 @@ __all__ = [
     "Position",
     "FaultMode",
     "InjectionCreate",
+    "ConditionCreate",
     "Role",
     "AircraftCreate",
     "AircraftRead",
@@ -358,6 +361,63 @@ def _clamp_problem(sensor: str, kind: str, value: float) -> str | None:
 #: the simulator, a test keeps the two equal): a coarser step must be coarser than these
 NATIVE_STEP = {"current": 2.0**-5, "voltage": 2.0**-3, "resolver": 2.0 * 3.141592653589793 / 65536,
                "lvdt": 2.0**-19}
+
+
+#: a condition's bounds: (low, high) of its value, per kind. Ambient: +-30 K spans the air of
+#: the hottest and coldest days around a base's monthly mean (the climates' spread is 2-6 K);
+#: scales: above 0 (a negative scale would flip the load or the command) and at most 3 (eq. 1
+#: draws sigma_F and sigma_x at 1 +- 0.3, truncated at 3 sigma: at most 1.9); load offset: one
+#: nominal winglet load (1000 N, ten times eq. 1's sigma_F0 spread) either way
+CONDITION_BOUNDS: dict[str, tuple[float, float]] = {
+    "ambient_offset": (-30.0, 30.0), "load_scale": (0.0, 3.0), "load_offset": (-1000.0, 1000.0),
+    "command_scale": (0.0, 3.0)}
+#: kinds whose low bound is excluded (a scale of 0 is no load or no motion, not a condition)
+_OPEN_LOW = ("load_scale", "command_scale")
+
+
+class ConditionCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    aircraft: Identifier
+    kind: Literal[CONDITION_KINDS] = Field(  # type: ignore[valid-type]
+        description="ambient_offset: K added to the air temperature, ground to cruise; "
+        "load_scale: the hinge load's scale (eq. 1 sigma_F, multiplied); load_offset: N added "
+        "to every actuator's hinge load (eq. 1 sigma_F0); command_scale: the commanded "
+        "motion's scale (eq. 1 sigma_x, multiplied); base: fly from that base's climate")
+    value: float | None = Field(None, allow_inf_nan=False, description=(
+        "ambient_offset within +-30 K; load_scale and command_scale above 0 and at most 3; "
+        "load_offset within +-1000 N; none for a base"))
+    base: str | None = Field(None, description="kind base only: one of " + ", ".join(BASES))
+    onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
+                              description="Aircraft flight number it starts at; 0 = the next "
+                              "flight. It lasts until cancelled.")
+
+    @model_validator(mode="after")
+    def _value_in_bounds(self) -> ConditionCreate:
+        problem = condition_problem(self.kind, self.value, self.base)
+        if problem:
+            raise ValueError(problem)
+        return self
+
+
+def condition_problem(kind: str, value: float | None, base: str | None) -> str | None:
+    """Why a condition is malformed or out of bounds; None when it is fine."""
+    if kind == "base":
+        if value is not None:
+            return "a base condition takes a base, not a value"
+        if base not in BASES:
+            return f"base must be one of {', '.join(BASES)}"
+        return None
+    if base is not None:
+        return f"a {kind} condition takes a value, not a base"
+    if value is None:
+        return f"a {kind} condition needs a value"
+    low, high = CONDITION_BOUNDS[kind]
+    inside = (low < value if kind in _OPEN_LOW else low <= value) and value <= high
+    if not inside:
+        unit = {"ambient_offset": " K", "load_offset": " N"}.get(kind, "")
+        side = "above" if kind in _OPEN_LOW else "at least"
+        return f"{kind} must be {side} {low:g}{unit} and at most {high:g}{unit}"
+    return None
 
 
 # ---------------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from server.vocabulary import BASES as BASE_NAMES
 from server.vocabulary import POSITIONS, WINGLET_PAIR, is_winglet
 
 from .params import EmaParams, SurfaceParams
@@ -37,7 +38,7 @@ __all__ = [
     "annual_mean_temperature",
 ]
 
-BASES: dict[str, str] = {"Turin": "temperate", "Vancouver": "cold", "Abu Dhabi": "hot"}
+BASES: dict[str, str] = dict(zip(BASE_NAMES, ("temperate", "cold", "hot"), strict=True))
 CLIMATES: dict[str, str] = {v: k for k, v in BASES.items()}
 #: the ten aircraft's home bases of a campaign or a simulated fleet (paper section 4.1): four
 #: temperate, three cold, three hot
