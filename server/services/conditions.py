@@ -103,12 +103,12 @@ def list_truth(*, session: Session, condition_id: int) -> list[ConditionGroundTr
         .order_by(ConditionGroundTruth.flight_number)))
 
 
-def flights_under(*, session: Session, aircraft_id: int) -> dict[str, list[str]]:
-    """Flight code -> the conditions it was flown under (in words), for the aircraft's pages."""
+def flights_under(*, session: Session, aircraft_id: int) -> dict[str, list[SimCondition]]:
+    """Flight code -> the conditions it was flown under (its ground truth), for the pages."""
     rows = session.execute(select(ConditionGroundTruth.flight_code, SimCondition).join(
         SimCondition, SimCondition.id == ConditionGroundTruth.condition_id).where(
         SimCondition.aircraft_id == aircraft_id).order_by(SimCondition.id)).all()
-    out: dict[str, list[str]] = {}
+    out: dict[str, list[SimCondition]] = {}
     for code, condition in rows:
-        out.setdefault(code, []).append(describe(condition))
+        out.setdefault(code, []).append(condition)
     return out
