@@ -285,10 +285,15 @@ SENSOR_INJECTION_KINDS: tuple[str, ...] = ("noise", "drift", "quantisation", "st
 #: the converters' full scales (sim_worker.params.SensorParams): a stuck value lies within
 #: +-range, a clip level within (0, range]
 SENSOR_RANGE = {"current": 64.0, "voltage": 512.0}
-#: a position sensor stuck or clipped opens the loop that closes on it: a real flight computer's
-#: monitors would cut the channel, the simulator (without them, without rod end stops) would
-#: fly the rod or the commutation away to angles no flight reaches, so it is refused
+#: a stuck or clipped LVDT opens the position loop: the motor drives the rod on, and without
+#: the rod's end stops (not modelled) the simulator flies it metres beyond its stroke (a stuck
+#: WT LVDT: 4.8 m of travel on a 15 s flight), so both are refused. A stuck resolver freezes
+#: the commutation angle: the drive loses its torque control but the rod stays within its
+#: stroke (12 mm at most on the same flight), so it is flown; a resolver's angle wraps, it
+#: never saturates, so a clipped one is no resolver failure and is refused
 CLAMPED_SENSORS = tuple(SENSOR_RANGE)
+#: a stuck resolver reads one shaft angle [rad], within a turn
+STUCK_RESOLVER_RANGE = 3.141592653589793
 #: the coarsest step an operator may ask per sensor: far beyond what a sensor finding needs,
 #: short of a reading that no longer closes the loop (a 1 mm LVDT step on a +-62 mm stroke)
 MAX_STEP = {"current": 4.0, "voltage": 50.0, "resolver": 0.1, "lvdt": 1e-3}
@@ -311,7 +316,8 @@ class SensorInjectionCreate(BaseModel):
         f"non-zero, |value| <= {MAX_DRIFT_M_PER_FLIGHT:g}; quantisation: step, above the "
         "sensor's own step, at most " + ", ".join(f"{v:g} ({k})" for k, v in MAX_STEP.items())
         + "; stuck (current, voltage): the reading, within the converter's range (64 A, "
-        "512 V); clipped (current, voltage): the level, above 0, within that range"))
+        "512 V); stuck (resolver): the shaft angle, within +-pi rad; clipped (current, "
+        "voltage): the level, above 0, within that range"))
     onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
                               description="Aircraft flight number it starts at; 0 = the next "
                               "flight. It lasts until cancelled.")
@@ -345,10 +351,18 @@ def sensor_value_problem(sensor: str, kind: str, value: float) -> str | None:
 
 
 def _clamp_problem(sensor: str, kind: str, value: float) -> str | None:
+    if sensor == "resolver" and kind == "stuck":
+        if not -STUCK_RESOLVER_RANGE <= value <= STUCK_RESOLVER_RANGE:
+            return "a stuck resolver reads one shaft angle, within +-pi rad"
+        return None
+    if sensor == "resolver":
+        return ("a resolver's angle wraps, it never saturates: clipped is no resolver failure "
+                "(stuck is offered)")
     if sensor not in CLAMPED_SENSORS:
-        return (f"{kind} is offered for the current and voltage sensors: a {sensor} {kind} "
-                "opens the loop that closes on it, which the simulator cannot fly (no channel "
-                "monitors, no end stops)")
+        return (f"a {kind} LVDT opens the position loop: without the rod's end stops, which "
+                "the simulator does not model, the rod would run metres beyond its 30 mm "
+                "stroke; stuck and clipped are offered for the current, voltage and (stuck) "
+                "resolver sensors")
     full = SENSOR_RANGE[sensor]
     if kind == "stuck" and not -full <= value <= full:
         return f"a stuck {sensor} reading lies within +-{full:g}"
