@@ -47,10 +47,15 @@ def _hot_flights_30_to_35(live: Live) -> int:  # noqa: F811
 
 def test_a_condition_listed_cancelled_and_marked_on_a_phone(live: Live, browser) -> None:  # type: ignore[no-untyped-def]  # noqa: F811
     cid = _hot_flights_30_to_35(live)
+    # a noisy LVDT on the seeded drive, reported on its flights 38-40
     sensor = _api(live, "POST", "/api/v1/test-station/sensor-injections", json={
-        "aircraft": live.tails[1], "position": "WT", "sensor": "lvdt", "kind": "noise",
-        "value": 3})
+        "aircraft": live.tails[0], "position": "WL1", "sensor": "lvdt", "kind": "noise",
+        "value": 3, "onset_flight": 38})
     assert sensor.status_code == 201, sensor.text
+    for n in range(38, 41):
+        r = _api(live, "PUT", f"/api/v1/test-station/sensor-injections/{sensor.json()['id']}"
+                 "/ground-truth", json={"flight": f"F{n:04d}", "flight_number": n, "applied": 3})
+        assert r.status_code == 200, r.text
 
     viewer = browser.new_context(viewport=PHONE)
     page = viewer.new_page()
@@ -98,13 +103,17 @@ def test_a_condition_listed_cancelled_and_marked_on_a_phone(live: Live, browser)
     shaded = page.evaluate("""id => (document.getElementById(id).layout.shapes || [])
         .filter(s => s.type === 'rect' && s.xref === 'x').map(s => [s.x0, s.x1])""",
                            "fig-trends")
-    assert [29.5, 35.5] in shaded, shaded
     marks = page.locator("#station-marks")
     marks.scroll_into_view_if_needed()
     _shot(page, "actuator-station-marks-390")
     hot = marks.locator("tbody tr", has_text="ambient_offset 15")
     assert hot.count() == 1, marks.inner_text()
     assert all(s in hot.inner_text() for s in ("30–35", "fault DMD", "T_amb")), hot.inner_text()
+    noisy = marks.locator("tbody tr", has_text="lvdt noise 3")
+    assert noisy.count() == 1 and "38–40" in noisy.inner_text() and "WL1.x" in noisy.inner_text()
+    # one band per run of flights with the same things live: DMD from its onset (the seed's),
+    # +15 K on 30-35, DMD alone on 36-37, DMD and the noisy LVDT on 38-40
+    assert shaded == [[14.5, 29.5], [29.5, 35.5], [35.5, 37.5], [37.5, 40.5]], shaded
     assert page.evaluate("() => document.documentElement.scrollWidth - "
                          "document.documentElement.clientWidth") == 0
     assert console.errors == [], console.errors
