@@ -44,10 +44,12 @@ class Conditions:
         """Eq. (1)'s drawn warp with the load and command conditions applied."""
         if (self.load_scale, self.load_offset_n, self.command_scale) == (1.0, 0.0, 1.0):
             return warp
+        # per surface (winglet, wingtip), as eq. (1) draws them
+        x, f, f0 = warp.sigma_x, warp.sigma_f, warp.sigma_f0_n
         return replace(
-            warp, sigma_x=tuple(s * self.command_scale for s in warp.sigma_x),  # type: ignore[arg-type]
-            sigma_f=tuple(s * self.load_scale for s in warp.sigma_f),  # type: ignore[arg-type]
-            sigma_f0_n=tuple(s + self.load_offset_n for s in warp.sigma_f0_n))  # type: ignore[arg-type]
+            warp, sigma_x=(x[0] * self.command_scale, x[1] * self.command_scale),
+            sigma_f=(f[0] * self.load_scale, f[1] * self.load_scale),
+            sigma_f0_n=(f0[0] + self.load_offset_n, f0[1] + self.load_offset_n))
 
 
 NO_CONDITIONS = Conditions()

@@ -112,3 +112,13 @@ def test_the_api_documents_compose_into_one_set_of_conditions() -> None:
         sigma_t=1.0, sigma_x=(0.5, 0.4), sigma_x0_m=(0.0, 0.001), sigma_f=(2.4, 1.8),
         sigma_f0_n=(10.0, -20.0))
     assert NO_CONDITIONS.warp(warp) is warp
+
+
+def test_every_kind_of_the_vocabulary_is_flown_bounded_and_explained() -> None:
+    from server.schemas import CONDITION_BOUNDS
+    from server.vocabulary import CONDITION_KINDS
+    from server.web.data import CONDITION_MOVES
+    from sim_worker.conditions import _FIELD
+
+    kinds = set(CONDITION_KINDS)
+    assert set(_FIELD) == kinds == set(CONDITION_MOVES) == set(CONDITION_BOUNDS) | {"base"}
