@@ -80,6 +80,21 @@ def test_a_larger_load_draws_more_current(aircraft: Aircraft,
     assert np.array_equal(log.channels["WT.x_cmd"], rigged[0].channels["WT.x_cmd"])
 
 
+def test_a_trim_load_is_held_by_the_active_drives(aircraft: Aircraft,
+                                                  rigged: tuple[FlightLog, FlightSummary]
+                                                  ) -> None:
+    log, summary = _fly(aircraft, Conditions(load_offset_n=-800.0))
+    load = {p: (rigged[1].actuators[p].load_rms_n, summary.actuators[p].load_rms_n)
+            for p in ("WL1", "WL2", "WT")}
+    # 800 N more per actuator share: the wingtip drive holds its own (225 N rms before)...
+    assert load["WT"][1] > load["WT"][0] + 400, load
+    # ...and on flight 3 WL2 drives the tab alone, so it holds both winglet shares, while its
+    # standby partner WL1 carries nothing of it
+    assert load["WL2"][1] > load["WL2"][0] + 700, load
+    assert abs(load["WL1"][1] - load["WL1"][0]) < 5, load
+    assert _rms(log, "WT.ia", "WT.ib", "WT.ic") > 2 * _rms(rigged[0], "WT.ia", "WT.ib", "WT.ic")
+
+
 def test_a_larger_command_moves_the_surface_further(
         aircraft: Aircraft, rigged: tuple[FlightLog, FlightSummary]) -> None:
     log, summary = _fly(aircraft, Conditions(command_scale=1.5))
