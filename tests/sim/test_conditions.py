@@ -63,9 +63,9 @@ def test_hotter_air_heats_the_winding_and_the_probe_reads_it(
     assert np.allclose(dt, 15.0, atol=2.0**-5)  # the air, ground to cruise
     for p in ("WL1", "WL2", "WT"):
         warmer = summary.actuators[p].winding_mean_c - rigged[1].actuators[p].winding_mean_c
-        # the winding sits above its air by its losses through R_th: the offset, plus a little
-        # more copper loss in the warmer (more resistive) copper
-        assert 15.0 <= warmer < 16.0, (p, warmer)
+        # the winding sits above its air by its losses through R_th: the offset, plus the
+        # warmer (more resistive) copper's extra loss, small on these light flights
+        assert 15.0 <= warmer < 15.5, (p, warmer)
     assert summary.ground_temp_c == pytest.approx(rigged[1].ground_temp_c + 15.0)
     assert log.metadata == rigged[0].metadata  # no label
 
