@@ -175,7 +175,8 @@ def sensor_view(*, session: Session, actuator_id: int, limit: int) -> list[dict[
 #: for the physics, docs/FEATURES.md for the features), shown beside the feature trends
 CONDITION_MOVES = {
     "ambient_offset": "T_amb and the winding temperature (R̂): the baselines' temperature "
-                      "covariates; F_MTEL's cruise window (T_amb ≤ −37 °C)",
+                      "covariates; F_MTEL's cruise window (T_amb ≤ −37 °C: above +3 K it "
+                      "finds no cruise and gives no value)",
     "load_scale": "hinge load, hence phase current: F_MTEL's load |L|, F_MTWEAR's flank "
                   "pressing, F_DMD's and F_SE's q-axis terms",
     "load_offset": "hinge load, hence phase current: F_MTEL's load |L|, F_MTWEAR's flank "
