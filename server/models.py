@@ -527,6 +527,46 @@ class SensorGroundTruth(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 
+class SimCondition(Base):
+    """A simulation condition a test-station operator sets on an aircraft, from a flight on
+    until cancelled: the air hotter or colder, the hinge loads or the commands larger, or the
+    aircraft flying from another base (server.vocabulary.CONDITION_KINDS). Its own table: it
+    acts on the whole aircraft, not on an actuator, and one of each kind is live at a time."""
+
+    __tablename__ = "sim_conditions"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)
+    kind: Mapped[str] = mapped_column(String(16))
+    #: ambient_offset: K; load_scale, command_scale: factor; load_offset: N per actuator;
+    #: None for a base
+    value: Mapped[float | None] = mapped_column(Float)
+    #: the base flown from (kind base only)
+    base: Mapped[str | None] = mapped_column(String(64))
+    onset_flight: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(16), default="pending")
+    started_flight: Mapped[int | None] = mapped_column(Integer)
+    created_by: Mapped[str] = mapped_column(String(128))
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    cancelled_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class ConditionGroundTruth(Base):
+    """What a condition did to one simulated flight (never in the flight log): the value
+    flown, or for a base the flight's ground temperature drawn from its climate [degC]."""
+
+    __tablename__ = "condition_ground_truth"
+    __table_args__ = (UniqueConstraint("condition_id", "flight_code",
+                                       name="uq_condition_ground_truth_condition_flight"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    condition_id: Mapped[int] = mapped_column(ForeignKey("sim_conditions.id"), index=True)
+    flight_code: Mapped[str] = mapped_column(String(64))
+    flight_number: Mapped[int] = mapped_column(Integer)
+    applied: Mapped[float] = mapped_column(Float)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
 # ---------------------------------------------------------------------------------------------
 # the workers' own telemetry, read by the API's /metrics (server/services/telemetry.py): in the
 # database because workers run as other processes, possibly on other hosts

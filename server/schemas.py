@@ -18,6 +18,8 @@ from server.flightlog import ID_PATTERN, MAX_ID_LEN
 from server.models import ROLES
 from server.vocabulary import (
     ABRUPT,
+    BASES,
+    CONDITION_KINDS,
     FAULT_MODES,
     POSITIONS,
     SENSORS,
@@ -29,6 +31,7 @@ __all__ = [
     "Position",
     "FaultMode",
     "InjectionCreate",
+    "ConditionCreate",
     "Role",
     "AircraftCreate",
     "AircraftRead",
@@ -282,10 +285,15 @@ SENSOR_INJECTION_KINDS: tuple[str, ...] = ("noise", "drift", "quantisation", "st
 #: the converters' full scales (sim_worker.params.SensorParams): a stuck value lies within
 #: +-range, a clip level within (0, range]
 SENSOR_RANGE = {"current": 64.0, "voltage": 512.0}
-#: a position sensor stuck or clipped opens the loop that closes on it: a real flight computer's
-#: monitors would cut the channel, the simulator (without them, without rod end stops) would
-#: fly the rod or the commutation away to angles no flight reaches, so it is refused
+#: a stuck or clipped LVDT opens the position loop: the motor drives the rod on, and without
+#: the rod's end stops (not modelled) the simulator flies it metres beyond its stroke (a stuck
+#: WT LVDT: 4.8 m of travel on a 15 s flight), so both are refused. A stuck resolver freezes
+#: the commutation angle: the drive loses its torque control but the rod stays within its
+#: stroke (12 mm at most on the same flight), so it is flown; a resolver's angle wraps, it
+#: never saturates, so a clipped one is no resolver failure and is refused
 CLAMPED_SENSORS = tuple(SENSOR_RANGE)
+#: a stuck resolver reads one shaft angle [rad], within a turn
+STUCK_RESOLVER_RANGE = 3.141592653589793
 #: the coarsest step an operator may ask per sensor: far beyond what a sensor finding needs,
 #: short of a reading that no longer closes the loop (a 1 mm LVDT step on a +-62 mm stroke)
 MAX_STEP = {"current": 4.0, "voltage": 50.0, "resolver": 0.1, "lvdt": 1e-3}
@@ -308,7 +316,8 @@ class SensorInjectionCreate(BaseModel):
         f"non-zero, |value| <= {MAX_DRIFT_M_PER_FLIGHT:g}; quantisation: step, above the "
         "sensor's own step, at most " + ", ".join(f"{v:g} ({k})" for k, v in MAX_STEP.items())
         + "; stuck (current, voltage): the reading, within the converter's range (64 A, "
-        "512 V); clipped (current, voltage): the level, above 0, within that range"))
+        "512 V); stuck (resolver): the shaft angle, within +-pi rad; clipped (current, "
+        "voltage): the level, above 0, within that range"))
     onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
                               description="Aircraft flight number it starts at; 0 = the next "
                               "flight. It lasts until cancelled.")
@@ -342,10 +351,18 @@ def sensor_value_problem(sensor: str, kind: str, value: float) -> str | None:
 
 
 def _clamp_problem(sensor: str, kind: str, value: float) -> str | None:
+    if sensor == "resolver" and kind == "stuck":
+        if not -STUCK_RESOLVER_RANGE <= value <= STUCK_RESOLVER_RANGE:
+            return "a stuck resolver reads one shaft angle, within +-pi rad"
+        return None
+    if sensor == "resolver":
+        return ("a resolver's angle wraps, it never saturates: clipped is no resolver failure "
+                "(stuck is offered)")
     if sensor not in CLAMPED_SENSORS:
-        return (f"{kind} is offered for the current and voltage sensors: a {sensor} {kind} "
-                "opens the loop that closes on it, which the simulator cannot fly (no channel "
-                "monitors, no end stops)")
+        return (f"a {kind} LVDT opens the position loop: without the rod's end stops, which "
+                "the simulator does not model, the rod would run metres beyond its 30 mm "
+                "stroke; stuck and clipped are offered for the current, voltage and (stuck) "
+                "resolver sensors")
     full = SENSOR_RANGE[sensor]
     if kind == "stuck" and not -full <= value <= full:
         return f"a stuck {sensor} reading lies within +-{full:g}"
@@ -358,6 +375,63 @@ def _clamp_problem(sensor: str, kind: str, value: float) -> str | None:
 #: the simulator, a test keeps the two equal): a coarser step must be coarser than these
 NATIVE_STEP = {"current": 2.0**-5, "voltage": 2.0**-3, "resolver": 2.0 * 3.141592653589793 / 65536,
                "lvdt": 2.0**-19}
+
+
+#: a condition's bounds: (low, high) of its value, per kind. Ambient: +-30 K spans the air of
+#: the hottest and coldest days around a base's monthly mean (the climates' spread is 2-6 K);
+#: scales: above 0 (a negative scale would flip the load or the command) and at most 3 (eq. 1
+#: draws sigma_F and sigma_x at 1 +- 0.3, truncated at 3 sigma: at most 1.9); load offset: one
+#: nominal winglet load (1000 N, ten times eq. 1's sigma_F0 spread) either way
+CONDITION_BOUNDS: dict[str, tuple[float, float]] = {
+    "ambient_offset": (-30.0, 30.0), "load_scale": (0.0, 3.0), "load_offset": (-1000.0, 1000.0),
+    "command_scale": (0.0, 3.0)}
+#: kinds whose low bound is excluded (a scale of 0 is no load or no motion, not a condition)
+_OPEN_LOW = ("load_scale", "command_scale")
+
+
+class ConditionCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    aircraft: Identifier
+    kind: Literal[CONDITION_KINDS] = Field(  # type: ignore[valid-type]
+        description="ambient_offset: K added to the air temperature, ground to cruise; "
+        "load_scale: the hinge load's scale (eq. 1 sigma_F, multiplied); load_offset: N added "
+        "to every actuator's hinge load (eq. 1 sigma_F0); command_scale: the commanded "
+        "motion's scale (eq. 1 sigma_x, multiplied); base: fly from that base's climate")
+    value: float | None = Field(None, allow_inf_nan=False, description=(
+        "ambient_offset within +-30 K; load_scale and command_scale above 0 and at most 3; "
+        "load_offset within +-1000 N; none for a base"))
+    base: str | None = Field(None, description="kind base only: one of " + ", ".join(BASES))
+    onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
+                              description="Aircraft flight number it starts at; 0 = the next "
+                              "flight. It lasts until cancelled.")
+
+    @model_validator(mode="after")
+    def _value_in_bounds(self) -> ConditionCreate:
+        problem = condition_problem(self.kind, self.value, self.base)
+        if problem:
+            raise ValueError(problem)
+        return self
+
+
+def condition_problem(kind: str, value: float | None, base: str | None) -> str | None:
+    """Why a condition is malformed or out of bounds; None when it is fine."""
+    if kind == "base":
+        if value is not None:
+            return "a base condition takes a base, not a value"
+        if base not in BASES:
+            return f"base must be one of {', '.join(BASES)}"
+        return None
+    if base is not None:
+        return f"a {kind} condition takes a value, not a base"
+    if value is None:
+        return f"a {kind} condition needs a value"
+    low, high = CONDITION_BOUNDS[kind]
+    inside = (low < value if kind in _OPEN_LOW else low <= value) and value <= high
+    if not inside:
+        unit = {"ambient_offset": " K", "load_offset": " N"}.get(kind, "")
+        side = "above" if kind in _OPEN_LOW else "at least"
+        return f"{kind} must be {side} {low:g}{unit} and at most {high:g}{unit}"
+    return None
 
 
 # ---------------------------------------------------------------------------------------------

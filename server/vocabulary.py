@@ -31,6 +31,8 @@ __all__ = [
     "alarming_positions",
     "FlightStatus",
     "JobStatus",
+    "BASES",
+    "CONDITION_KINDS",
 ]
 
 #: actuator positions of the half-wing: two winglet-tab drives and the wingtip drive
@@ -93,6 +95,18 @@ PAPER_TABLE2: dict[str, tuple[float, float]] = {
     "TTS": (0.11, 64.3), "DMD": (0.55, 75.3), "MTEL": (0.15, 78.2), "MTWEAR": (0.82, 81.2),
     "REWEAR": (0.65, 79.3),
 }
+
+
+#: the simulated fleet's home bases, each with its own climate (sim_worker/fleet.py holds the
+#: climates, sim_worker/data the monthly temperatures)
+BASES: tuple[str, ...] = ("Turin", "Vancouver", "Abu Dhabi")
+
+#: the test station's simulation conditions on an aircraft (server/services/conditions.py, flown
+#: by sim_worker/conditions.py): the ambient temperature offset [K], the scenario's eq. (1)
+#: load scale sigma_F and load offset sigma_F0 [N], its command scale sigma_x, and the base whose
+#: climate the flight's ground temperature is drawn from
+CONDITION_KINDS: tuple[str, ...] = ("ambient_offset", "load_scale", "load_offset",
+                                    "command_scale", "base")
 
 
 class FlightStatus(StrEnum):

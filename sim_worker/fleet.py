@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from server.vocabulary import BASES as BASE_NAMES
 from server.vocabulary import POSITIONS, WINGLET_PAIR, is_winglet
 
 from .params import EmaParams, SurfaceParams
@@ -38,7 +39,7 @@ __all__ = [
     "seasonal_offset_c",
 ]
 
-BASES: dict[str, str] = {"Turin": "temperate", "Vancouver": "cold", "Abu Dhabi": "hot"}
+BASES: dict[str, str] = dict(zip(BASE_NAMES, ("temperate", "cold", "hot"), strict=True))
 CLIMATES: dict[str, str] = {v: k for k, v in BASES.items()}
 #: the ten aircraft's home bases of a campaign or a simulated fleet (paper section 4.1): four
 #: temperate, three cold, three hot

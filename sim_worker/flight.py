@@ -8,7 +8,7 @@ a fault-to-failure run that are not rendered) sees the same conditions as a simu
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timedelta, timezone
 
 import numpy as np
@@ -17,6 +17,7 @@ from scipy.signal import lfilter
 from server.flightlog import NOMINAL_SAMPLE_RATE_HZ, FlightLog, FlightMetadata
 from server.vocabulary import POSITIONS
 
+from .conditions import NO_CONDITIONS, Conditions
 from .faults import ActuatorSummary, FaultState, FlightSummary, fault_entries
 from .fleet import (
     DEFAULT_WINGLET_MODE,
@@ -30,7 +31,14 @@ from .fleet import (
 )
 from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
 from .params import OUT_HZ, EmaParams, pack_ema, pack_surface
-from .scenario import REFERENCE_DURATION_S, Scenario, Warp, build_scenario, draw_warp
+from .scenario import (
+    CRUISE_TEMP_C,
+    REFERENCE_DURATION_S,
+    Scenario,
+    Warp,
+    build_scenario,
+    draw_warp,
+)
 
 __all__ = [
     "EPOCH",
@@ -38,6 +46,7 @@ __all__ = [
     "FlightConditions",
     "SimResult",
     "draw_conditions",
+    "imposed_conditions",
     "run_scenario",
     "simulate_flight",
     "estimate_summary",
@@ -95,6 +104,19 @@ def draw_conditions(aircraft: Aircraft, flight_index: int, rng: np.random.Genera
     ground = draw_ground_temperature(aircraft.base, start.month, rng)
     return FlightConditions(started_at=start, block_hours=round(block_hours, 3),
                             ground_temp_c=ground, warp=draw_warp(rng))
+
+
+def imposed_conditions(aircraft: Aircraft, flight_index: int, rng: np.random.Generator,
+                       imposed: Conditions, *, started_at: datetime | None = None
+                       ) -> FlightConditions:
+    """The flight's drawn conditions under the test station's ``imposed`` ones: the same draws
+    (from the imposed base's climate), then the ambient offset and the eq. (1) changes."""
+    at = aircraft if imposed.base is None else replace(aircraft, base=imposed.base)
+    cond = draw_conditions(at, flight_index, rng, started_at=started_at)
+    if imposed == NO_CONDITIONS:
+        return cond
+    return replace(cond, ground_temp_c=cond.ground_temp_c + imposed.ambient_offset_k,
+                   warp=imposed.warp(cond.warp))
 
 
 def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
@@ -156,11 +178,14 @@ def simulate_flight(
     started_at: datetime | None = None,
     duration_s: float = REFERENCE_DURATION_S,
     winglet_mode: WingletMode = DEFAULT_WINGLET_MODE,
+    conditions: Conditions = NO_CONDITIONS,
 ) -> tuple[FlightLog, FlightSummary]:
     """Simulate one flight and return its download (format v1) and what the actuators did;
-    under active-standby the log's metadata names the flight's active channels."""
-    cond = draw_conditions(aircraft, flight_index, rng, started_at=started_at)
-    scenario = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s)
+    under active-standby the log's metadata names the flight's active channels. The test
+    station's ``conditions`` move its physics (:mod:`.conditions`), not its metadata."""
+    cond = imposed_conditions(aircraft, flight_index, rng, conditions, started_at=started_at)
+    scenario = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s,
+                              cruise_temp_c=CRUISE_TEMP_C + conditions.ambient_offset_k)
     active = active_channels(winglet_mode, flight_index)
     res = run_scenario(aircraft, fault, scenario, rng, active=active)
     channels: dict[str, np.ndarray] = {"t": scenario.t.astype(np.float64)}

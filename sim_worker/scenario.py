@@ -116,11 +116,13 @@ def draw_warp(rng: np.random.Generator) -> Warp:
 
 
 def build_scenario(warp: Warp, ground_temp_c: float, rng: np.random.Generator, *,
-                   duration_s: float = REFERENCE_DURATION_S) -> Scenario:
+                   duration_s: float = REFERENCE_DURATION_S,
+                   cruise_temp_c: float = CRUISE_TEMP_C) -> Scenario:
     """Sample the warped cycle at 800 Hz; the recording lasts ``duration_s * sigma_t``.
 
     ``duration_s`` rescales the reference cycle (a shorter recording is the same cycle, faster).
-    ``rng`` draws the gust sequence.
+    ``rng`` draws the gust sequence. ``cruise_temp_c``: the air at cruise (a test-station
+    ambient offset shifts it with the ground's).
     """
     if duration_s <= 0:
         raise ValueError("duration_s must be positive")
@@ -130,7 +132,7 @@ def build_scenario(warp: Warp, ground_temp_c: float, rng: np.random.Generator, *
     tau = t * (REFERENCE_DURATION_S / total)  # reference time of each sample
     q = np.interp(tau, _Q[:, 0], _Q[:, 1])
     alt = np.interp(tau, _ALT[:, 0], _ALT[:, 1])
-    t_amb = ground_temp_c + (CRUISE_TEMP_C - ground_temp_c) * alt
+    t_amb = ground_temp_c + (cruise_temp_c - ground_temp_c) * alt
     x_surf = []
     f_surf = []
     # gust: first-order low-pass (2 Hz) white noise, 3 % of the nominal load, scaled by q

@@ -10,7 +10,9 @@ so the controller closes its loops on the degraded reading as it would on a real
 * ``quantisation``: the sensor's converter step replaced by the coarser ``value``;
 * ``stuck``: every reading is ``value`` (a frozen converter); ``clipped``: readings held within
   +-``value`` (a saturated one). Both clamp the kernel's reading after noise and quantisation
-  (``SensorParams.*_clamp``), so a stuck LVDT or resolver opens the loop that closes on it.
+  (``SensorParams.*_clamp``), so the loop that closes on it reads the frozen value: a stuck
+  resolver freezes the commutation angle (flown), a stuck or clipped LVDT would drive the rod
+  past its stroke (no end stops are modelled: the API refuses it, server/schemas.py).
 
 Nothing of this reaches the flight's metadata; the runner reports what it applied as ground
 truth (``PUT /test-station/sensor-injections/{id}/ground-truth``).

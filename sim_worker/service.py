@@ -7,7 +7,9 @@ Per aircraft and flight number ``n`` (flight id ``<tail>-F<n:05d>``), in this or
    injection or a replaced actuator clears the fault);
 2. report the ground truth of flight ``n`` (true severity during the flight) -- idempotent;
    likewise what each live sensor injection of the aircraft applies on it (:mod:`.sensors`);
-3. simulate flight ``n`` (its sensor injections in the sensor models the loops close on) and
+   each live condition's (:mod:`.conditions`) once the flight is flown, before its upload;
+3. simulate flight ``n`` (its sensor injections in the sensor models the loops close on, its
+   conditions in its scenario and thermal model) and
    upload it -- idempotent: the same seed gives the same bytes, and
    the service answers 200 for bytes it already has;
 4. advance the fault by its law from what the flight did, steered to fail at the planned
@@ -44,6 +46,7 @@ import numpy as np
 
 from server.flightlog import write_parquet
 
+from .conditions import from_api as conditions_from_api
 from .faults import FaultState, advance_fault, healthy
 from .fleet import FLEET_BASES, Aircraft, build_aircraft
 from .flight import flight_start, reference_summary, simulate_flight
@@ -241,6 +244,24 @@ class SimFleetRunner:
                        if i["status"] == "active" or i["onset_flight"] <= n),
                       key=lambda inj: inj.id)  # applied in the order they were made
 
+    def _live_conditions(self, run: AircraftRun, n: int) -> list[dict[str, Any]]:
+        """The aircraft's conditions live on flight ``n`` (API documents, oldest first)."""
+        items = [i for status in ("active", "pending") for i in self.api.request(
+            "GET", f"/test-station/conditions?aircraft={run.aircraft.tail}&status={status}"
+            "&limit=500").json()["items"]]
+        return sorted((i for i in items if i["status"] == "active" or i["onset_flight"] <= n),
+                      key=lambda i: int(i["id"]))
+
+    def _report_conditions(self, live: list[dict[str, Any]], flight_id: str, n: int,
+                           ground_temp_c: float) -> None:
+        """Each live condition's ground truth of the flight: its value, or for a base the
+        ground temperature flown (reported before the upload, so the analysis finds it)."""
+        for doc in live:
+            applied = ground_temp_c if doc["kind"] == "base" else float(doc["value"])
+            self.api.request("PUT", f"/test-station/conditions/{doc['id']}/ground-truth",
+                             operator=True, json={"flight": flight_id, "flight_number": n,
+                                                  "applied": applied})
+
     @staticmethod
     def _clear(run: AircraftRun) -> None:
         run.fault, run.injection_id, run.failed_at, run.plan = healthy(), None, None, None
@@ -296,10 +317,13 @@ class SimFleetRunner:
             self.api.request("PUT", f"/test-station/sensor-injections/{inj.id}/ground-truth",
                              operator=True, json={"flight": flight_id, "flight_number": n,
                                                   "applied": inj.applied(n)})
+        live = self._live_conditions(run, n)
         rng = np.random.default_rng([self.seed, 13, run.index, n])
         flight_log, summary = simulate_flight(
             degrade(run.aircraft, sensors, n), run.fault, n, rng, flight_id=flight_id,
-            started_at=flight_start(n), duration_s=self.duration_s)
+            started_at=flight_start(n), duration_s=self.duration_s,
+            conditions=conditions_from_api(live))
+        self._report_conditions(live, flight_id, n, summary.ground_temp_c)
         response = self.api.request(
             "POST", "/flights", ok=(200, 202, 409, 422), content=write_parquet(flight_log),
             headers={"Content-Type": "application/vnd.apache.parquet"})

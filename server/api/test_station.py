@@ -10,8 +10,16 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Operator, Reader, SessionDep
 from server.api.openapi import errors
-from server.models import GroundTruth, Injection, SensorGroundTruth, SensorInjection
+from server.models import (
+    ConditionGroundTruth,
+    GroundTruth,
+    Injection,
+    SensorGroundTruth,
+    SensorInjection,
+    SimCondition,
+)
 from server.schemas import (
+    ConditionCreate,
     FlightNumber,
     Identifier,
     InjectionCreate,
@@ -19,6 +27,7 @@ from server.schemas import (
     Page,
     SensorInjectionCreate,
 )
+from server.services import conditions
 from server.services import sensor_injections as sensors
 from server.services import test_station as service
 from server.vocabulary import SENSOR_OF_SIGNAL
@@ -87,7 +96,7 @@ def _truth_read(row: GroundTruth) -> GroundTruthRead:
                            severity_norm=row.severity_norm, true_rul_flights=row.true_rul_flights)
 
 
-def _tail(session: SessionDep, row: Injection | SensorInjection) -> str:
+def _tail(session: SessionDep, row: Injection | SensorInjection | SimCondition) -> str:
     from server.models import Aircraft
 
     return session.get(Aircraft, row.aircraft_id).tail  # type: ignore[union-attr]
@@ -269,3 +278,104 @@ def sensor_truth(injection_id: int, session: SessionDep, _: Reader) -> list[Sens
 def _sensor_truth_read(row: SensorGroundTruth) -> SensorTruthRead:
     return SensorTruthRead(sensor_injection_id=row.sensor_injection_id, flight=row.flight_code,
                            flight_number=row.flight_number, applied=row.applied)
+
+
+# ---- simulation conditions on an aircraft (server/services/conditions.py) --------------------
+
+class ConditionRead(BaseModel):
+    id: int
+    aircraft: str
+    kind: str
+    value: float | None
+    base: str | None
+    onset_flight: int
+    started_flight: int | None
+    status: str
+    created_by: str
+    created_at: datetime
+    cancelled_at: datetime | None
+
+
+class ConditionTruthIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    flight: Identifier
+    flight_number: FlightNumber
+    applied: float = Field(allow_inf_nan=False, ge=-1e6, le=1e6, description=(
+        "what was flown: the value (K, factor, N), or for a base the flight's ground "
+        "temperature drawn from its climate [degC]"))
+
+
+class ConditionTruthRead(ConditionTruthIn):
+    model_config = ConfigDict(extra="ignore")
+    condition_id: int
+
+
+def _condition_read(row: SimCondition, tail: str) -> ConditionRead:
+    return ConditionRead(id=row.id, aircraft=tail, kind=row.kind, value=row.value, base=row.base,
+                         onset_flight=row.onset_flight, started_flight=row.started_flight,
+                         status=row.status, created_by=row.created_by,
+                         created_at=row.created_at, cancelled_at=row.cancelled_at)
+
+
+def _condition_truth_read(row: ConditionGroundTruth) -> ConditionTruthRead:
+    return ConditionTruthRead(condition_id=row.condition_id, flight=row.flight_code,
+                              flight_number=row.flight_number, applied=row.applied)
+
+
+@router.post("/conditions", status_code=201, response_model=ConditionRead,
+             responses=errors(404, 409), summary="Set a simulation condition on an aircraft "
+             "(operator)")
+def create_condition(body: ConditionCreate, session: SessionDep, key: Operator
+                     ) -> ConditionRead:
+    row = conditions.create(session=session, tail=body.aircraft, kind=body.kind,
+                            value=body.value, base=body.base, onset_flight=body.onset_flight,
+                            created_by=key.name)
+    session.commit()
+    return _condition_read(row, body.aircraft)
+
+
+@router.get("/conditions", response_model=Page[ConditionRead], summary="List conditions")
+def list_conditions(session: SessionDep, _: Reader, aircraft: str | None = None,
+                    status: Annotated[str | None, Query(pattern="^(pending|active|cancelled)$")
+                                      ] = None,
+                    limit: Annotated[int, Query(ge=1, le=500)] = 100,
+                    offset: Offset = 0) -> Page[ConditionRead]:
+    rows, total = conditions.list_(session=session, tail=aircraft, status=status, limit=limit,
+                                   offset=offset)
+    return Page(items=[_condition_read(r, t) for r, t in rows], total=total, limit=limit,
+                offset=offset)
+
+
+@router.get("/conditions/{condition_id}", response_model=ConditionRead,
+            summary="One condition")
+def get_condition(condition_id: int, session: SessionDep, _: Reader) -> ConditionRead:
+    row = conditions.get(session=session, condition_id=condition_id)
+    return _condition_read(row, _tail(session, row))
+
+
+@router.post("/conditions/{condition_id}/cancel", response_model=ConditionRead,
+             responses=errors(409), summary="Cancel a pending or active condition (operator)")
+def cancel_condition(condition_id: int, session: SessionDep, _: Operator) -> ConditionRead:
+    row = conditions.cancel(session=session, condition_id=condition_id)
+    session.commit()
+    return _condition_read(row, _tail(session, row))
+
+
+@router.put("/conditions/{condition_id}/ground-truth", response_model=ConditionTruthRead,
+            summary="Sim worker: what the condition did to one flight (operator; idempotent; "
+            "the first report makes it active)")
+def report_condition(condition_id: int, body: ConditionTruthIn, session: SessionDep,
+                     _: Operator) -> ConditionTruthRead:
+    row = conditions.report_truth(session=session, condition_id=condition_id,
+                                  flight_code=body.flight, flight_number=body.flight_number,
+                                  applied=body.applied)
+    session.commit()
+    return _condition_truth_read(row)
+
+
+@router.get("/conditions/{condition_id}/ground-truth", response_model=list[ConditionTruthRead],
+            summary="Ground truth of a condition, flight by flight")
+def condition_truth(condition_id: int, session: SessionDep, _: Reader
+                    ) -> list[ConditionTruthRead]:
+    return [_condition_truth_read(r) for r in conditions.list_truth(
+        session=session, condition_id=condition_id)]

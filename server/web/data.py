@@ -18,6 +18,7 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from server.services import analysis as analysis_service
+from server.services import conditions as condition_service
 from server.services import fleet as fleet_service
 from server.services import flights as flight_service
 from server.services import health as health_service
@@ -27,7 +28,14 @@ from server.services import sensor_injections as sensor_service
 from server.services import test_station as station_service
 from server.services import urgency as urgency_rule
 from server.services.evaluation_status import read_progress
-from server.vocabulary import FAULT_MODES, PAPER_TABLE2, POSITIONS, PROGRESSIVE
+from server.vocabulary import (
+    FAULT_MODES,
+    OWN_FEATURE,
+    PAPER_TABLE2,
+    POSITIONS,
+    PROGRESSIVE,
+    SENSOR_OF_SIGNAL,
+)
 
 __all__ = ["STATUS_RANK", "fleet_view", "failed_flights", "alarms_view", "actuator_view",
            "models_view", "station_view", "evaluation_view", "health_dict", "prognosis_dict"]
@@ -115,7 +123,8 @@ def urgency_rule_view() -> dict[str, Any]:
 
 
 def health_dict(row: Any) -> dict[str, Any]:
-    return {"flight_index": row.flight_index, "features": row.features, "scores": row.scores,
+    return {"flight_index": row.flight_index, "flight_id": row.flight_id,
+            "features": row.features, "scores": row.scores,
             "confidence": row.confidence, "alarm": row.alarm,
             "class_probabilities": row.class_probabilities}
 
@@ -160,6 +169,71 @@ def sensor_view(*, session: Session, actuator_id: int, limit: int) -> list[dict[
     return [{"flight_index": f.flight_index, "findings": [finding_text(x) for x in f.findings],
              "set_aside": f.set_aside, "widened": sorted(f.widened)}
             for f in reversed(flights[-10:])]
+
+
+#: what each test-station condition moves among the chain's inputs (sim_worker/conditions.py
+#: for the physics, docs/FEATURES.md for the features), shown beside the feature trends
+CONDITION_MOVES = {
+    "ambient_offset": "T_amb and the winding temperature (R̂): the baselines' temperature "
+                      "covariates; F_MTEL's cruise window (T_amb ≤ −37 °C: above +3 K it "
+                      "finds no cruise and gives no value)",
+    "load_scale": "hinge load, hence phase current: F_MTEL's load |L|, F_MTWEAR's flank "
+                  "pressing, F_DMD's and F_SE's q-axis terms",
+    "load_offset": "hinge load, hence phase current: F_MTEL's load |L|, F_MTWEAR's flank "
+                   "pressing, F_DMD's and F_SE's q-axis terms",
+    "command_scale": "commanded motion: speed and travel, the moving windows of every feature",
+    "base": "ground temperature: the baselines' temperature covariates",
+}
+
+
+def _under_by_code(session: Session, actuator: Any) -> dict[str, list[tuple[str, str]]]:
+    """Flight code -> (what was live, what it moves) of the test station on this actuator's
+    flights: fault and sensor injections at its position, conditions on its aircraft."""
+    tail, position = actuator.aircraft.tail, actuator.position
+    out: dict[str, list[tuple[str, str]]] = {}
+    faults, _ = station_service.list_injections(session=session, tail=tail, status=None,
+                                                limit=100, offset=0)
+    for inj, _t in reversed(faults):
+        if inj.position == position:
+            for gt in station_service.list_ground_truth(session=session, injection_id=inj.id):
+                out.setdefault(gt.flight_code, []).append(
+                    (f"fault {inj.fault_mode}", f"{position}.{OWN_FEATURE[inj.fault_mode]}"))
+    sensors, _ = sensor_service.list_(session=session, tail=tail, status=None, limit=100,
+                                      offset=0)
+    for inj, _t in reversed(sensors):
+        if inj.position == position:
+            channels = ", ".join(f"{position}.{s}" for s, of in SENSOR_OF_SIGNAL.items()
+                                 if of == inj.sensor)
+            for st in sensor_service.list_truth(session=session, injection_id=inj.id):
+                out.setdefault(st.flight_code, []).append(
+                    (f"{inj.sensor} {inj.kind} {inj.value:g}", channels))
+    for code, rows in condition_service.flights_under(
+            session=session, aircraft_id=actuator.aircraft_id).items():
+        out.setdefault(code, []).extend(
+            (condition_service.describe(c), CONDITION_MOVES[c.kind]) for c in rows)
+    return out
+
+
+def station_marks(*, session: Session, actuator: Any, records: list[dict[str, Any]]
+                  ) -> list[dict[str, Any]]:
+    """Runs of consecutive analysed flights flown under the same test-station injections or
+    conditions: first and last flight index, what was live and what each moves."""
+    under = _under_by_code(session, actuator)
+    if not under:
+        return []
+    codes = flight_service.flight_codes(session=session,
+                                        flight_ids=[r["flight_id"] for r in records])
+    marks: list[dict[str, Any]] = []
+    previous: tuple[tuple[str, str], ...] = ()
+    for r in records:
+        live = tuple(under.get(codes.get(r["flight_id"], ""), ()))
+        if live and live == previous:
+            marks[-1]["last"] = r["flight_index"]
+        elif live:
+            marks.append({"first": r["flight_index"], "last": r["flight_index"],
+                          "live": [{"what": w, "moves": m} for w, m in live]})
+        previous = live
+    return marks
 
 
 def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> dict[str, Any]:
@@ -238,7 +312,9 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
             "deferral_expired": deferral_expired, "trail": trail, "pair_alarm": pair_alarm,
             "rule": urgency_rule_view(),
             "sensor_flights": sensor_view(session=session, actuator_id=actuator_id,
-                                          limit=limit)}
+                                          limit=limit),
+            "station_marks": station_marks(session=session, actuator=actuator,
+                                           records=records)}
 
 
 def models_view(*, session: Session, model_id: int | None) -> dict[str, Any]:
@@ -281,7 +357,8 @@ def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
     aircraft, _ = fleet_service.list_aircraft(session=session, base=None, limit=1000, offset=0)
     return {"items": items, "total": total, "tails": [a.tail for a in aircraft],
             "positions": POSITIONS, "modes": FAULT_MODES,
-            "progressive": PROGRESSIVE, "sensor_items": _sensor_items(session, limit)}
+            "progressive": PROGRESSIVE, "sensor_items": _sensor_items(session, limit),
+            "condition_items": _condition_items(session, limit)}
 
 
 def _sensor_items(session: Session, limit: int) -> list[dict[str, Any]]:
@@ -294,6 +371,19 @@ def _sensor_items(session: Session, limit: int) -> list[dict[str, Any]]:
         items.append({"injection": inj, "tail": tail, "truth_count": len(truth),
                       "truth_latest": truth[-1] if truth else None,
                       "live": inj.status in sensor_service.LIVE})
+    return items
+
+
+def _condition_items(session: Session, limit: int) -> list[dict[str, Any]]:
+    """The latest conditions, each with its last ground truth (what it applied)."""
+    rows, _ = condition_service.list_(session=session, tail=None, status=None, limit=limit,
+                                      offset=0)
+    items = []
+    for row, tail in rows:
+        truth = condition_service.list_truth(session=session, condition_id=row.id)
+        items.append({"condition": row, "tail": tail, "what": condition_service.describe(row),
+                      "truth_count": len(truth), "truth_latest": truth[-1] if truth else None,
+                      "live": row.status in condition_service.LIVE})
     return items
 
 

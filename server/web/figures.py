@@ -84,12 +84,23 @@ def feature_label(name: str) -> str:
     return f"{name} {label}" if label else name
 
 
-def feature_trends(records: Sequence[Mapping[str, Any]], *, band: float, threshold: float
-                   ) -> go.Figure:
+def mark_station(fig: go.Figure, marks: Sequence[Mapping[str, Any]]) -> go.Figure:
+    """Shade the flights flown under test-station injections or conditions (grey bands, one
+    per run of flights, ``server.web.data.station_marks``): what the chart shows there is not
+    the aircraft's own service."""
+    for m in marks:
+        fig.add_vrect(x0=m["first"] - 0.5, x1=m["last"] + 0.5, fillcolor="rgba(80,80,80,0.14)",
+                      line_width=0, layer="below")
+    return fig
+
+
+def feature_trends(records: Sequence[Mapping[str, Any]], *, band: float, threshold: float,
+                   marks: Sequence[Mapping[str, Any]] = ()) -> go.Figure:
     """Standardised residual ``z`` of every monitored feature against flight index.
 
     The shaded band is the healthy baseline ``0 +- band``; dashed lines at ``+-threshold`` are
-    the detector's single-flight alarm level (band + the 98 % one-sided quantile).
+    the detector's single-flight alarm level (band + the 98 % one-sided quantile); grey bands
+    mark the flights flown under the test station (``marks``).
     """
     fig = go.Figure()
     xs = [int(r["flight_index"]) for r in records]
@@ -110,7 +121,8 @@ def feature_trends(records: Sequence[Mapping[str, Any]], *, band: float, thresho
         fig.add_trace(go.Scatter(x=xs, y=ys, mode="lines+markers", name=feature_label(name),
                                  marker={"size": 4}, line={"color": _PALETTE[i % len(_PALETTE)]},
                                  connectgaps=False))
-    return _layout(fig, "Feature trends (standardised residual z)", "flight index", "z")
+    return mark_station(_layout(fig, "Feature trends (standardised residual z)",
+                                "flight index", "z"), marks)
 
 
 def detection_confidence(records: Sequence[Mapping[str, Any]], *, alarm_level: float

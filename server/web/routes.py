@@ -48,6 +48,7 @@ from server.schemas import (
     ActuatorReplace,
     InjectionCreate,
 )
+from server.services import conditions as condition_service
 from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
@@ -288,9 +289,10 @@ def actuator_page(request: Request, session: SessionDep, actuator_id: int) -> Re
         return _problem(request, key, exc.status_code, exc.message)
     figs = {
         "trends": figures.feature_trends(view["records"], band=view["band"],
-                                         threshold=view["threshold"]),
-        "confidence": figures.detection_confidence(view["records"],
-                                                   alarm_level=view["alarm_confidence"]),
+                                         threshold=view["threshold"],
+                                         marks=view["station_marks"]),
+        "confidence": figures.mark_station(figures.detection_confidence(
+            view["records"], alarm_level=view["alarm_confidence"]), view["station_marks"]),
         "classes": figures.class_probabilities(view["records"]),
         "severity": figures.severity_band(view["prognoses"]),
         "cone": figures.rul_cone(view["prognoses"], view["truth"],
@@ -450,6 +452,13 @@ def cancel_sensor_injection(request: Request, session: SessionDep, injection_id:
                             csrf: str = Form("")) -> Response:
     return _cancel_on_station(request, session, csrf, lambda: sensor_service.cancel(
         session=session, injection_id=injection_id))
+
+
+@router.post("/test-station/conditions/{condition_id}/cancel")
+def cancel_condition(request: Request, session: SessionDep, condition_id: int,
+                     csrf: str = Form("")) -> Response:
+    return _cancel_on_station(request, session, csrf, lambda: condition_service.cancel(
+        session=session, condition_id=condition_id))
 
 
 def _cancel_on_station(request: Request, session: SessionDep, csrf: str,

@@ -24,7 +24,9 @@ def _body(tail: str, /, **over: object) -> dict[str, object]:
     {"kind": "stuck", "value": 0.0}, {"kind": "clipped", "sensor": "resolver", "value": 1},
     {"kind": "clipped", "sensor": "current", "value": 0}, {"kind": "clipped",
                                                           "sensor": "current", "value": 65},
-    {"kind": "stuck", "sensor": "voltage", "value": -513}, {"kind": "noisy"},
+    {"kind": "stuck", "sensor": "voltage", "value": -513}, {"kind": "stuck", "sensor":
+                                                             "resolver", "value": 3.2},
+    {"kind": "noisy"},
     {"sensor": "x"}, {"position": "WL3"}, {"onset_flight": -1}, {"onset_flight": "2"},
     {"extra": 1}, {"aircraft": "bad tail!"},
 ])
@@ -32,6 +34,20 @@ def test_out_of_bounds_is_a_422(client: TestClient, keys: dict[str, str], aircra
                                 over: dict[str, object]) -> None:
     r = client.post(URL, headers=auth(keys["operator"]), json=_body(aircraft, **over))
     assert r.status_code == 422, r.text
+
+
+def test_position_sensors_stuck_or_clipped_say_why_or_fly(
+        client: TestClient, keys: dict[str, str], aircraft: str) -> None:
+    op = auth(keys["operator"])
+    for kind in ("stuck", "clipped"):
+        r = client.post(URL, headers=op, json=_body(aircraft, kind=kind, value=0.001))
+        assert r.status_code == 422 and "end stops" in r.text, r.text
+    r = client.post(URL, headers=op, json=_body(aircraft, sensor="resolver", kind="clipped",
+                                                value=1))
+    assert r.status_code == 422 and "never saturates" in r.text, r.text
+    r = client.post(URL, headers=op, json=_body(aircraft, sensor="resolver", kind="stuck",
+                                                value=-0.5))
+    assert r.status_code == 201 and r.json()["channels"] == ["WT.theta"], r.text
 
 
 def test_roles_conflicts_list_and_cancel(client: TestClient, keys: dict[str, str],

@@ -126,6 +126,25 @@ def test_a_stuck_or_clipped_current_sensor_is_what_the_current_loop_reads() -> N
         assert np.array_equal(flown["WL1.ia"], rigged["WL1.ia"])
 
 
+def test_a_stuck_resolver_freezes_the_commutation_within_the_stroke() -> None:
+    """Flown (the API offers it): the drive commutates on a frozen angle, so its current
+    grows while the rod wanders off its command, but stays within its +-30 mm stroke (a stuck
+    LVDT, refused, would run it metres away: docs/SIMULATOR.md)."""
+    from sim_worker.service import fleet_plan
+
+    aircraft = fleet_plan(1, 0)[0]
+    rigged = _flown(aircraft, [], 3)
+    stuck = _flown(aircraft, [SensorInjection(1, "WT", "resolver", "stuck", 0.5, 1)], 3)
+    assert np.all(stuck["WT.theta"] == np.float32(0.5))
+    assert np.ptp(rigged["WT.theta"]) > 1.0
+    rms = {k: float(np.sqrt(np.mean(v["WT.ia"] ** 2))) for k, v in (("rigged", rigged),
+                                                                  ("stuck", stuck))}
+    assert rms["stuck"] > 3 * rms["rigged"], rms
+    assert np.abs(stuck["WT.x"] - stuck["WT.x_cmd"]).max() > 5e-3
+    assert np.abs(stuck["WT.x"]).max() < 0.030
+    assert np.array_equal(stuck["WL1.ia"], rigged["WL1.ia"])
+
+
 def test_the_api_steps_are_the_simulators() -> None:
     from server.schemas import NATIVE_STEP
     from sim_worker.params import SensorParams
