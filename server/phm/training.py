@@ -3,7 +3,7 @@
 1. Features of every flight: the campaign arrives with them (:mod:`server.campaigns` reads
    a campaign directory, :func:`server.campaigns.train_from_directory` trains on one).
 2. Baselines and detection bands on the healthy design flights (leave-one-aircraft-out bands,
-   see :mod:`server.phm.evaluate_detection`).
+   see :mod:`server.phm.detection_model`).
 3. Classifier: one seven-residual vector per faulty flight of the faulty actuator, from the
    detector's first alarm on (what the classifier sees at run time); split 70/30 by
    degradation pattern (each pattern is one aircraft's run; the separate verification
@@ -44,7 +44,7 @@ from .chain import (
 from .classification import train_classifier
 from .dataset import Campaign, FlightRecord, Pattern, healthy_flights
 from .detection import DetectionResult
-from .evaluate_detection import fit_detection
+from .detection_model import fit_detection
 from .features import FlightFeatures
 from .prognosis import MeasurementModel, PrognoserConfig
 from .prognosis.degradation import MIN_LEVEL_GAP
