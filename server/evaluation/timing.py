@@ -101,8 +101,9 @@ def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
 
     The flights are spread evenly over the manifest's list (deterministic choice).
     """
-    from server.campaigns import decode_log, log_features
+    from server.campaigns import decode_log
     from server.phm.features import FeatureConfig
+    from server.phm.recording import log_features
 
     root = Path(campaign_dir)
     manifest = json.loads((root / "manifest.json").read_text())
