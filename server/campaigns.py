@@ -235,7 +235,8 @@ def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | 
     manifest = read_manifest(root)
     cached = _cached_features(root, manifest, config or FeatureConfig(), jobs, cache)
     bases = {str(a.get("tail")): a.get("base") for a in manifest.get("aircraft", [])}
-    patterns, study = [], []
+    patterns: list[Pattern] = []
+    study: list[Pattern] = []
     for pat in manifest["patterns"]:
         recs = [_record(root, fl, cached[fl["flight"]])
                 for fl in sorted(pat["flights"], key=lambda f: int(f["index"]))]

@@ -55,6 +55,8 @@ __all__ = [
     "JobStatusFilter",
 ]
 
+# Literal over the vocabulary's tuples: Pydantic reads them at run time, mypy wants the values
+# written out (repeating them would make two owners of the vocabulary)
 Position = Literal[POSITIONS]  # type: ignore[valid-type]
 Role = Literal[ROLES]  # type: ignore[valid-type]
 #: tails, flight codes, serials: ASCII letters, digits, '.', '_', '-', 1-64, not only dots

@@ -186,10 +186,10 @@ def confusion(true: Sequence[str], predicted: Sequence[str], classes: Sequence[s
     rows = [c for c in classes if c in set(true)] + sorted(set(true) - set(classes))
     # counted by the classifier's report (the one owner of the matrix) over every label of
     # either axis; this view keeps the true modes seen as rows and the undetected column
-    labels = cols + [r for r in rows if r not in cols]
+    axes = cols + [r for r in rows if r not in cols]
     counts = np.asarray(count_confusion(
-        list(true), [p if p in cols else UNDETECTED for p in predicted], labels)["counts"])
-    m = counts[np.ix_([labels.index(r) for r in rows], [labels.index(c) for c in cols])]
+        list(true), [p if p in cols else UNDETECTED for p in predicted], axes)["counts"])
+    m = counts[np.ix_([axes.index(r) for r in rows], [axes.index(c) for c in cols])]
     correct = np.array([float(t in cols and p == t) for t, p in zip(true, predicted,
                                                                      strict=True)])
     labels = np.array(list(true), dtype=object)

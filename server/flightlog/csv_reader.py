@@ -16,6 +16,9 @@ from server.flightlog.format import FlightLog, FlightLogError, Issue, channel_se
 from server.flightlog.limits import DEFAULT_DECODE_LIMITS, DecodeLimits, check_rows, too_large
 from server.flightlog.metadata import parse_metadata
 
+#: the CSV bytes as a stream: plain, or decompressed on the fly
+_Stream = gzip.GzipFile | io.BytesIO
+
 
 def read_csv(data: bytes, metadata: Mapping[str, Any],
              limits: DecodeLimits = DEFAULT_DECODE_LIMITS) -> FlightLog:
@@ -49,13 +52,13 @@ _CSV_BLOCK_ROWS = 4096
 _LF, _CR = 0x0A, 0x0D
 
 
-def _csv_bytes(data: bytes) -> io.BufferedIOBase:
+def _csv_bytes(data: bytes) -> _Stream:
     """The CSV text as a binary stream, decompressed on the fly when gzip."""
     raw = io.BytesIO(data)
     return gzip.GzipFile(fileobj=raw, mode="rb") if data[:2] == _GZIP_MAGIC else raw
 
 
-def _csv_header(stream: io.BufferedIOBase, limits: DecodeLimits) -> list[str]:
+def _csv_header(stream: _Stream, limits: DecodeLimits) -> list[str]:
     line = stream.readline(limits.max_line_chars + 1)
     if len(line) > limits.max_line_chars:
         raise too_large("max_line_chars", limits.max_line_chars, None,
@@ -66,7 +69,7 @@ def _csv_header(stream: io.BufferedIOBase, limits: DecodeLimits) -> list[str]:
     return names
 
 
-def _scan_csv(stream: io.BufferedIOBase, limits: DecodeLimits) -> tuple[int, int]:
+def _scan_csv(stream: _Stream, limits: DecodeLimits) -> tuple[int, int]:
     """``(lines, carriage returns)`` of the text (lines ended by a line feed or the end), read
     one chunk at a time; every line checked against ``max_line_chars`` and the whole against
     ``max_decompressed_bytes``."""
@@ -98,7 +101,7 @@ def _line_run(ends: np.ndarray, size: int, run: int, limits: DecodeLimits) -> in
     return run
 
 
-def _parse_csv(stream: io.BufferedIOBase, names: list[str], capacity: int,
+def _parse_csv(stream: _Stream, names: list[str], capacity: int,
                limits: DecodeLimits) -> dict[str, np.ndarray]:
     """The rows below the header parsed block by block into preallocated canonical arrays
     (t float64, signals float32): peak memory is the result plus one block."""

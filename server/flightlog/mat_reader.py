@@ -158,7 +158,8 @@ def _inflated_mat5(data: bytes, elements: list[_MatElement]) -> bytes:
     Each is inflated in steps to at most what its header allows (its head, then one data
     element of its stated shape at its class's width; headers already checked against the
     limits): past that, 413 ``flight_too_large`` at once, whatever the stream holds."""
-    parts, view = [data[:128]], memoryview(data)
+    parts: list[bytes | bytearray | memoryview] = [data[:128]]
+    view = memoryview(data)
     for (name, shape, mclass), start, end, compressed in elements:
         if not compressed:
             parts.append(view[start:end])
