@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from server.campaigns import load_campaign  # noqa: E402
-from server.evaluation.core import evaluate_campaign  # noqa: E402
+from server.evaluation.runner import evaluate_campaign  # noqa: E402
 from server.phm.training import TrainingConfig, train_phm_model  # noqa: E402
 
 

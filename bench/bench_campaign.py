@@ -28,9 +28,10 @@ from _report import cpu_model, replace_block
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-from server.campaigns import checked_log, decode_log, log_features  # noqa: E402
+from server.campaigns import checked_log, decode_log  # noqa: E402
 from server.flightlog import write_parquet  # noqa: E402
 from server.phm.features import FeatureConfig  # noqa: E402
+from server.phm.recording import log_features  # noqa: E402
 from sim_worker.campaign import SCALES, fleet_for, plan_campaign  # noqa: E402
 from sim_worker.faults import PROGRESSIVE, healthy  # noqa: E402
 from sim_worker.flight import flight_start, simulate_flight  # noqa: E402

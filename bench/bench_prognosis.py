@@ -1,7 +1,8 @@
 """Benchmark of the particle-filter prognoser (server.phm.prognosis), beside the paper and progpy.
 
-Run: ``python bench/bench_prognosis.py`` (from the repository root). Prints the figures and writes
-them, with the machine they ran on, into docs/BENCHMARKS.md between
+Run: ``python bench/bench_prognosis.py`` (from the repository root; progpy from the ``bench``
+extra, ``pip install -e '.[bench]'``, else its rows say why it did not run). Prints the
+figures and writes them, with the machine they ran on, into docs/BENCHMARKS.md between
 ``<!-- bench:prognosis:start -->`` and ``<!-- bench:prognosis:end -->`` (other blocks untouched).
 
 What is timed (synthetic exponential degradation, failure at flight 300, state at mid-life):
@@ -257,7 +258,9 @@ def machine() -> str:
         f"{cpu}, {os.cpu_count()} cores (shared with other jobs), "
         f"Python {platform.python_version()}, "
         f"numpy {np.__version__}, "
-        f"{dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}"
+        f"{dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}, "
+        # the timings scale with the load of the shared cores
+        f"load average {os.getloadavg()[0]:.1f} at the start"
     )
 
 
@@ -268,7 +271,8 @@ def render(ours: dict[str, object], theirs: dict[str, object]) -> str:
     lines = [
         "## Prognosis: particle filter (`bench/bench_prognosis.py`)",
         "",
-        "Command: `python bench/bench_prognosis.py` (from the repository root).",
+        "Command: `python bench/bench_prognosis.py` (from the repository root; progpy from "
+        "the `bench` extra: `pip install -e '.[bench]'`).",
         f"Machine: {machine()}.",
         "Synthetic exponential degradation (failure at flight 300), "
         "state at mid-life (flight 149).",

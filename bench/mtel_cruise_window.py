@@ -11,7 +11,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from server.campaigns import log_features  # noqa: E402
+from server.phm.recording import log_features  # noqa: E402
 from sim_worker.conditions import Conditions  # noqa: E402
 from sim_worker.faults import healthy  # noqa: E402
 from sim_worker.flight import flight_start, simulate_flight  # noqa: E402

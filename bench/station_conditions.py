@@ -26,9 +26,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from server.campaigns import log_features  # noqa: E402
 from server.demo_model import load_demo_model  # noqa: E402
 from server.phm.chain import analyze_flight, read_model_document  # noqa: E402
+from server.phm.recording import log_features  # noqa: E402
 from server.vocabulary import POSITIONS  # noqa: E402
 from sim_worker.conditions import NO_CONDITIONS, Conditions  # noqa: E402
 from sim_worker.faults import healthy  # noqa: E402

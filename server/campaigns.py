@@ -7,7 +7,7 @@ truth), ``DIR/flights/<tail>/<flight>.parquet`` (flight logs, format ``ema-fligh
 ``DIR/phm_features.json`` (every flight's features by flight id, valid for one feature version
 and configuration). Every flight log is decoded and checked by :mod:`server.flightlog`, exactly
 as an upload is, then its features are computed by the service's own
-:func:`server.phm.features.flight_features`.
+:func:`server.phm.recording.log_features`.
 
 A streamed campaign (:class:`FeatureSink`) does that in the worker that simulated the flight
 and keeps the features instead of the file; only every ``keep_raw_every``-th flight of a
@@ -29,8 +29,6 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from server.flightlog import (
     FlightLog,
     FlightLogError,
@@ -47,13 +45,13 @@ from server.phm.features import (
     FeatureConfig,
     FeatureSummary,
     FlightFeatures,
-    flight_features,
 )
+from server.phm.recording import log_features
 from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
 
 __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "read_manifest",
-           "decode_log", "checked_log", "log_features", "read_started_at", "load_campaign",
+           "decode_log", "checked_log", "read_started_at", "load_campaign",
            "train_from_directory"]
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
@@ -97,16 +95,6 @@ def _checked(decode: Callable[[], FlightLog], name: str) -> FlightLog:
     if issues:
         raise CampaignError(f"{name}: " + "; ".join(i.message for i in issues))
     return log
-
-
-def log_features(log: FlightLog, *, config: FeatureConfig | None = None,
-                 ground_temp_c: float | None = None) -> FlightFeatures:
-    """A decoded flight log's features (:func:`server.phm.features.flight_features` on its
-    channels as float64), its drives' roles taken from its metadata: what the service computes
-    on an upload and a campaign on each flight."""
-    channels = {n: np.asarray(v, dtype=np.float64) for n, v in log.channels.items()}
-    return flight_features(channels, config=config, ground_temp_c=ground_temp_c,
-                           active_channels=log.metadata.active_channels)
 
 
 def feature_config_key(cfg: FeatureConfig) -> str:
@@ -247,7 +235,8 @@ def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | 
     manifest = read_manifest(root)
     cached = _cached_features(root, manifest, config or FeatureConfig(), jobs, cache)
     bases = {str(a.get("tail")): a.get("base") for a in manifest.get("aircraft", [])}
-    patterns, study = [], []
+    patterns: list[Pattern] = []
+    study: list[Pattern] = []
     for pat in manifest["patterns"]:
         recs = [_record(root, fl, cached[fl["flight"]])
                 for fl in sorted(pat["flights"], key=lambda f: int(f["index"]))]

@@ -12,7 +12,7 @@ from server.config import Settings, load_settings
 __all__ = ["main"]
 
 
-def _session(settings: Settings):  # type: ignore[no-untyped-def]
+def _session(settings: Settings):
     from server.db import make_engine, make_session_factory
     from server.migrate import ensure_schema
 

@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 
 from sqlalchemy import select
+from sqlalchemy.orm import Session, sessionmaker
 
 from server.config import Settings
 
@@ -112,7 +113,7 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int, train: bool 
     return keys
 
 
-def _train_demo_model(settings: Settings, factory: object, seed: int) -> None:
+def _train_demo_model(settings: Settings, factory: sessionmaker[Session], seed: int) -> None:
     """``--train``: simulate a quick design campaign (reused when present) and train on it."""
     from tqdm import tqdm
 
@@ -128,7 +129,7 @@ def _train_demo_model(settings: Settings, factory: object, seed: int) -> None:
         from sim_worker import run_campaign
 
         run_campaign("design", design, seed=seed, scale="quick", progress=True)
-    with session_scope(factory) as session:  # type: ignore[arg-type]
+    with session_scope(factory) as session:
         version = model_service.create_version(session=session, name="demo-quick",
                                                training={"campaign": str(design)})
         version_id = version.id
@@ -138,7 +139,7 @@ def _train_demo_model(settings: Settings, factory: object, seed: int) -> None:
         bar.set_postfix_str(stage)
         bar.update(max(0, int(round(100 * fraction)) - bar.n))
 
-    train_into_version(factory, version_id, design, seed=seed, activate=True,  # type: ignore[arg-type]
+    train_into_version(factory, version_id, design, seed=seed, activate=True,
                        progress=progress)
     bar.close()
 

@@ -58,8 +58,10 @@ __all__ = [
     "JobStatusFilter",
 ]
 
+# Literal over the vocabulary's tuples: Pydantic reads them at run time, mypy wants the values
+# written out (repeating them would make two owners of the vocabulary)
 Position = Literal[POSITIONS]  # type: ignore[valid-type]
-Role = Literal[ROLES]  # type: ignore[valid-type]
+Role = Literal[ROLES]  # type: ignore[valid-type]  # as Position
 #: tails, flight codes, serials: ASCII letters, digits, '.', '_', '-', 1-64, not only dots
 Identifier = Annotated[str, Field(pattern=ID_PATTERN, max_length=MAX_ID_LEN)]
 
@@ -305,10 +307,10 @@ class SensorInjectionCreate(BaseModel):
     model_config = ConfigDict(extra="forbid")
     aircraft: Identifier
     position: Position
-    sensor: Literal[SENSORS] = Field(  # type: ignore[valid-type]
+    sensor: Literal[SENSORS] = Field(  # type: ignore[valid-type]  # as Position
         description="current (channels ia ib ic) | voltage (va vb vc) | resolver (theta) | "
         "lvdt (x): the sensor names a sensor finding carries")
-    kind: Literal[SENSOR_INJECTION_KINDS] = Field(  # type: ignore[valid-type]
+    kind: Literal[SENSOR_INJECTION_KINDS] = Field(  # type: ignore[valid-type]  # as Position
         description="noise: rms noise x value; drift (LVDT only): offset + value metres per "
         "flight; quantisation: readings rounded to a step of value (A, V, rad, m)")
     value: float = Field(allow_inf_nan=False, description=(

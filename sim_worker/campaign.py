@@ -309,7 +309,7 @@ class PatternSpec:
 
 def _sensor_study(specs: list[PatternSpec], healthy_patterns: int) -> list[PatternSpec]:
     """The sensor-study patterns of a design campaign: twins of its first healthy patterns."""
-    out = []
+    out: list[PatternSpec] = []
     for si, sensor in enumerate(SENSORS):
         for j in range(SENSOR_STUDY_PATTERNS):
             twin = specs[(si * SENSOR_STUDY_PATTERNS + j) % healthy_patterns]
@@ -708,8 +708,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     # a plain tuple of frozen dataclasses: pickled as is to pool and Dask workers
-    options = {"bases": tuple(bases) if bases else None, "noise_scale": float(noise_scale),
-               "sensor_faults": faults}
+    options: dict[str, Any] = {"bases": tuple(bases) if bases else None,
+                               "noise_scale": float(noise_scale),
+                               "sensor_faults": faults}
     settings = _settings(kind, seed, scale, cfg, options, sink)
     if per_mode is not None:
         settings["per_mode"] = int(per_mode)  # only when given, as sensor_faults
@@ -762,8 +763,9 @@ def snapshot_campaign(out_dir: str | Path, snap_dir: str | Path, *,
     if settings["sink"] != sink.describe():
         raise ValueError(f"{out} was run with the sink {settings['sink']}, not "
                          f"{sink.describe()}")
-    cfg = ScaleConfig(**{k: tuple(v) if isinstance(v, list) else v
-                         for k, v in settings["config"].items()})
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
+                              for k, v in settings["config"].items()}
+    cfg = ScaleConfig(**fields)
     specs = plan_campaign(settings["kind"], settings["seed"], settings["scale"],
                           per_mode=settings.get("per_mode"))
     store = _Progress(out, settings)

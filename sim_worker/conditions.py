@@ -64,6 +64,7 @@ def from_api(docs: list[dict[str, Any]]) -> Conditions:
     out = NO_CONDITIONS
     for doc in docs:
         kind = doc["kind"]
-        value = doc["base"] if kind == "base" else float(doc["value"])
-        out = replace(out, **{_FIELD[kind]: value})
+        value: str | float = doc["base"] if kind == "base" else float(doc["value"])
+        # the kind picks the field: a str for the base, a float for every other
+        out = replace(out, **{_FIELD[kind]: value})  # type: ignore[arg-type]
     return out

@@ -170,6 +170,7 @@ class EmaParams:
     tuning: ControlTuning = field(default_factory=ControlTuning)
 
     def with_(self, **parts: object) -> EmaParams:
+        # replace() checks every field against **parts' one type: the caller names the parts
         return replace(self, **parts)  # type: ignore[arg-type]
 
 

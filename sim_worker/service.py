@@ -140,7 +140,7 @@ class SimFleetRunner:
 
     def __init__(self, api: Api, *, n_aircraft: int, rate_per_min: float, seed: int = 0,
                  duration_s: float = 120.0, prefix: str = "SIM",
-                 sleep: Callable[[float], None] = time.sleep):
+                 sleep: Callable[[float], object] = time.sleep):
         if n_aircraft < 1 or rate_per_min <= 0 or duration_s < 15:
             raise ValueError("need n_aircraft >= 1, rate > 0 and duration >= 15 s")
         self.api = api

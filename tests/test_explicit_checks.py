@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 import server.migrate
-from server.evaluation import core
+from server.evaluation import runner
 from server.jobs.pipeline import analyze_flight_job
 from server.jobs.queue import ClaimedJob
 from sim_worker.campaign import PatternSpec, _constant_run, _fault_to_failure
@@ -22,9 +22,9 @@ def test_an_analysis_job_without_a_flight_is_an_error() -> None:
 
 
 def test_an_evaluation_worker_without_its_model_is_an_error(monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    monkeypatch.setattr(core, "_WORKER_MODEL", None)
+    monkeypatch.setattr(runner, "_WORKER_MODEL", None)
     with pytest.raises(RuntimeError, match="no model"):
-        core._work(None)  # type: ignore[arg-type]
+        runner._work(None)  # type: ignore[arg-type]
 
 
 def test_a_migrations_directory_without_a_head_is_an_error(monkeypatch) -> None:  # type: ignore[no-untyped-def]

@@ -44,8 +44,8 @@ def test_the_chain_is_split_into_detection_classification_and_prognosis(shipped_
     """On the chain itself: ``analyze_flight`` times its classification and prognosis, the
     rest of the call is detection (the factory's sinusoid flights look faulty to the shipped
     model: alarms within a few flights)."""
-    from server.campaigns import log_features
     from server.phm.chain import analyze_flight, read_model_document
+    from server.phm.recording import log_features
     from tests.flightlog_factory import make_log
 
     model = read_model_document(shipped_model[0])

@@ -13,7 +13,7 @@ version of the database.
 
 Writes into ``--out`` (default ``<HMSM_DATA_DIR>/evaluation/<UTC timestamp>/``):
 ``evaluation.json`` (everything, with the per-flight traces), ``summary.json`` (every figure
-and its bootstrap interval, no traces: shape in :mod:`server.evaluation.core`),
+and its bootstrap interval, no traces: shape in :mod:`server.evaluation.summary`),
 ``report.html`` (plotly.js embedded once), ``rul_<MODE>.html`` (one page per progressive mode,
 with a local ``plotly.min.js``), ``summary.md`` ("mean [lo, hi]" tables); and copies the JSON
 to ``<HMSM_DATA_DIR>/evaluation/latest.json`` (read by the dashboard's evaluation page:
@@ -136,8 +136,8 @@ def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, 
 def write_outputs(result: dict[str, Any], out_dir: Path, *, latest: Path | None) -> list[Path]:
     """evaluation.json, summary.json, report.html, rul_<MODE>.html, summary.md; latest.json
     if asked."""
-    from .core import summary_document
     from .report import markdown_tables, write_html_report, write_rul_pages
+    from .summary import summary_document
 
     out_dir.mkdir(parents=True, exist_ok=True)
     js = out_dir / "evaluation.json"
@@ -179,7 +179,7 @@ def run_evaluate(args: argparse.Namespace, settings: Settings, *,
     """Body of ``hmsm evaluate`` (see the module docstring); ``progress(done, total)`` is told
     of each pattern scored (the demo's background evaluation reports it to the dashboard),
     in place of the progress bar."""
-    from .core import evaluate_campaign
+    from .runner import evaluate_campaign
 
     campaign = Path(args.campaign)
     if not (campaign / "manifest.json").exists():

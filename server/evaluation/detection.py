@@ -15,8 +15,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from server.campaigns import load_campaign
+from server.evaluation.evaluate_detection import evaluate, format_report, summarise
 from server.phm.baselines import BASELINE_DEFAULTS, FleetBaseline
-from server.phm.evaluate_detection import evaluate, fit_detection, format_report, summarise
+from server.phm.detection_model import fit_detection
 
 __all__ = ["main"]
 

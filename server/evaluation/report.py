@@ -20,7 +20,7 @@ from plotly.subplots import make_subplots
 from server.phm.prognosis.document import rul_point, rul_quantile
 from server.vocabulary import PAPER_TABLE2, PROGRESSIVE
 
-from .core import ALPHA, pattern_prognosis
+from .scoring import ALPHA, pattern_prognosis
 
 __all__ = ["trajectories_figure", "rul_band_figure", "write_html_report", "markdown_tables",
            "write_rul_pages"]

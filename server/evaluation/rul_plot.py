@@ -21,8 +21,9 @@ from server.campaigns import load_campaign
 from server.phm.chain import read_model_document
 from server.vocabulary import PROGRESSIVE
 
-from .core import pattern_prognosis, run_pattern
 from .report import rul_band_figure
+from .runner import run_pattern
+from .scoring import pattern_prognosis
 
 __all__ = ["main"]
 

@@ -1,26 +1,24 @@
 """The ``analyze_flight`` job: the PHM chain run on one uploaded flight, its results stored
 by :mod:`server.services.analysis`.
 
-Steps: verify the stored bytes against their SHA-256 and decode; features of the whole
-aircraft; then, in one transaction, every installed actuator advanced by the chain from its
-stored state and the flight marked analysed. Each step's seconds go to the job's stage clock
-(``decode``, ``features``, then ``detection``, ``classification`` and ``prognosis`` inside the
-chain), which the worker stores for /metrics. When the job is given up
-(:func:`analysis_given_up`) the flight is marked failed.
+Wiring only. Steps: the stored bytes verified against their SHA-256 and decoded, once
+(:mod:`server.services.analysis_input`); the whole aircraft's features computed on that log
+(:func:`server.phm.recording.log_features`); then, in one transaction, every installed
+actuator advanced by the chain from its stored state and the flight marked analysed. Each
+step's seconds go to the job's stage clock (``decode``, ``features``, then ``detection``,
+``classification`` and ``prognosis`` inside the chain), which the worker stores for
+/metrics. When the job is given up (:func:`analysis_given_up`) the flight is marked failed.
 """
 
 from __future__ import annotations
 
-import hashlib
-
 from sqlalchemy.orm import Session
 
 from server.blobstore import BlobStoreUnreachable
-from server.campaigns import log_features
-from server.flightlog import FlightLog, FlightLogError, bounded_reasons, read_flightlog
 from server.jobs.context import Deferred, JobContext
 from server.jobs.queue import ClaimedJob
-from server.services import analysis, retention
+from server.phm.recording import log_features
+from server.services import analysis, analysis_input, retention
 from server.services import models as model_service
 
 __all__ = ["analyze_flight_job", "analysis_given_up"]
@@ -46,11 +44,17 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
 
     clock = ctx.stages
     with clock.stage("decode"):
-        log = _decoded(ctx, todo)
-    if log is None:
-        return
+        try:
+            log = analysis_input.decode_stored(blobs=ctx.blobs, todo=todo,
+                                               limits=ctx.settings.decode_limits)
+        except analysis_input.Unanalysable as exc:
+            _reject(ctx, todo.flight_id, exc.reasons)
+            return
+        except BlobStoreUnreachable as exc:  # the store's outage is no fault of the flight's
+            raise Deferred(f"The flight-log store does not answer: {exc}.") from exc
     with clock.stage("features"):
         features = log_features(log)
+    del log  # the chain needs only the features: the decoded channels go before it runs
     with ctx.factory() as session:
         # detection, classification and prognosis are timed inside (the chain is one call)
         analysis.store_analysis(session=session, flight_id=todo.flight_id, features=features,
@@ -61,30 +65,6 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
         with ctx.factory() as session:
             retention.prune_raw(session=session, blobs=ctx.blobs,
                                 aircraft_id=todo.aircraft_id, keep=keep)
-
-
-def _decoded(ctx: JobContext, todo: analysis.FlightToAnalyse) -> FlightLog | None:
-    """The stored bytes checked against their SHA-256 and decoded; None when the flight was
-    rejected instead (damaged on disk, or not decodable)."""
-    try:
-        data = ctx.blobs.read(todo.blob_path)
-    except BlobStoreUnreachable as exc:  # the store's outage is no fault of the flight's
-        raise Deferred(f"The flight-log store does not answer: {exc}.") from exc
-    if hashlib.sha256(data).hexdigest() != todo.sha256:
-        # The bytes changed on disk after ingest: nothing to retry, the flight is unusable.
-        _reject(ctx, todo.flight_id, [{
-            "code": "blob_corrupt", "message": "The stored file no longer matches its SHA-256; "
-            "it was corrupted on disk after upload.", "details": {"sha256": todo.sha256}}])
-        return None
-    limits = ctx.settings.decode_limits
-    try:
-        return read_flightlog(data, kind=todo.content_kind, metadata=todo.metadata,
-                              limits=limits)
-    except FlightLogError as exc:
-        if exc.too_large:  # past this worker's limits, not a defect: fails, retryable
-            raise
-        _reject(ctx, todo.flight_id, bounded_reasons((i.as_dict() for i in exc.issues), limits))
-        return None
 
 
 def _reject(ctx: JobContext, flight_id: int, reasons: list[dict]) -> None:

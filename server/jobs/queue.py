@@ -16,9 +16,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime, timedelta
-from typing import Literal
+from typing import Literal, cast
 
-from sqlalchemy import and_, exists, or_, select, update
+from sqlalchemy import CursorResult, and_, exists, or_, select, update
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, aliased, sessionmaker
 
@@ -54,7 +54,7 @@ class ClaimedJob:
     payload: dict
 
 
-def _eligible(now: datetime, postgres: bool):  # type: ignore[no-untyped-def]
+def _eligible(now: datetime, postgres: bool):
     cand, earlier = aliased(Job, name="cand"), aliased(Job, name="earlier")
     query = (
         select(cand.id)
@@ -110,7 +110,7 @@ def renew_lease(session: Session, *, job_id: int, worker_id: str, lease_s: float
                                                Job.status == JobStatus.RUNNING)
                              .values(lease_until=now + timedelta(seconds=lease_s),
                                      updated_at=now))
-    return bool(result.rowcount)
+    return bool(cast(CursorResult, result).rowcount)  # an UPDATE's result has a cursor
 
 
 def complete(session: Session, *, job_id: int, worker_id: str) -> bool:
@@ -120,7 +120,7 @@ def complete(session: Session, *, job_id: int, worker_id: str) -> bool:
                                                Job.status == JobStatus.RUNNING)
                              .values(status=JobStatus.DONE, finished_at=now, updated_at=now,
                                      lease_until=None, last_error=None))
-    return bool(result.rowcount)
+    return bool(cast(CursorResult, result).rowcount)  # an UPDATE's result has a cursor
 
 
 def fail(session: Session, *, job: ClaimedJob, worker_id: str, error: str,
@@ -137,7 +137,7 @@ def fail(session: Session, *, job: ClaimedJob, worker_id: str, error: str,
         values.update(status=JobStatus.QUEUED, run_after=now + policy.delay(job.attempts))
     result = session.execute(update(Job).where(Job.id == job.id, Job.locked_by == worker_id)
                              .values(**values))
-    if not result.rowcount:
+    if not cast(CursorResult, result).rowcount:
         return "lost"
     return JobStatus.DEAD if dead else JobStatus.QUEUED
 

@@ -75,7 +75,7 @@ class Worker:
                     return
                 session.commit()
 
-    def _record(self, what: str, write: Callable[[Session], None]) -> None:
+    def _record(self, what: str, write: Callable[[Session], object]) -> None:
         """Telemetry in a transaction of its own; a failure is logged, never raised."""
         try:
             with self.ctx.factory() as session:

@@ -495,6 +495,7 @@ class FaultDetector:
         return DetectionConfig(
             windows=self.windows, alarm_confidence=self.alarm_confidence,
             band_floor=self.band_floor,
+            # None for bands loaded from an ema-detector/1 document (docstring)
             false_alarm_rate=self.false_alarm_rate,  # type: ignore[arg-type]
             scale_quantile=self.scale_quantile,
             directions=MappingProxyType(dict(self.directions)),

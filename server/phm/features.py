@@ -171,7 +171,7 @@ class FeatureConfig:
 
     Each field states its unit and why it has its value; the measurements behind the tuned
     values (and the alternatives scored) are tabled in ``docs/TUNING.md``. ``repr`` of this
-    class is part of the campaign feature-cache key (:mod:`server.phm.evaluate_detection`).
+    class is part of the campaign feature-cache key (:func:`server.campaigns.feature_config_key`).
     """
 
     #: Hz, rate of the flight-log channels (format v1)

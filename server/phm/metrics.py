@@ -20,7 +20,7 @@ Conventions
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -249,7 +249,7 @@ def false_alarm_rate(alarm_raised: ArrayLike, is_faulty: ArrayLike) -> float:
     return float((a & healthy).sum() / n) if n else math.nan
 
 
-def event_rate(events: int, trials: int, level: float = 0.90) -> dict[str, object]:
+def event_rate(events: int, trials: int, level: float = 0.90) -> dict[str, Any]:
     """False alarms (or any events) per unit-flight with the rate's exact (Clopper-Pearson)
     ``level`` interval: ``{"events", "unit_flights", "rate", "interval"}``, rate and interval
     None without a unit-flight."""

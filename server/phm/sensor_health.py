@@ -413,6 +413,7 @@ class SensorModel:
             e = {s: sum(excess.get(p, {}).get(s, 0.0) for p in positions) / len(positions)
                  for s in FEATURE_SENSORS.get(generic, ())}
             if compensate and any(v > 0 for v in e.values()):
+                # compensate is only true with a sensitivity model
                 bias, var = self.sensitivity.effect(  # type: ignore[union-attr]
                     generic, e, (evidence or {}).get(name, 1.0))
                 out[name] = z[name] - bias

@@ -3,7 +3,7 @@
 1. Features of every flight: the campaign arrives with them (:mod:`server.campaigns` reads
    a campaign directory, :func:`server.campaigns.train_from_directory` trains on one).
 2. Baselines and detection bands on the healthy design flights (leave-one-aircraft-out bands,
-   see :mod:`server.phm.evaluate_detection`).
+   see :mod:`server.phm.detection_model`).
 3. Classifier: one seven-residual vector per faulty flight of the faulty actuator, from the
    detector's first alarm on (what the classifier sees at run time); split 70/30 by
    degradation pattern (each pattern is one aircraft's run; the separate verification
@@ -44,7 +44,7 @@ from .chain import (
 from .classification import train_classifier
 from .dataset import Campaign, FlightRecord, Pattern, healthy_flights
 from .detection import DetectionResult
-from .evaluate_detection import fit_detection
+from .detection_model import fit_detection
 from .features import FlightFeatures
 from .prognosis import MeasurementModel, PrognoserConfig
 from .prognosis.degradation import MIN_LEVEL_GAP
@@ -193,11 +193,11 @@ def _degradation_prior(campaign: Campaign, mode: str, training: TrainingConfig
             late.append((end[-1].severity_norm - end[0].severity_norm)
                         / (end[-1].index - end[0].index))
         xs, ys = [], []
-        for a, b in zip(fl, fl[1:], strict=False):
-            if b.index > a.index:
-                xs.append(a.severity_norm)
-                ys.append((b.severity_norm - a.severity_norm) / (b.index - a.index))
-                gaps.append(b.index - a.index)
+        for r0, r1 in zip(fl, fl[1:], strict=False):
+            if r1.index > r0.index:
+                xs.append(r0.severity_norm)
+                ys.append((r1.severity_norm - r0.severity_norm) / (r1.index - r0.index))
+                gaps.append(r1.index - r0.index)
         if len(xs) >= 3:
             X = np.column_stack([np.ones(len(xs)), np.asarray(xs)])
             coef, *_ = np.linalg.lstsq(X, np.asarray(ys), rcond=None)
@@ -250,14 +250,14 @@ def _run_clocks(run: Pattern, climate: SeasonalClimate | None, ref_c: float | No
     k = np.array([r.index for r in fl], dtype=int)
     sn = np.array([r.severity_norm for r in fl], dtype=float)
     stress = np.tile(k - k[0], (betas.size, 1)).astype(float)
-    dated = [r for r in fl if r.started_at is not None]
+    dated = [(r.index, r.started_at) for r in fl if r.started_at is not None]
     if climate is not None and climate.knows(run.base) and len(dated) >= 2:
-        days = (dated[-1].started_at - dated[0].started_at).total_seconds() / 86400.0
-        per_day = (dated[-1].index - dated[0].index) / days if days > 0 else None
+        days = (dated[-1][1] - dated[0][1]).total_seconds() / 86400.0
+        per_day = (dated[-1][0] - dated[0][0]) / days if days > 0 else None
         if per_day:
             for j, beta in enumerate(betas):
                 clock = StressClock(climate, str(run.base), float(beta), ref_c,
-                                    dated[0].started_at, dated[0].index, per_day)
+                                    dated[0][1], dated[0][0], per_day)
                 stress[j] = [clock.between(int(k[0]), int(i)) for i in k]
     return sn, stress
 
@@ -270,13 +270,13 @@ def _exponential_prior(campaign: Campaign, mode: str, climate: SeasonalClimate |
     between design runs (coefficient of variation) is kept: the prior on r is then tighter."""
     fits = [_fit_exponential_law(campaign, mode, climate, ref, training, surface)
             for ref in (fleet_ref_c, None)]
-    fits = [f for f in fits if f is not None]
-    if not fits:
+    found = [f for f in fits if f is not None]
+    if not found:
         return None
-    best = min(fits, key=lambda f: f["rate_std"] / abs(f["rate"]))
+    best = min(found, key=lambda f: f["rate_std"] / abs(f["rate"]))
     best["rate_cv_by_reference"] = {
         "fleet" if f["stress_ref_c"] is not None else "base": f["rate_std"] / abs(f["rate"])
-        for f in fits}
+        for f in found}
     return best
 
 
@@ -308,7 +308,7 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
             X = np.column_stack([np.ones_like(tau), tau])
             coef, *_ = np.linalg.lstsq(X, Y, rcond=None)
             misfit[j] += ((Y - X @ coef) ** 2).sum(axis=0) / (Yc**2).sum(axis=0)
-    jb, jc = np.unravel_index(int(np.argmin(misfit)), misfit.shape)
+    jb, jc = (int(i) for i in np.unravel_index(int(np.argmin(misfit)), misfit.shape))
     if misfit[jb, jc] > training.stress_gain * misfit[0].min():  # temperature explains little
         jb, jc = 0, int(np.argmin(misfit[0]))
         ref_c = None
@@ -435,7 +435,7 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
             continue
         by_surface = {}
         for surface in ("WL", "WT"):
-            sub = [(sn, v) for sn, v, srf in triples if srf == surface]
+            sub = [(sn, v) for sn, v, srf in triples if srf == surface and v is not None]
             if len(sub) >= training.min_surface_flights:
                 try:
                     by_surface[surface] = MeasurementModel.fit(
@@ -451,6 +451,7 @@ def fit_measurement_models(campaign: Campaign, phm: PhmModel,
         precise_wear = law is not None and not thermal and noise_sev <= training.precise_wear_noise
         surface_configs: dict[str, PrognoserConfig] = {}
         if thermal or precise_wear:
+            assert law is not None  # both read it: for the type checker
             prior = law
             # dh/dtau = r (h + c), r tuned on the log-level: a thermally driven mode on the
             # season's stress clock, a precisely measured wear mode on flights (near-linear c)

@@ -56,7 +56,7 @@ class FlightToAnalyse:
     """What the job needs of a stored flight to decode it."""
 
     flight_id: int
-    aircraft_id: int
+    aircraft_id: int | None
     blob_path: str
     sha256: str
     content_kind: str
@@ -171,7 +171,7 @@ def store_analysis(*, session: Session, flight_id: int, features: FlightFeatures
     session.flush()
 
 
-def _installed(session: Session, aircraft_id: int) -> list[Actuator]:
+def _installed(session: Session, aircraft_id: int | None) -> list[Actuator]:
     return list(session.scalars(select(Actuator).where(
         Actuator.aircraft_id == aircraft_id, Actuator.removed_at.is_(None))))
 

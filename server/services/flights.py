@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -129,7 +129,8 @@ def ingest_flight(*, session: Session, blobs: BlobStore, upload: SpooledUpload, 
             raise Conflict(f"Flight '{code}' of '{tail}' was already uploaded with other content.",
                            code="flight_exists", details={"flight_id": clash.id})
     if log is not None:
-        issues = check_coherence(log, fleet_serials=installed_serials(session=session, tail=tail))
+        issues = check_coherence(log, fleet_serials=installed_serials(
+            session=session, tail=log.metadata.aircraft))  # the tail, read from the log
     reasons = bounded_reasons((i.as_dict() for i in issues), limits)
     if issues:
         again = _rejected_again(session, blobs, upload, key, reasons, aircraft_id)
@@ -239,7 +240,7 @@ def delete_rejected(*, session: Session, flight_id: int) -> str | None:
     return None if shared is not None else blob_path
 
 
-def flight_codes(*, session: Session, flight_ids: list[int]) -> dict[int, str]:
+def flight_codes(*, session: Session, flight_ids: list[int]) -> dict[int, str | None]:
     """Flight id -> the aircraft's own flight code, for the given flights."""
     if not flight_ids:
         return {}
@@ -322,9 +323,10 @@ def signals_json(flight_id: int, step: int, arrays: dict[str, np.ndarray]) -> by
     29 channels of 5000 points). Non-finite values are ``null``, as pydantic writes them."""
     def values(a: np.ndarray) -> bytes:
         floats = a.astype(float)
-        out: list[float | None] = floats.tolist()
+        listed: list[float] = floats.tolist()
+        out: Sequence[float | None] = listed
         if not np.isfinite(floats).all():
-            out = [v if math.isfinite(v) else None for v in out]  # type: ignore[arg-type]
+            out = [v if math.isfinite(v) else None for v in listed]
         return json.dumps(out, separators=(",", ":")).encode()
 
     head = json.dumps({"flight_id": flight_id, "decimation": step}, separators=(",", ":"))

@@ -7,9 +7,9 @@ import shutil
 import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
-from sqlalchemy import select, update
+from sqlalchemy import Engine, select, update
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound, StorageUnavailable
@@ -106,7 +106,7 @@ def active_version(*, session: Session) -> ModelVersion | None:
 def decoded_model(*, session: Session, version_id: int) -> PhmModel:
     """The chain of a model version, decoded once per process (the document is immutable
     once the version is ready). Raises ValueError for a document the chain cannot run."""
-    key = (str(session.get_bind().url), int(version_id))
+    key = (str(cast(Engine, session.get_bind()).url), int(version_id))  # bound to an engine
     with _DECODED_LOCK:
         if key not in _DECODED:
             payload = get_version(session=session, version_id=version_id).payload

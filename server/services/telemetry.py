@@ -20,9 +20,9 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta, timezone
-from typing import Any
+from typing import Any, cast
 
-from sqlalchemy import delete, func, select
+from sqlalchemy import CursorResult, delete, func, select
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
@@ -118,7 +118,7 @@ def forget_silent_workers(session: Session, *, silent_for: timedelta) -> int:
     worker id: without this the label set of /metrics would only grow); return how many."""
     result = session.execute(delete(WorkerHeartbeat).where(
         WorkerHeartbeat.beat_at < utcnow() - silent_for))
-    return int(result.rowcount or 0)
+    return int(cast(CursorResult, result).rowcount or 0)  # a DELETE's result has a cursor
 
 
 @dataclass(frozen=True)
@@ -172,11 +172,11 @@ def snapshot(session: Session) -> Telemetry:
             out.jobs[(kind, status)] = 0
     rows = session.execute(select(Job.kind, Job.status, func.count(), func.min(Job.created_at))
                            .where(Job.status.in_(_COUNTED)).group_by(Job.kind, Job.status))
-    for kind, status, count, oldest in rows:
-        out.jobs[(kind, str(status))] = int(count)
+    for job_kind, status, count, oldest in rows:
+        out.jobs[(job_kind, str(status))] = int(count)
         if status == JobStatus.QUEUED:
-            out.queue_depth[kind] = int(count)
-            out.oldest_queued_s[kind] = max(0.0, (now - _aware(oldest)).total_seconds())
+            out.queue_depth[job_kind] = int(count)
+            out.oldest_queued_s[job_kind] = max(0.0, (now - _aware(oldest)).total_seconds())
     out.timings = _histograms(session.execute(select(
         JobTiming.kind, JobTiming.stage, JobTiming.le, JobTiming.observations,
         JobTiming.seconds)))

@@ -200,13 +200,13 @@ def _under_by_code(session: Session, actuator: Any) -> dict[str, list[tuple[str,
                     (f"fault {inj.fault_mode}", f"{position}.{OWN_FEATURE[inj.fault_mode]}"))
     sensors, _ = sensor_service.list_(session=session, tail=tail, status=None, limit=100,
                                       offset=0)
-    for inj, _t in reversed(sensors):
-        if inj.position == position:
+    for sensed, _t in reversed(sensors):
+        if sensed.position == position:
             channels = ", ".join(f"{position}.{s}" for s, of in SENSOR_OF_SIGNAL.items()
-                                 if of == inj.sensor)
-            for st in sensor_service.list_truth(session=session, injection_id=inj.id):
+                                 if of == sensed.sensor)
+            for st in sensor_service.list_truth(session=session, injection_id=sensed.id):
                 out.setdefault(st.flight_code, []).append(
-                    (f"{inj.sensor} {inj.kind} {inj.value:g}", channels))
+                    (f"{sensed.sensor} {sensed.kind} {sensed.value:g}", channels))
     for code, rows in condition_service.flights_under(
             session=session, aircraft_id=actuator.aircraft_id).items():
         out.setdefault(code, []).extend(
@@ -226,7 +226,7 @@ def station_marks(*, session: Session, actuator: Any, records: list[dict[str, An
     marks: list[dict[str, Any]] = []
     previous: tuple[tuple[str, str], ...] = ()
     for r in records:
-        live = tuple(under.get(codes.get(r["flight_id"], ""), ()))
+        live = tuple(under.get(codes.get(r["flight_id"]) or "", ()))
         if live and live == previous:
             marks[-1]["last"] = r["flight_index"]
         elif live:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from server.evaluation.cli import write_outputs
-from server.evaluation.core import (
+from server.evaluation.scoring import (
     classification_summary,
     confusion,
     pattern_prognosis,
@@ -196,7 +196,7 @@ def test_outputs_and_latest_json_match_the_dashboard(tmp_path: Path) -> None:
 
 
 def test_probability_calibration_compares_shown_confidence_with_accuracy() -> None:
-    from server.evaluation.core import probability_calibration
+    from server.evaluation.scoring import probability_calibration
 
     cal = probability_calibration(
         ["MTEL", "MTEL", "MTWEAR", "TTS"],

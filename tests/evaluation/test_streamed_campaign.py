@@ -18,10 +18,10 @@ from server.campaigns import (
     checked_log,
     decode_log,
     load_campaign,
-    log_features,
 )
 from server.flightlog import write_parquet
 from server.phm.features import FeatureConfig
+from server.phm.recording import log_features
 from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
 from sim_worker.faults import THRESHOLDS, FaultState, healthy
 from sim_worker.fleet import WingletMode, build_aircraft

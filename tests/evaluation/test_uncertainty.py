@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 from server.evaluation.cli import write_outputs
-from server.evaluation.core import (
+from server.evaluation.scoring import (
     classification_summary,
     pattern_prognosis,
     summarise_detection,
     summarise_prognosis,
     summarise_sensors,
-    summary_document,
 )
+from server.evaluation.summary import summary_document
 from server.phm import metrics
 from server.phm.prognosis import RulDistribution
 from tests.evaluation.test_evaluation import _flight, _progressive, _trace

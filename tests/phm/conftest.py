@@ -223,20 +223,20 @@ def dense_verification_campaign(campaign_root: Path):
 
 @pytest.fixture(scope="session")
 def detection_model(design_campaign):
-    from server.phm.evaluate_detection import fit_detection
+    from server.phm.detection_model import fit_detection
 
     return fit_detection(design_campaign)
 
 
 @pytest.fixture(scope="session")
 def verification_outcomes(detection_model, verification_campaign):
-    from server.phm.evaluate_detection import evaluate
+    from server.evaluation.evaluate_detection import evaluate
 
     return evaluate(detection_model, verification_campaign)
 
 
 @pytest.fixture(scope="session")
 def dense_verification_outcomes(detection_model, dense_verification_campaign):
-    from server.phm.evaluate_detection import evaluate
+    from server.evaluation.evaluate_detection import evaluate
 
     return evaluate(detection_model, dense_verification_campaign)

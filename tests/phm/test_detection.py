@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from server.evaluation.evaluate_detection import PatternOutcome, summarise
 from server.phm.baselines import BASELINE_DEFAULTS, BaselineConfig, FleetBaseline, LinearBaseline
 from server.phm.detection import (
     DETECTION_DEFAULTS,
@@ -17,7 +18,7 @@ from server.phm.detection import (
     offset_components,
     running_statistics,
 )
-from server.phm.evaluate_detection import DetectionModel, PatternOutcome, summarise
+from server.phm.detection_model import DetectionModel
 from server.phm.features import AIRCRAFT_FEATURES, FeatureSummary, FlightFeatures
 
 

@@ -128,7 +128,7 @@ def test_noise_free_features_feed_the_prognosis_the_true_severity(design_campaig
     winglet drive's motor features are read on the flights it drives; in between, both runs
     propagate the same learned law); detection sees the real features, so the alarm flight
     does not move."""
-    from server.evaluation.core import run_pattern
+    from server.evaluation.runner import run_pattern
 
     model = PhmModel.from_dict(trained_model[0])
     campaign = load_campaign(design_campaign_dir, jobs=2)

@@ -229,7 +229,7 @@ class FaultClassifier:
         if g is not None and g.shape != (X.shape[0],):
             raise ValueError(f"groups must have shape ({X.shape[0]},), got {g.shape}")
         n_cls = classes.size
-        kw = dict(C=float(self.C), tol=float(self.tol), max_iter=int(self.max_iter),
+        kw: dict[str, Any] = dict(C=float(self.C), tol=float(self.tol), max_iter=int(self.max_iter),
                   class_weight=self.class_weight, random_state=self.random_state)
 
         # out-of-fold decision values for the temperature

@@ -217,8 +217,8 @@ def bound_mid_rate(
             out[0] = lo
             return out
         return theta * (min(max(rate, lo), hi) / rate)
-    rate = theta @ mid
-    safe = np.where(rate > 0, rate, lo)
+    rates = theta @ mid
+    safe = np.where(rates > 0, rates, lo)
     out = theta * (np.clip(safe, lo, hi) / safe)[:, np.newaxis]
-    out[rate <= 0] = np.eye(1, theta.shape[-1])[0] * lo
+    out[rates <= 0] = np.eye(1, theta.shape[-1])[0] * lo
     return out

@@ -33,6 +33,7 @@ import hashlib
 import json
 import math
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -132,7 +133,7 @@ class PrognoserState:
     theta: NDArray[np.float64]
     cov: NDArray[np.float64]
     resid_var: float
-    rng_state: dict[str, Any]
+    rng_state: Mapping[str, Any]
     config_digest: str
     flight_index: int | None = None
     last_estimate: float | None = None
@@ -241,7 +242,8 @@ class PrognoserState:
             k: np.asarray(meta.pop(k), dtype=float)
             for k in ("severity", "log_weights", "theta", "cov", "log_rates") if k in meta
         }
-        np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
+        # numpy's stub reads **arrays as possibly its allow_pickle flag; the keys are fixed above
+        np.savez(path, meta=np.array(json.dumps(meta)), **arrays)  # type: ignore[arg-type]
 
     @classmethod
     def from_npz(cls, path: str) -> PrognoserState:
@@ -275,7 +277,7 @@ def _decode_ints(obj: Any) -> Any:
 _BIT_GENERATORS = threading.local()
 
 
-def _generator(rng_state: dict[str, Any]) -> np.random.Generator:
+def _generator(rng_state: Mapping[str, Any]) -> np.random.Generator:
     """A generator at ``rng_state``. Its bit generator is reused per thread (a new one seeds
     itself from the OS, 10 us, the update's largest fixed cost), so the generator is valid
     until the next call in the same thread; ``update`` uses it and stores its state before

@@ -118,6 +118,6 @@ def forecast(guard: GuardState, flight: int, severity: NDArray[np.float64],
     order = np.argsort(z)
     cdf = np.cumsum(weights[order])
     half = 0.5 * config.guard_miss_rate
-    lo = float(z[order][min(np.searchsorted(cdf, half), z.size - 1)])
-    hi = float(z[order][min(np.searchsorted(cdf, 1.0 - half), z.size - 1)])
+    lo = float(z[order][min(int(np.searchsorted(cdf, half)), z.size - 1)])
+    hi = float(z[order][min(int(np.searchsorted(cdf, 1.0 - half)), z.size - 1)])
     return replace(guard, pending=(*guard.pending, (flight + config.guard_horizon, lo, hi)))

@@ -177,6 +177,7 @@ class PolynomialLaw:
     def rls_measurement(self, state: PrognoserState, estimate: float, feature: float,
                         dk: float, model: MeasurementModel, config: PrognoserConfig
                         ) -> RlsMeasurement:
+        assert state.last_estimate is not None  # an RLS step follows a first measurement
         phi = regressor(state.last_estimate, self.n_params)
         y = (estimate - state.last_estimate) / dk
         return RlsMeasurement(state.theta, state.cov, phi, y, config.rls_forgetting)

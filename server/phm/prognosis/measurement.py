@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -56,6 +56,14 @@ class MeasurementModel:
     noise_std: float
     severity_range: tuple[float, float] = (0.0, 1.5)
     noise_slope: float = 0.0
+    if TYPE_CHECKING:  # derived in __post_init__, not fields: declared for the type checker
+        _lo_val: float = field(init=False)
+        _hi_val: float = field(init=False)
+        _lo_slope: float = field(init=False)
+        _hi_slope: float = field(init=False)
+        _grid_s: NDArray[np.float64] = field(init=False)
+        _grid_z: NDArray[np.float64] = field(init=False)
+        _increasing: bool = field(init=False)
 
     def __post_init__(self) -> None:
         coefs = tuple(float(c) for c in self.coefficients)

@@ -298,7 +298,7 @@ def propagate_to_threshold(
 
 
 @njit(cache=True)
-def _euler_block(h, coefs, min_rate, threshold, cap, step, horizon, noise, t, rul, n_done):
+def _euler_block(h, coefs, min_rate, threshold, cap, step, horizon, noise, t, rul, n_done):  # type: ignore[no-untyped-def]  # noqa: E501  # numba types it from its arguments
     """Up to ``noise.shape[0]`` Euler steps of ``step`` flights for every particle, in place
     (``h``, ``rul``); returns (t, n_done). The growth rate is the law's polynomial in Horner
     form floored at ``min_rate`` (the same loop for every law: no law code); a particle that

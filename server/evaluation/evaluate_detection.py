@@ -1,13 +1,10 @@
-"""Fit baselines and detector on a design campaign, evaluate detection on a verification one.
+"""Detection alone, scored: a fitted detection model run over a campaign's patterns.
 
 The command is ``python -m server.evaluation.detection --design DIR --verification DIR``. Time
 base: flights; the detection time is reported in percent of the fault's life ``(detected -
-onset) / (failure - onset)``.
-
-Honesty rules kept here: the baselines, the healthy bands and every threshold come from the
-design campaign only; the verification campaign is only read to be scored. The bands are
-learned on *out-of-fold* residuals (leave-one-aircraft-out baselines), so that the design
-aircraft are as unseen to the baseline as the verification ones will be.
+onset) / (failure - onset)``. The model comes fitted on the design campaign
+(:func:`server.phm.detection_model.fit_detection`); the verification campaign is only read to
+be scored.
 """
 
 from __future__ import annotations
@@ -19,97 +16,11 @@ from typing import Any
 
 import numpy as np
 
+from server.phm.dataset import Campaign, Pattern, reads_rod_ends_as_pair
+from server.phm.detection_model import DetectionModel
 from server.vocabulary import alarming_positions
 
-from .baselines import FleetBaseline
-from .dataset import Campaign, FlightRecord, Pattern, healthy_flights, reads_rod_ends_as_pair
-from .detection import UNITS, DetectionState, FaultDetector
-from .features import AIRCRAFT_FEATURES
-from .metrics import event_rate
-
-__all__ = [
-    "FlightRecord",
-    "Pattern",
-    "Campaign",
-    "healthy_flights",
-    "fit_detection",
-    "healthy_alarm_rate",
-    "DetectionModel",
-    "PatternOutcome",
-    "evaluate",
-    "summarise",
-    "format_report",
-]
-
-
-@dataclass
-class DetectionModel:
-    """What detection needs at run time: the baseline and the detector (JSON together);
-    ``design_false_alarms``: the alarms its bands raised on the design's healthy lives
-    (:func:`healthy_alarm_rate`, not part of the document)."""
-
-    baseline: FleetBaseline
-    detector: FaultDetector
-    design_false_alarms: dict[str, Any] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"format": "ema-detection-model/1", "baseline": self.baseline.to_dict(),
-                "detector": self.detector.to_dict()}
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> DetectionModel:
-        if d.get("format") != "ema-detection-model/1":
-            raise ValueError("not an ema-detection-model/1 document")
-        return cls(FleetBaseline.from_dict(d["baseline"]), FaultDetector.from_dict(d["detector"]))
-
-    def new_states(self) -> dict[str, DetectionState]:
-        return {u: self.detector.new_state(u) for u in UNITS}
-
-
-def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
-                  baseline: FleetBaseline | None = None) -> DetectionModel:
-    """Baselines on all healthy design flights; detector bands on out-of-fold residuals."""
-    seqs = healthy_flights(design)
-    all_flights = [f for _, s in seqs for f in s]
-    tails_of = [a for a, s in seqs for _ in s]  # each flight's aircraft: its units
-    proto = baseline or FleetBaseline()
-    final = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence, within_units=proto.within_units,
-                          log_features=proto.log_features).fit(all_flights, tails_of)
-    tails = sorted({a for a, _ in seqs})
-    oof: list[np.ndarray] = []
-    for tail in tails:
-        train = [f for a, s in seqs if a != tail for f in s]
-        if len(train) < 3:
-            continue
-        b = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence, within_units=proto.within_units,
-                          log_features=proto.log_features)
-        b.fit(train, [a for a, s in seqs if a != tail for _ in s])
-        oof += [b.zscore_matrix(s) for a, s in seqs if a == tail]
-    det = detector or FaultDetector()
-    sequences = oof if oof else [final.zscore_matrix(s) for _, s in seqs]
-    det.fit(sequences, AIRCRAFT_FEATURES)
-    return DetectionModel(final, det, healthy_alarm_rate(det, sequences))
-
-
-def healthy_alarm_rate(detector: FaultDetector, sequences: Sequence[np.ndarray],
-                       level: float = 0.90) -> dict[str, Any]:
-    """Alarm events per unit-flight on healthy sequences (n_flights, AIRCRAFT_FEATURES) of
-    residuals, each unit at risk until its first alarm: the realised rate beside the stated
-    ``false_alarm_rate``, with its exact ``level`` interval."""
-    events = unit_flights = 0
-    for seq in sequences:
-        for unit in UNITS:
-            names = [n for n in AIRCRAFT_FEATURES if n.split(".", 1)[0] == unit
-                     and n in detector.feature_names_]
-            cols = [AIRCRAFT_FEATURES.index(n) for n in names]
-            conf = detector.confidence_sequence(seq[:, cols], names).max(axis=1)
-            hits = np.flatnonzero(conf >= detector.alarm_confidence)
-            events += int(hits.size > 0)
-            unit_flights += int(hits[0]) + 1 if hits.size else seq.shape[0]
-    return {**event_rate(events, unit_flights, level), "level": level,
-            "stated_rate": detector.false_alarm_rate}
+__all__ = ["PatternOutcome", "run_pattern", "evaluate", "summarise", "format_report"]
 
 
 @dataclass

@@ -1,12 +1,4 @@
-"""Evaluation of the whole PHM chain on a simulated campaign (paper sections 4.3 and 5).
-
-Every pattern of the campaign is run flight by flight through
-:func:`server.phm.chain.analyze_flight`
-exactly as the service runs it: fresh :class:`~server.phm.chain.ActuatorHealth` for the three
-actuators of the pattern's aircraft at the pattern start, state carried between flights, the
-manifest's flight ``index`` passed as ``flight_index`` (fault-to-failure runs render only every
-n-th flight; the particle filter propagates over the gaps). The labels of the campaign (mode,
-onset, failure flight, true RUL) are read only to score the outcomes.
+"""Scoring the traces of a campaign's patterns: detection, classification, prognosis.
 
 Scored here:
 
@@ -33,94 +25,25 @@ patterns with healthy flights, each pattern's flights one cluster.
 
 Time unit: flights. No threshold is tuned here: the model comes trained from the design campaign.
 
-The summary document (``summary.json``, :func:`summary_document`): every figure and interval,
-no per-flight trace and no per-pattern prediction list; keys in this order::
-
-    {"format": "ema-evaluation-summary/1", "evaluation_format": "ema-evaluation/1",
-     "created_at": str | None,
-     "campaign": {"dir", "kind", "seed", "scale", "render_every", "duration_s", "patterns",
-                  "flights", "aircraft": [{"tail", "base", "climate"}]},
-     "model": {"format", "sha256", "source", "model_id"?, "training_s"?,
-               "classifier_accuracy"?},
-     "settings": {"alpha", "lambda", "n_predictions", "point_estimate", ...,
-                  "bootstrap": {"resamples", "level", "seed", "unit", "interval"}, "jobs"},
-     "detection": {
-       "false_alarms": {"healthy_patterns", "healthy_patterns_with_alarm", "healthy_flights",
-                        "false_alarm_events", "rate_per_flight", "rate_per_flight_ci",
-                        "clusters", "pre_onset_alarms_in_fault_patterns"},
-       "per_mode": {MODE: {"patterns", "detected", "rate", "rate_ci",
-                           "pct_life_mean", "pct_life_mean_ci", "pct_life_max",
-                           "flights_after_onset_mean", "flights_after_onset_mean_ci",
-                           "flights_after_onset_max", "other_unit_alarms",
-                           "missed": [pattern id]}}},
-     "classification": {"classes": [str],
-       "at_first_alarm" | "at_last_flight": {"rows", "columns", "matrix", "accuracy",
-           "accuracy_ci", "per_class": {MODE: {"n", "recall", "recall_ci", "precision"}}}},
-     "prognosis": {MODE: {"ph", "ph_ci", "ph_cone", "ph_cone_ci", "ph_from_detection",
-                          "ph_from_detection_ci", "ra", "ra_ci" (RA in %), "ra_fraction",
-                          "ra_fraction_ci", "ra_median_pattern", "alpha_lambda",
-                          "alpha_lambda_ci" (pass rate), "cra", "cra_ci", "convergence",
-                          "convergence_ci",
-                          "calibration": {"n_predictions", "central_50", "central_50_ci",
-                                          "central_90", "central_90_ci",
-                                          "width_50_flights", "width_50_flights_ci",
-                                          "width_90_flights", "width_90_flights_ci"},
-                          "most_probable": {"point_estimate": "mode", "ph", "ph_ci",
-                                            "ph_cone", "ph_cone_ci", "ra", "ra_ci"},
-                          "n_patterns", "n_with_predictions", "paper": {"ph", "ra"}}},
-     "sensors": {"flights", "flights_with_finding", "healthy_cycle_flights",
-                 "healthy_cycle_flights_with_finding",
-                 "by_channel": {"<channel> <metric>": flights}},
-     "timing": {...}, "wall_s": float | None}
-
 A mean without any value (e.g. RA of a mode none of whose patterns was detected) is None, and
 so is its interval. Per-class recall is the accuracy on that true mode.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
-import os
-import zlib
-from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from contextlib import nullcontext
-from pathlib import Path
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from server.campaigns import load_campaign
 from server.phm import metrics
-from server.phm.chain import MeasurementHook, PhmModel, analyze_flight
-from server.phm.dataset import Campaign, Pattern, reads_rod_ends_as_pair
+from server.phm.classification import confusion as count_confusion
 from server.phm.prognosis.document import rul_point, rul_quantile
-from server.vocabulary import PAPER_TABLE2, POSITIONS, PROGRESSIVE, alarming_positions
+from server.vocabulary import PAPER_TABLE2, PROGRESSIVE, alarming_positions
 
+from .bootstrap import finite_max, interval, mean_ci, nan_if_none, resamples
 from .false_alarms import summarise_false_alarms
-from .timing import ChainTimer, feature_timing
-
-__all__ = [
-    "ALPHA",
-    "LAMBDA",
-    "N_PREDICTIONS",
-    "PAPER_TABLE2",
-    "expected_units",
-    "pattern_seed",
-    "run_pattern",
-    "prediction_instants",
-    "select_prediction_flights",
-    "pattern_prognosis",
-    "summarise_prognosis",
-    "summarise_detection",
-    "confusion",
-    "evaluate_patterns",
-    "evaluate_campaign",
-    "model_identity",
-    "summary_document",
-]
 
 ALPHA = 0.2
 LAMBDA = 0.5
@@ -130,90 +53,12 @@ N_PREDICTIONS = 10
 POINT_ESTIMATE = "median"
 _POINT_ESTIMATES = ("median", "mode")
 UNDETECTED = "undetected"
-#: bootstrap of the figures over patterns: resamples, central level, seed (reproducible)
-N_BOOT = 2000
-CI_LEVEL = 0.9
-BOOTSTRAP_SEED = 0
-SUMMARY_FORMAT = "ema-evaluation-summary/1"
-
-Progress = Callable[[int, int], None]
 
 
 def expected_units(mode: str, position: str | None, pair_rod_ends: bool = False) -> set[str]:
     """Actuators expected to alarm for a fault (both winglet actuators for rod-end wear on an
     active-active tab)."""
     return alarming_positions(mode, position, pair_rod_ends=pair_rod_ends)
-
-
-def pattern_seed(pattern_id: str) -> int:
-    """Filter seed of a pattern: a stable hash of its id (independent of worker count)."""
-    return zlib.crc32(pattern_id.encode()) & 0x7FFFFFFF
-
-
-def _noise_free_hook(model: PhmModel, pattern: Pattern, severity_norm: float
-                     ) -> MeasurementHook:
-    """The faulty actuator's own feature (the pattern's mode's) replaced by its noise-free
-    value h(true severity) of the trained measurement model; a flight without a value stays
-    without, the other actuators and features are untouched."""
-    spec = model.measurement[pattern.mode]
-    position = str(pattern.position)
-    value = float(spec.model_for(position).predict(np.array([severity_norm]))[0])
-
-    def hook(pos: str, values: dict[str, float]) -> dict[str, float]:
-        if pos != position or values.get(spec.feature) is None:
-            return values
-        return {**values, spec.feature: value}
-
-    return hook
-
-
-def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None = None,
-                noise_free: bool = False) -> dict[str, Any]:
-    """Run the chain over one pattern; return its per-flight trace (JSON-safe).
-
-    Per flight: the faulty actuator's alarm, class probabilities, mode in use and RUL quantiles,
-    plus the positions alarmed and newly alarmed (all three actuators are monitored).
-    ``noise_free``: from the fault's onset, the prognosis of the faulty actuator sees its
-    mode's own feature without noise, h(true severity) (an error budget: what is left is the
-    degradation law's extrapolation; detection and classification see the real features).
-    """
-    health = {pos: model.new_health(pos) for pos in POSITIONS}
-    seed = pattern_seed(pattern.id)
-    faulty = pattern.position if pattern.mode != "healthy" else None
-    budget = noise_free and faulty is not None and pattern.mode in model.measurement
-    onset = int(pattern.onset_flight or 0)
-    flights: list[dict[str, Any]] = []
-    for rec in pattern.flights:
-        hook = (_noise_free_hook(model, pattern, rec.severity_norm)
-                if budget and rec.index >= onset else None)
-        with timer.span("chain") if timer is not None else nullcontext():
-            out = analyze_flight(model, rec.features, health, seed=seed, flight_index=rec.index,
-                                 started_at=rec.started_at, base=pattern.base,
-                                 measurement_hook=hook)
-        o = out.get(faulty) if faulty else None
-        flights.append({
-            "index": rec.index,
-            "severity_norm": rec.severity_norm,
-            "true_rul": rec.true_rul_flights,
-            "alarms": sorted(p for p, v in out.items() if v.alarm),
-            "new_alarms": sorted(p for p, v in out.items() if v.new_alarm),
-            "alarm": bool(o.alarm) if o is not None else None,
-            "probs": dict(o.class_probabilities) if o is not None and o.class_probabilities
-            else None,
-            "fault_mode": o.fault_mode if o is not None else None,
-            "rul": o.rul.to_dict() if o is not None and o.rul is not None else None,
-            "sensor": sorted({f"{x['channel']} {x['metric']}" for v in out.values()
-                              for x in v.sensor_findings}),
-        })
-    return {"id": pattern.id, "aircraft": pattern.aircraft, "mode": pattern.mode,
-            "position": pattern.position, "onset": pattern.onset_flight,
-            "failure": pattern.failure_flight, "seed": seed,
-            "pair_rod_ends": reads_rod_ends_as_pair(pattern),
-            "horizon": float(model.prognoser.max_horizon_flights), "flights": flights}
-
-
-# ----------------------------------------------------------------------------------------------
-# detection and classification
 
 
 def _onset(trace: Mapping[str, Any]) -> int:
@@ -292,9 +137,9 @@ def summarise_detection(traces: Sequence[Mapping[str, Any]],
     fa_events = sum(d["false_alarms"] for _, d in dets)
     h_flights = sum(d["healthy_flights"] for _, d in dets)
     clusters = [d for _, d in dets if d["healthy_flights"] > 0]
-    rate_ci = _interval([d["false_alarms"] / d["healthy_flights"] for d in clusters],
-                        _indices(len(clusters)),
-                        weights=[d["healthy_flights"] for d in clusters])
+    rate_ci = interval([d["false_alarms"] / d["healthy_flights"] for d in clusters],
+                       resamples(len(clusters)),
+                       weights=[d["healthy_flights"] for d in clusters])
     fa = {"healthy_patterns": len(healthy),
           "healthy_patterns_with_alarm": sum(1 for _, d in healthy if d["false_alarms"] > 0),
           "healthy_flights": h_flights, "false_alarm_events": fa_events,
@@ -314,17 +159,17 @@ def summarise_detection(traces: Sequence[Mapping[str, Any]],
 def _mode_detection(rows: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]]
                     ) -> dict[str, Any]:
     """Detection figures of one mode's patterns (undetected ones have no time)."""
-    idx = _indices(len(rows))
+    idx = resamples(len(rows))
     found = [d for _, d in rows if d["detected_index"] is not None]
     hit = [float(d["detected_index"] is not None) for _, d in rows]
-    pct = [_nan(d["pct_life"]) for _, d in rows]
-    aft = [_nan(d["flights_after_onset"]) for _, d in rows]
+    pct = [nan_if_none(d["pct_life"]) for _, d in rows]
+    aft = [nan_if_none(d["flights_after_onset"]) for _, d in rows]
     out: dict[str, Any] = {"patterns": len(rows), "detected": len(found)}
-    out.update(_mean_ci("rate", hit, idx))
-    out.update(_mean_ci("pct_life_mean", pct, idx))
-    out["pct_life_max"] = _max(pct)
-    out.update(_mean_ci("flights_after_onset_mean", aft, idx))
-    out["flights_after_onset_max"] = _max(aft)
+    out.update(mean_ci("rate", hit, idx))
+    out.update(mean_ci("pct_life_mean", pct, idx))
+    out["pct_life_max"] = finite_max(pct)
+    out.update(mean_ci("flights_after_onset_mean", aft, idx))
+    out["flights_after_onset_max"] = finite_max(aft)
     out["other_unit_alarms"] = sum(d["other_unit_alarms"] for _, d in rows)
     out["missed"] = [t["id"] for t, d in rows if d["detected_index"] is None]
     return out
@@ -339,9 +184,12 @@ def confusion(true: Sequence[str], predicted: Sequence[str], classes: Sequence[s
     """
     cols = [*classes, UNDETECTED]
     rows = [c for c in classes if c in set(true)] + sorted(set(true) - set(classes))
-    m = np.zeros((len(rows), len(cols)), dtype=int)
-    for t, p in zip(true, predicted, strict=True):
-        m[rows.index(t), cols.index(p if p in cols else UNDETECTED)] += 1
+    # counted by the classifier's report (the one owner of the matrix) over every label of
+    # either axis; this view keeps the true modes seen as rows and the undetected column
+    axes = cols + [r for r in rows if r not in cols]
+    counts = np.asarray(count_confusion(
+        list(true), [p if p in cols else UNDETECTED for p in predicted], axes)["counts"])
+    m = counts[np.ix_([axes.index(r) for r in rows], [axes.index(c) for c in cols])]
     correct = np.array([float(t in cols and p == t) for t, p in zip(true, predicted,
                                                                      strict=True)])
     labels = np.array(list(true), dtype=object)
@@ -353,12 +201,12 @@ def confusion(true: Sequence[str], predicted: Sequence[str], classes: Sequence[s
         col_total = int(m[:, j].sum()) if j is not None else 0
         mine = correct[labels == c]
         per_class[c] = {"n": n, "recall": tp / n if n else None,
-                        "recall_ci": _interval(mine, _indices(mine.size)),
+                        "recall_ci": interval(mine, resamples(mine.size)),
                         "precision": tp / col_total if col_total else None}
     total = int(m.sum())
     return {"rows": rows, "columns": cols, "matrix": m.tolist(),
             "accuracy": float(correct.sum()) / total if total else None,
-            "accuracy_ci": _interval(correct, _indices(correct.size)),
+            "accuracy_ci": interval(correct, resamples(correct.size)),
             "per_class": per_class}
 
 
@@ -394,10 +242,6 @@ def probability_calibration(true: Sequence[str], probs: Sequence[Mapping[str, fl
             "accuracy": float(right.mean()),
             "log_loss": float(-np.mean(np.log(np.clip(truth, 1e-12, None)))),
             "at_least_99pct": int(np.sum(top >= 0.99))}
-
-
-# ----------------------------------------------------------------------------------------------
-# prognosis
 
 
 def prediction_instants(t_detect: float, t_eol: float, n: int = N_PREDICTIONS) -> np.ndarray:
@@ -570,7 +414,7 @@ def summarise_prognosis(traces: Sequence[Mapping[str, Any]], *, alpha: float = A
                 for t in rows]
         for p, a in zip(pats, alts, strict=True):
             p["most_probable"] = {k: a[k] for k in _MOST_PROBABLE_KEYS}
-        out[mode] = _mode_prognosis(mode, pats, _indices(len(pats)))
+        out[mode] = _mode_prognosis(mode, pats, resamples(len(pats)))
     return out
 
 
@@ -579,20 +423,20 @@ def _mode_prognosis(mode: str, pats: Sequence[dict[str, Any]], idx: np.ndarray
     """One mode's averages of its patterns' metrics, each with its bootstrap interval."""
     ras = [p["ra"] for p in pats if p["ra"] is not None]
     r: dict[str, Any] = {}
-    r.update(_mean_ci("ph", [p["ph"] for p in pats], idx))
-    r.update(_mean_ci("ph_cone", [p["ph_cone"] for p in pats], idx))
-    r.update(_mean_ci("ph_from_detection", [p["ph_from_detection"] for p in pats], idx))
-    r.update(_mean_ci("ra", [_nan(p["ra"]) for p in pats], idx, scale=100.0))
-    r.update(_mean_ci("ra_fraction", [_nan(p["ra"]) for p in pats], idx))
+    r.update(mean_ci("ph", [p["ph"] for p in pats], idx))
+    r.update(mean_ci("ph_cone", [p["ph_cone"] for p in pats], idx))
+    r.update(mean_ci("ph_from_detection", [p["ph_from_detection"] for p in pats], idx))
+    r.update(mean_ci("ra", [nan_if_none(p["ra"]) for p in pats], idx, scale=100.0))
+    r.update(mean_ci("ra_fraction", [nan_if_none(p["ra"]) for p in pats], idx))
     r["ra_median_pattern"] = 100.0 * float(np.median(ras)) if ras else None
-    r.update(_mean_ci("alpha_lambda", [float(p["alpha_lambda"]) for p in pats], idx))
-    r.update(_mean_ci("cra", [_nan(p["cra"]) for p in pats], idx))
-    r.update(_mean_ci("convergence", [_nan(p["convergence"]) for p in pats], idx))
+    r.update(mean_ci("alpha_lambda", [float(p["alpha_lambda"]) for p in pats], idx))
+    r.update(mean_ci("cra", [nan_if_none(p["cra"]) for p in pats], idx))
+    r.update(mean_ci("convergence", [nan_if_none(p["convergence"]) for p in pats], idx))
     r["calibration"] = _calibration([p["calibration"] for p in pats], idx)
     mp: dict[str, Any] = {"point_estimate": "mode"}
     for key in _MOST_PROBABLE_KEYS:
-        vals = [_nan(p["most_probable"][key]) for p in pats]
-        mp.update(_mean_ci(key, vals, idx, scale=100.0 if key == "ra" else 1.0))
+        vals = [nan_if_none(p["most_probable"][key]) for p in pats]
+        mp.update(mean_ci(key, vals, idx, scale=100.0 if key == "ra" else 1.0))
     r["most_probable"] = mp
     r["n_patterns"] = len(pats)
     r["n_with_predictions"] = sum(1 for p in pats if p["predictions"])
@@ -610,237 +454,10 @@ def _calibration(counts: Sequence[Mapping[str, int]], idx: np.ndarray) -> dict[s
     for key, hits in (("central_50", "in_50"), ("central_90", "in_90")):
         h = np.array([c[hits] for c in counts], dtype=float)
         rate = np.divide(h, n, out=np.full_like(h, np.nan), where=n > 0)
-        out.update(_mean_ci(key, rate, idx, weights=n))
+        out.update(mean_ci(key, rate, idx, weights=n))
     for level in ("50", "90"):
         nw = np.array([c.get(f"n_width_{level}", 0) for c in counts], dtype=float)
         ws = np.array([c.get(f"width_{level}_sum", 0.0) for c in counts], dtype=float)
         mean_w = np.divide(ws, nw, out=np.full_like(ws, np.nan), where=nw > 0)
-        out.update(_mean_ci(f"width_{level}_flights", mean_w, idx, weights=nw))
-    return out
-
-
-# ----------------------------------------------------------------------------------------------
-# bootstrap intervals (resampling patterns)
-
-
-def _indices(n: int) -> np.ndarray:
-    """The (N_BOOT, n) resampling matrix of ``n`` patterns (the same for every figure)."""
-    return metrics.bootstrap_indices(n, n_boot=N_BOOT, seed=BOOTSTRAP_SEED)
-
-
-def _nan(v: float | None) -> float:
-    return math.nan if v is None else float(v)
-
-
-def _max(values: Sequence[float]) -> float | None:
-    v = [x for x in values if math.isfinite(x)]
-    return float(max(v)) if v else None
-
-
-def _interval(values: Sequence[float] | np.ndarray, idx: np.ndarray, *,
-              weights: Sequence[float] | np.ndarray | None = None, scale: float = 1.0
-              ) -> list[float] | None:
-    """[lo, hi] of the bootstrap interval (times ``scale``), None without values."""
-    if len(values) == 0:
-        return None
-    ci = metrics.bootstrap_mean_interval(values, weights=weights, level=CI_LEVEL,
-                                         indices=idx)
-    return None if ci is None else [scale * ci[0], scale * ci[1]]
-
-
-def _mean_ci(key: str, values: Sequence[float] | np.ndarray, idx: np.ndarray, *,
-             weights: Sequence[float] | np.ndarray | None = None, scale: float = 1.0
-             ) -> dict[str, Any]:
-    """``{key: mean, key_ci: [lo, hi]}``: the (weighted) mean of the finite values (NaN:
-    missing), times ``scale``; None and None without any."""
-    v = np.asarray(values, dtype=float)
-    w = np.ones_like(v) if weights is None else np.asarray(weights, dtype=float)
-    ok = np.isfinite(v) & (w > 0)
-    mean = scale * float(np.dot(w[ok], v[ok]) / w[ok].sum()) if ok.any() else None
-    return {key: mean, f"{key}_ci": _interval(v, idx, weights=weights, scale=scale)}
-
-
-# ----------------------------------------------------------------------------------------------
-# running
-
-
-_WORKER_MODEL: PhmModel | None = None
-_WORKER_NOISE_FREE = False
-
-
-def _init_worker(model_doc: dict[str, Any], noise_free: bool = False) -> None:
-    global _WORKER_MODEL, _WORKER_NOISE_FREE
-    _WORKER_MODEL = PhmModel.from_dict(model_doc)
-    _WORKER_NOISE_FREE = noise_free
-
-
-def _work(pattern: Pattern) -> tuple[dict[str, Any], dict[str, Any]]:
-    if _WORKER_MODEL is None:
-        raise RuntimeError("the evaluation worker has no model: _init_worker was not run")
-    timer = ChainTimer()
-    with timer.instrument():
-        trace = run_pattern(_WORKER_MODEL, pattern, timer=timer, noise_free=_WORKER_NOISE_FREE)
-    return trace, timer.to_dict()
-
-
-def evaluate_patterns(model: PhmModel, patterns: Sequence[Pattern], *, jobs: int = 1,
-                      progress: Progress | None = None, noise_free: bool = False
-                      ) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """Traces of all patterns (in the given order) and the merged chain timings.
-
-    The model goes to the workers as its JSON document (and is rebuilt from it in the serial
-    case too), so the results do not depend on ``jobs``. ``noise_free``: see
-    :func:`run_pattern`.
-    """
-    doc = model.to_dict()
-    order = sorted(range(len(patterns)), key=lambda i: -len(patterns[i].flights))
-    results: dict[int, tuple[dict[str, Any], dict[str, Any]]] = {}
-    if jobs <= 1:
-        _init_worker(doc, noise_free)
-        for k, i in enumerate(order):
-            results[i] = _work(patterns[i])
-            if progress is not None:
-                progress(k + 1, len(patterns))
-    else:
-        with ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker,
-                                 initargs=(doc, noise_free)) as ex:
-            futs = {ex.submit(_work, patterns[i]): i for i in order}
-            for k, fut in enumerate(as_completed(futs)):
-                results[futs[fut]] = fut.result()
-                if progress is not None:
-                    progress(k + 1, len(patterns))
-    traces = [results[i][0] for i in range(len(patterns))]
-    timing = ChainTimer.merge([results[i][1] for i in range(len(patterns))])
-    return traces, timing
-
-
-def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, jobs: int = 1,
-                      progress: Progress | None = None, timing_flights: int = 6,
-                      campaign: Campaign | None = None,
-                      point_estimate: str = POINT_ESTIMATE,
-                      noise_free: bool = False) -> dict[str, Any]:
-    """Run the chain over every pattern of a campaign and score it (JSON-safe dict).
-
-    ``timing_flights`` flights are re-read and their features recomputed (serially) to time
-    feature extraction; 0 skips that measurement. ``point_estimate``: the RUL the prognostic
-    metrics score, "median" or "mode". ``noise_free``: the prognosis sees noise-free own
-    features (an error budget, :func:`run_pattern`).
-    """
-    root = Path(campaign_dir)
-    camp = campaign or load_campaign(root, jobs=max(jobs, 1))
-    traces, chain_timing = evaluate_patterns(model, camp.patterns, jobs=jobs, progress=progress,
-                                             noise_free=noise_free)
-    classes = ([str(c) for c in model.classifier.classes_.tolist()]
-               if model.classifier is not None else [])
-    feat = feature_timing(root, n_flights=timing_flights) if timing_flights > 0 else None
-    manifest = json.loads((root / "manifest.json").read_text())
-    return {
-        "format": "ema-evaluation/1",
-        "campaign": {"dir": str(root.resolve()), "kind": camp.kind, "seed": camp.seed,
-                     "scale": manifest.get("scale"), "render_every": manifest.get("render_every"),
-                     "duration_s": manifest.get("duration_s"),
-                     "patterns": len(camp.patterns), "partial": manifest.get("partial"),
-                     "flights": sum(len(p.flights) for p in camp.patterns),
-                     "aircraft": [{"tail": a.get("tail"), "base": a.get("base"),
-                                   "climate": a.get("climate")} for a in camp.aircraft]},
-        "model": model_identity(model),
-        "settings": {"alpha": ALPHA, "lambda": LAMBDA, "n_predictions": N_PREDICTIONS,
-                     "point_estimate": point_estimate, "ph_normalisation": "failure - onset",
-                     "ph": "Saxena: every later point estimate within true RUL +- alpha x life",
-                     "ph_cone": "every later point estimate within (1 +- alpha) x true RUL",
-                     "prognosis_features": "noise-free h(true severity)" if noise_free
-                     else "measured",
-                     "cra_weights": "1..n (growing toward end of life)",
-                     "convergence_axis": "(t - onset) / life",
-                     "calibration": "true RUL within q25..q75 (central_50) and q05..q95 "
-                                    "(central_90) of the RUL distribution at the selected "
-                                    "predictions; none counts as a miss; width_*_flights: "
-                                    "mean width of those intervals where finite",
-                     "bootstrap": {"resamples": N_BOOT, "level": CI_LEVEL,
-                                   "seed": BOOTSTRAP_SEED, "unit": "pattern",
-                                   "interval": "percentile"},
-                     "jobs": jobs},
-        "detection": summarise_detection(traces, model.detector.false_alarm_rate),
-        "classification": classification_summary(traces, classes),
-        "prognosis": summarise_prognosis(traces, point_estimate=point_estimate),
-        "sensors": summarise_sensors(traces),
-        "timing": _timing_summary(chain_timing, feat, model),
-        "patterns": traces,
-    }
-
-
-def model_identity(model: PhmModel) -> dict[str, Any]:
-    """Format and SHA-256 of the model's JSON document (keys sorted): which model was scored."""
-    doc = model.to_dict()
-    text = json.dumps(doc, sort_keys=True, default=lambda o: o.tolist()
-                      if hasattr(o, "tolist") else str(o))
-    return {"format": doc.get("format"),
-            "sha256": hashlib.sha256(text.encode()).hexdigest()}
-
-
-#: model fields copied into the summary (the rest, e.g. the training report, stays out)
-_SUMMARY_MODEL_KEYS = ("format", "sha256", "source", "model_id", "training_s",
-                       "classifier_accuracy")
-
-
-def summary_document(result: Mapping[str, Any]) -> dict[str, Any]:
-    """The evaluation's figures without per-flight traces or per-pattern prediction lists
-    (``summary.json``; shape in the module docstring). Key order is fixed by construction."""
-    model = result.get("model") or {}
-    return {
-        "format": SUMMARY_FORMAT,
-        "evaluation_format": result.get("format"),
-        "created_at": result.get("created_at"),
-        "campaign": result.get("campaign"),
-        "model": {k: model[k] for k in _SUMMARY_MODEL_KEYS if k in model},
-        "settings": result.get("settings"),
-        "detection": result["detection"],
-        "classification": result["classification"],
-        "prognosis": {m: {k: v for k, v in r.items() if k != "patterns"}
-                      for m, r in result["prognosis"].items()},
-        "sensors": result.get("sensors"),
-        "timing": result.get("timing"),
-        "wall_s": result.get("wall_s"),
-    }
-
-
-def _timing_summary(chain: Mapping[str, Any], feat: Mapping[str, Any] | None,
-                    model: PhmModel) -> dict[str, Any]:
-    def mean_ms(key: str) -> float | None:
-        c = chain.get(key)
-        return 1e3 * c["total_s"] / c["calls"] if c and c["calls"] else None
-
-    out: dict[str, Any] = {
-        "calls": {k: v["calls"] for k, v in chain.items()},
-        "chain_per_flight_ms": mean_ms("chain"),
-        "zscores_per_flight_ms": mean_ms("zscores"),
-        "detector_update_ms": mean_ms("detector"),
-        "classifier_ms": mean_ms("classifier"),
-        "pf_update_ms": mean_ms("pf_update"),
-        "rls_ms": mean_ms("rls"),
-        "pf_predict_ms": mean_ms("pf_predict"),
-        "n_particles": model.prognoser.n_particles,
-    }
-    upd, rls, pred = out["pf_update_ms"], out["rls_ms"], out["pf_predict_ms"]
-    if upd and pred and rls is not None:
-        out["pf_cycle_ms"] = upd + pred
-        out["rls_share_pct"] = 100.0 * rls / (upd + pred)
-        out["rls_share_of_update_pct"] = 100.0 * rls / upd
-    det_flight = None
-    if out["zscores_per_flight_ms"] is not None and out["detector_update_ms"] is not None:
-        per_flight_units = chain["detector"]["calls"] / max(chain["zscores"]["calls"], 1)
-        det_flight = out["zscores_per_flight_ms"] + out["detector_update_ms"] * per_flight_units
-        out["detection_per_flight_ms"] = det_flight
-    if feat is not None:
-        out["features"] = dict(feat)
-        steps = feat.get("steps_80hz_mean")
-        if steps:
-            out["features_per_step_ms"] = feat["features_per_flight_ms"] / steps
-            out["read_per_step_ms"] = feat["read_per_flight_ms"] / steps
-            if det_flight is not None:
-                out["detection_per_step_ms"] = det_flight / steps
-                out["features_detection_per_step_ms"] = (
-                    feat["features_per_flight_ms"] + det_flight) / steps
-    out["paper"] = {"features_detection_per_step_ms": 11.3, "pf_cycle_ms": 7.4,
-                    "rls_share_pct": 2.25}
+        out.update(mean_ci(f"width_{level}_flights", mean_w, idx, weights=nw))
     return out
