@@ -389,6 +389,17 @@ CONDITION_BOUNDS: dict[str, tuple[float, float]] = {
     "command_scale": (0.0, 3.0)}
 #: kinds whose low bound is excluded (a scale of 0 is no load or no motion, not a condition)
 _OPEN_LOW = ("load_scale", "command_scale")
+#: the unit of a condition's value (the scales are factors, without one)
+CONDITION_UNITS = {"ambient_offset": "K", "load_offset": "N"}
+
+
+def condition_range(kind: str) -> str:
+    """A condition kind's bounds in words, e.g. ``above 0 and at most 3``: the schema's
+    description, its error message and the dashboard's hint say the same."""
+    low, high = CONDITION_BOUNDS[kind]
+    unit = f" {CONDITION_UNITS[kind]}" if kind in CONDITION_UNITS else ""
+    side = "above" if kind in _OPEN_LOW else "at least"
+    return f"{side} {low:g}{unit} and at most {high:g}{unit}"
 
 
 class ConditionCreate(BaseModel):
@@ -399,9 +410,8 @@ class ConditionCreate(BaseModel):
         "load_scale: the hinge load's scale (eq. 1 sigma_F, multiplied); load_offset: N added "
         "to every actuator's hinge load (eq. 1 sigma_F0); command_scale: the commanded "
         "motion's scale (eq. 1 sigma_x, multiplied); base: fly from that base's climate")
-    value: float | None = Field(None, allow_inf_nan=False, description=(
-        "ambient_offset within +-30 K; load_scale and command_scale above 0 and at most 3; "
-        "load_offset within +-1000 N; none for a base"))
+    value: float | None = Field(None, allow_inf_nan=False, description="; ".join(
+        f"{kind} {condition_range(kind)}" for kind in CONDITION_BOUNDS) + "; none for a base")
     base: str | None = Field(None, description="kind base only: one of " + ", ".join(BASES))
     onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
                               description="Aircraft flight number it starts at; 0 = the next "
@@ -429,11 +439,7 @@ def condition_problem(kind: str, value: float | None, base: str | None) -> str |
         return f"a {kind} condition needs a value"
     low, high = CONDITION_BOUNDS[kind]
     inside = (low < value if kind in _OPEN_LOW else low <= value) and value <= high
-    if not inside:
-        unit = {"ambient_offset": " K", "load_offset": " N"}.get(kind, "")
-        side = "above" if kind in _OPEN_LOW else "at least"
-        return f"{kind} must be {side} {low:g}{unit} and at most {high:g}{unit}"
-    return None
+    return None if inside else f"{kind} must be {condition_range(kind)}"
 
 
 # ---------------------------------------------------------------------------------------------

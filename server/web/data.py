@@ -12,11 +12,19 @@ import json
 import math
 import sys
 import time
+from functools import cache
 from pathlib import Path
 from typing import Any
 
+from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
+from server.schemas import (
+    CONDITION_UNITS,
+    SENSOR_INJECTION_KINDS,
+    ConditionCreate,
+    SensorInjectionCreate,
+)
 from server.services import analysis as analysis_service
 from server.services import conditions as condition_service
 from server.services import fleet as fleet_service
@@ -29,16 +37,20 @@ from server.services import test_station as station_service
 from server.services import urgency as urgency_rule
 from server.services.evaluation_status import read_progress
 from server.vocabulary import (
+    BASES,
+    CONDITION_KINDS,
     FAULT_MODES,
     OWN_FEATURE,
     PAPER_TABLE2,
     POSITIONS,
     PROGRESSIVE,
     SENSOR_OF_SIGNAL,
+    SENSORS,
 )
 
 __all__ = ["STATUS_RANK", "fleet_view", "failed_flights", "alarms_view", "actuator_view",
-           "models_view", "station_view", "evaluation_view", "health_dict", "prognosis_dict"]
+           "models_view", "station_view", "station_forms", "evaluation_view", "health_dict",
+           "prognosis_dict"]
 
 #: the grid's colours, most urgent first (the urgency rule's buckets, server.services.urgency)
 STATUS_RANK = {urgency_rule.COLOUR[b]: i for i, b in enumerate(urgency_rule.BUCKETS)}
@@ -359,6 +371,41 @@ def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
             "positions": POSITIONS, "modes": FAULT_MODES,
             "progressive": PROGRESSIVE, "sensor_items": _sensor_items(session, limit),
             "condition_items": _condition_items(session, limit)}
+
+
+#: what the sensor form's value means for each kind (the bounds are the schema's, in its hint)
+SENSOR_KIND_LABELS = {"noise": "noise × factor", "drift": "drift per flight [m]",
+                      "quantisation": "quantisation step", "stuck": "stuck at",
+                      "clipped": "clipped at"}
+
+
+@cache  # the schemas' and the vocabulary's: fixed while the process runs
+def station_forms() -> dict[str, Any]:
+    """What the station page's sensor and condition forms offer: the API's vocabulary, and
+    hints and bounds from its schemas (the server validates with the same schemas)."""
+    return {"sensors": SENSORS, "bases": BASES,
+            "sensor_kinds": {k: SENSOR_KIND_LABELS.get(k, k) for k in SENSOR_INJECTION_KINDS},
+            "condition_kinds": {k: _condition_label(k) for k in CONDITION_KINDS},
+            "hints": {"sensor": _hints(SensorInjectionCreate),
+                      "condition": _hints(ConditionCreate)},
+            "onset": {"sensor": _int_bounds(SensorInjectionCreate, "onset_flight"),
+                      "condition": _int_bounds(ConditionCreate, "onset_flight")}}
+
+
+def _condition_label(kind: str) -> str:
+    unit = CONDITION_UNITS.get(kind)
+    return kind.replace("_", " ") + (f" [{unit}]" if unit else "")
+
+
+def _hints(schema: type[BaseModel]) -> dict[str, str]:
+    return {name: f.description for name, f in schema.model_fields.items() if f.description}
+
+
+def _int_bounds(schema: type[BaseModel], name: str) -> dict[str, int]:
+    """A field's bounds in the API's JSON schema as an input's ``min`` / ``max`` (the
+    browser's first check; the server's is the schema itself)."""
+    field = schema.model_json_schema()["properties"][name]
+    return {"min": field["minimum"], "max": field["maximum"]}
 
 
 def _sensor_items(session: Session, limit: int) -> list[dict[str, Any]]:

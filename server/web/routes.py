@@ -26,7 +26,7 @@ import plotly
 from fastapi import APIRouter, Form, Request
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 import web
 from server.auth import (
@@ -46,7 +46,9 @@ from server.schemas import (
     ActuatorDefer,
     ActuatorInspect,
     ActuatorReplace,
+    ConditionCreate,
     InjectionCreate,
+    SensorInjectionCreate,
 )
 from server.services import conditions as condition_service
 from server.services import health as health_service
@@ -400,44 +402,90 @@ def station_page(request: Request, session: SessionDep) -> Response:
     key = _key(request, session)
     if key is None:
         return _signin_redirect(request)
-    return _render(request, "test_station.html", key, error=None, form={},
-                   **data.station_view(session=session))
+    return _station(request, session, key)
+
+
+def _station(request: Request, session: SessionDep, key: ApiKey, status_code: int = 200,
+             error: str | None = None, failed: str | None = None,
+             form: dict[str, str] | None = None) -> HTMLResponse:
+    """The station page; after a refused post, its error beside the form that ``failed``
+    (``fault``, ``sensor``, ``condition``; None: a cancel) with what was typed in it."""
+    return _render(request, "test_station.html", key, status_code=status_code, error=error,
+                   failed=failed, forms={failed: form or {}} if failed else {},
+                   **data.station_view(session=session), **data.station_forms())
+
+
+def _create_on_station(request: Request, session: SessionDep, csrf: str, failed: str,
+                       form: dict[str, str], schema: type[BaseModel],
+                       create: Callable[[ApiKey, Any], object]) -> Response:
+    """An operator's create from a station form: the API's schema, then its service; the page
+    again with the form and the schema's or the service's message, or back to it once
+    committed."""
+    key = _check_post(request, session, csrf, "operate")
+    if not isinstance(key, ApiKey):
+        return key
+    try:
+        # form fields are strings: parsed as such, while JSON bodies keep strict integers;
+        # an empty field is an absent one (the schema's default)
+        body = schema.model_validate_strings({k: v.strip() for k, v in form.items()
+                                              if v.strip()})
+        create(key, body)
+    except ValidationError as exc:
+        session.rollback()
+        return _station(request, session, key, 422, _form_error(exc), failed, form)
+    except DomainError as exc:
+        session.rollback()
+        return _station(request, session, key, exc.status_code, exc.message, failed, form)
+    session.commit()
+    return RedirectResponse("/test-station", status_code=303)
 
 
 @router.post("/test-station/injections")
 def inject(request: Request, session: SessionDep, csrf: str = Form(""),
            aircraft: str = Form(""), position: str = Form(""), fault_mode: str = Form(""),
-           onset_flight: str = Form("0"), time_to_failure_flights: str = Form("")
+           onset_flight: str = Form(""), time_to_failure_flights: str = Form("")
            ) -> Response:
-    key = _check_post(request, session, csrf, "operate")
-    if not isinstance(key, ApiKey):
-        return key
-    form = {"aircraft": aircraft, "position": position, "fault_mode": fault_mode,
-            "onset_flight": onset_flight, "time_to_failure_flights": time_to_failure_flights}
-    raw = {"aircraft": aircraft, "position": position, "fault_mode": fault_mode,
-           "onset_flight": onset_flight or "0"}
-    if time_to_failure_flights:
-        raw["time_to_failure_flights"] = time_to_failure_flights
-    try:
-        # form fields are strings: parsed as such, while JSON bodies keep strict integers
-        body = InjectionCreate.model_validate_strings(raw)
-        station_service.create_injection(
+    def create(key: ApiKey, body: InjectionCreate) -> object:
+        return station_service.create_injection(
             session=session, tail=body.aircraft, position=body.position,
             fault_mode=body.fault_mode, onset_flight=body.onset_flight,
             time_to_failure_flights=body.time_to_failure_flights, severity=body.severity,
             created_by=key.name)
-    except ValidationError as exc:
-        msg = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"
-                        for e in exc.errors())
-        session.rollback()
-        return _render(request, "test_station.html", key, status_code=422, error=msg,
-                       form=form, **data.station_view(session=session))
-    except DomainError as exc:
-        session.rollback()
-        return _render(request, "test_station.html", key, status_code=exc.status_code,
-                       error=exc.message, form=form, **data.station_view(session=session))
-    session.commit()
-    return RedirectResponse("/test-station", status_code=303)
+
+    return _create_on_station(request, session, csrf, "fault", {
+        "aircraft": aircraft, "position": position, "fault_mode": fault_mode,
+        "onset_flight": onset_flight, "time_to_failure_flights": time_to_failure_flights},
+        InjectionCreate, create)
+
+
+@router.post("/test-station/sensor-injections")
+def degrade_sensor(request: Request, session: SessionDep, csrf: str = Form(""),
+                   aircraft: str = Form(""), position: str = Form(""), sensor: str = Form(""),
+                   kind: str = Form(""), value: str = Form(""), onset_flight: str = Form("")
+                   ) -> Response:
+    def create(key: ApiKey, body: SensorInjectionCreate) -> object:
+        return sensor_service.create(
+            session=session, tail=body.aircraft, position=body.position, sensor=body.sensor,
+            kind=body.kind, value=body.value, onset_flight=body.onset_flight,
+            created_by=key.name)
+
+    return _create_on_station(request, session, csrf, "sensor", {
+        "aircraft": aircraft, "position": position, "sensor": sensor, "kind": kind,
+        "value": value, "onset_flight": onset_flight}, SensorInjectionCreate, create)
+
+
+@router.post("/test-station/conditions")
+def set_condition(request: Request, session: SessionDep, csrf: str = Form(""),
+                  aircraft: str = Form(""), kind: str = Form(""), value: str = Form(""),
+                  base: str = Form(""), onset_flight: str = Form("")) -> Response:
+    def create(key: ApiKey, body: ConditionCreate) -> object:
+        return condition_service.create(
+            session=session, tail=body.aircraft, kind=body.kind, value=body.value,
+            base=body.base, onset_flight=body.onset_flight, created_by=key.name)
+
+    return _create_on_station(request, session, csrf, "condition", {
+        "aircraft": aircraft, "kind": kind, "value": value, "base": base,
+        "onset_flight": onset_flight}, ConditionCreate, create)
 
 
 @router.post("/test-station/injections/{injection_id}/cancel")
@@ -472,8 +520,7 @@ def _cancel_on_station(request: Request, session: SessionDep, csrf: str,
         cancel()
     except DomainError as exc:
         session.rollback()
-        return _render(request, "test_station.html", key, status_code=exc.status_code,
-                       error=exc.message, form={}, **data.station_view(session=session))
+        return _station(request, session, key, exc.status_code, exc.message)
     session.commit()
     return RedirectResponse("/test-station", status_code=303)
 

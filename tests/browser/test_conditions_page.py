@@ -118,3 +118,75 @@ def test_a_condition_listed_cancelled_and_marked_on_a_phone(live: Live, browser)
                          "document.documentElement.clientWidth") == 0
     assert console.errors == [], console.errors
     context.close()
+
+
+def test_an_operator_sets_conditions_from_the_form_on_a_phone(live: Live, browser) -> None:  # type: ignore[no-untyped-def]  # noqa: F811
+    tail = live.tails[1]
+    viewer = browser.new_context(viewport=PHONE)
+    page = viewer.new_page()
+    _sign_in(page, live.url, live.keys["viewer"])
+    page.goto(f"{live.url}/test-station")
+    assert page.locator("#condition-form").count() == 0
+    r = viewer.request.post(f"{live.url}/test-station/conditions", form={
+        "csrf": "x", "aircraft": tail, "kind": "load_scale", "value": "1.5"})
+    assert r.status == 403
+    viewer.close()
+
+    context = browser.new_context(viewport=PHONE)
+    page = context.new_page()
+    console = Console(page)
+    _sign_in(page, live.url, live.keys["operator"])
+    r = context.request.post(f"{live.url}/test-station/conditions", form={
+        "aircraft": tail, "kind": "load_scale", "value": "1.5"})  # the session, no CSRF token
+    assert r.status == 403
+    page.goto(f"{live.url}/test-station")
+    form = page.locator("#condition-form")
+    form.get_by_label("Aircraft").select_option(tail)
+    form.get_by_label("Kind").select_option("load_scale")
+    form.get_by_label("Value").fill("4")
+    form.get_by_role("button", name="Set condition").click()
+    error = page.locator("#condition-error")
+    error.wait_for()
+    assert "load_scale must be above 0 and at most 3" in error.inner_text()
+    assert _in_viewport(page, error)  # the page came back scrolled to its form
+    assert _api(live, "GET", URL, params={"aircraft": tail}).json()["items"] == []
+    overflow = page.evaluate("""() => [document.documentElement,
+        document.querySelector('#condition-form')].map(e => e.scrollWidth - e.clientWidth)""")
+    assert overflow == [0, 0], overflow  # page, form
+    form = page.locator("#condition-form")
+    for field in ("Aircraft", "Kind", "Value", "Base", "Start flight"):
+        box = form.get_by_label(field).bounding_box()
+        assert box is not None and box["x"] >= 0 and box["x"] + box["width"] <= PHONE["width"]
+    form.scroll_into_view_if_needed()
+    _shot(page, "test-station-condition-form-390")
+    form.get_by_label("Value").fill("1.5")
+    form.get_by_role("button", name="Set condition").click()
+    page.wait_for_url(re.compile(r"/test-station(#condition-form)?$"))
+    # a base: no value, one of the vocabulary's bases
+    form = page.locator("#condition-form")
+    form.get_by_label("Aircraft").select_option(tail)
+    form.get_by_label("Kind").select_option("base")
+    form.get_by_label("Base").select_option("Vancouver")
+    form.get_by_label("Start flight").fill("12")
+    form.get_by_role("button", name="Set condition").click()
+    page.wait_for_url(re.compile(r"/test-station(#condition-form)?$"))
+    made = {c["kind"]: c for c in _api(live, "GET", URL, params={"aircraft": tail}
+                                       ).json()["items"]}
+    assert (made["load_scale"]["value"], made["load_scale"]["onset_flight"]) == (1.5, 0)
+    assert (made["base"]["base"], made["base"]["onset_flight"]) == ("Vancouver", 12)
+    for c, what in ((made["load_scale"], "load_scale 1.5"), (made["base"], "base Vancouver")):
+        row = page.locator(f"#condition-{c['id']}")
+        assert what in row.inner_text() and "pending" in row.inner_text()
+    # one live per kind: the service's 409, on the page
+    form = page.locator("#condition-form")
+    form.get_by_label("Aircraft").select_option(tail)
+    form.get_by_label("Kind").select_option("load_scale")
+    form.get_by_label("Value").fill("2")
+    form.get_by_role("button", name="Set condition").click()
+    page.locator("#condition-error").wait_for()
+    assert "already has a live load_scale condition" in page.locator(
+        "#condition-error").inner_text()
+    # the refused posts' pages came with their 422 and 409, which the browser logs
+    assert [e for e in console.errors if not re.search("status of (422|409)", e)] == [], \
+        console.errors
+    context.close()

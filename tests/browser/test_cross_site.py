@@ -186,9 +186,10 @@ def test_the_signed_in_dashboard_still_writes(site: Site, browser) -> None:  # t
     console = Console(page)
     _sign_in(page, site.url, site.admin)
     page.goto(f"{site.url}/test-station")  # a dashboard form post
-    page.get_by_label("Aircraft").select_option(TAIL)
-    page.get_by_label("Position").select_option("WT")
-    page.get_by_label("Fault mode").select_option("SE")
+    form = page.locator("#inject-form")
+    form.get_by_label("Aircraft").select_option(TAIL)
+    form.get_by_label("Position").select_option("WT")
+    form.get_by_label("Fault mode").select_option("SE")
     page.get_by_role("button", name="Inject fault").click()
     page.wait_for_url(f"{site.url}/test-station")
     assert page.locator("#injection-table tbody tr", has_text=TAIL).count() == 1

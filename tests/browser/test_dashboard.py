@@ -162,11 +162,12 @@ def test_admin_flow_live_alarm_acknowledge_figures_inject(live: Live, browser) -
 
     # inject a fault from the test station and see it listed
     page.goto(f"{url}/test-station")
-    page.get_by_label("Aircraft").select_option(live.tails[2])
-    page.get_by_label("Position").select_option("WL2")
-    page.get_by_label("Fault mode").select_option("MTWEAR")
-    page.get_by_label("Onset flight").fill("5")
-    page.get_by_label("Time to failure [flights]").fill("200")
+    form = page.locator("#inject-form")
+    form.get_by_label("Aircraft").select_option(live.tails[2])
+    form.get_by_label("Position").select_option("WL2")
+    form.get_by_label("Fault mode").select_option("MTWEAR")
+    form.get_by_label("Onset flight").fill("5")
+    form.get_by_label("Time to failure [flights]").fill("200")
     page.get_by_role("button", name="Inject fault").click()
     page.wait_for_url(f"{url}/test-station")
     listed = page.locator("#injection-table tbody tr", has_text=live.tails[2])
@@ -364,10 +365,11 @@ def test_a_pair_alarm_and_a_cancelled_injection_in_the_browser(live: Live, brows
     assert page.locator(f"#alarm-{wl1}, #alarm-{wl2}").count() == 0  # both left "open"
 
     page.goto(f"{live.url}/test-station")
-    page.get_by_label("Aircraft").select_option(live.tails[1])
-    page.get_by_label("Position").select_option("WT")
-    page.get_by_label("Fault mode").select_option("MTEL")
-    page.get_by_label("Time to failure [flights]").fill("60")
+    form = page.locator("#inject-form")
+    form.get_by_label("Aircraft").select_option(live.tails[1])
+    form.get_by_label("Position").select_option("WT")
+    form.get_by_label("Fault mode").select_option("MTEL")
+    form.get_by_label("Time to failure [flights]").fill("60")
     page.get_by_role("button", name="Inject fault").click()
     page.wait_for_url(f"{live.url}/test-station")
     listed = page.locator("#injection-table tbody tr", has_text=live.tails[1]).first
