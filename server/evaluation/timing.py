@@ -13,12 +13,10 @@ Per 80 Hz step figures are per-flight times divided by the flight's number of 80
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
 
 __all__ = ["ChainTimer", "feature_timing"]
@@ -98,11 +96,11 @@ def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
 
     The flights are spread evenly over the manifest's list (deterministic choice).
     """
-    from server.campaigns import decode_log, log_features
+    from server.campaigns import campaign_store, decode_log, log_features, read_manifest
     from server.phm.features import FeatureConfig
 
-    root = Path(campaign_dir)
-    manifest = json.loads((root / "manifest.json").read_text())
+    root = campaign_store(campaign_dir)  # a directory or s3://bucket/prefix
+    manifest = read_manifest(root)
     files = [(fl["file"], fl.get("ground_temp_c")) for p in manifest["patterns"]
              for fl in p["flights"] if fl.get("file")]  # a streamed flight kept no file
     if not files:
@@ -114,7 +112,7 @@ def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
     steps = 0
     for f, ground in chosen:
         t0 = time.perf_counter()
-        log = decode_log((root / f).read_bytes(), f)
+        log = decode_log(root.read(f), f)
         t1 = time.perf_counter()
         log_features(log, config=cfg, ground_temp_c=ground)
         t2 = time.perf_counter()

@@ -15,6 +15,7 @@ from server.campaigns import FEATURE_CACHE, FeatureSink, decode_log, load_campai
 from sim_worker.campaign import SCALES, run_campaign
 from sim_worker.store import CampaignStore
 
+MODEL = Path(__file__).resolve().parents[2] / "docs" / "results" / "protocol_model.json"
 #: the ci scale (every flight, 30 s recordings) with two healthy patterns of six flights:
 #: with --per-mode 0, twelve flights
 SCALE = "ci-s3"
@@ -77,6 +78,13 @@ def test_a_dask_campaign_writes_to_s3_from_workers_that_share_no_directory(
     stored = json.loads(CampaignStore.at(url, server.endpoint).read(FEATURE_CACHE))["flights"]
     log = decode_log(CampaignStore.at(url, server.endpoint).read(kept[0]), kept[0])
     assert log.metadata.flight in stored
+    # and is evaluated from there, feature timing included (it reads kept logs back)
+    assert main(["evaluate", "--campaign", url, "--model-json", str(MODEL), "--jobs", "1",
+                 "--timing-flights", "2", "--no-latest", "--no-progress",
+                 "--out", str(tmp_path / "evaluation")]) == 0
+    result = json.loads((tmp_path / "evaluation" / "evaluation.json").read_text())
+    assert result["campaign"]["dir"] == url and result["campaign"]["flights"] == 12
+    assert result["timing"]["features"]["flights"] == 2
 
 
 _SIMULATED: list[str] = []
