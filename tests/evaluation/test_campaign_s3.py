@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from server.campaigns import FEATURE_CACHE, FeatureSink, decode_log, load_campaign, read_manifest
-from sim_worker.campaign import SCALES, run_campaign
+from sim_worker.campaign import SCALES, run_campaign, snapshot_campaign
 from sim_worker.store import CampaignStore
 
 MODEL = Path(__file__).resolve().parents[2] / "docs" / "results" / "protocol_model.json"
@@ -122,6 +122,13 @@ def test_an_interrupted_campaign_on_s3_resumes_without_simulating_finished_patte
         run(stop_on="V-healthy-02")  # the second pattern run; the first is finished
     assert set(server.keys(bucket)) >= {"cut/progress/settings.json", "cut/progress/0000.json"}
     assert not out.exists("manifest.json")
+    # the finished pattern scored while the run is stopped: its kept logs copied beside it
+    snap = out.child("snap")
+    part = snapshot_campaign(out, snap, sink=FeatureSink(keep_raw_every=4))
+    assert part["partial"] == {"patterns": 1, "of": 2}
+    kept = [f["file"] for p in part["patterns"] for f in p["flights"] if f["file"]]
+    assert kept and all(snap.read(k) == out.read(k) for k in kept)
+    assert [p.id for p in load_campaign(snap).patterns] == ["V-healthy-01"]
     _SIMULATED.clear()
     manifest = run()
     assert {f.rsplit("-", 1)[0] for f in _SIMULATED} == {"V-healthy-02"}
@@ -137,3 +144,14 @@ def test_a_malformed_s3_location_is_refused_before_any_simulation(capsys) -> Non
     code = main(["campaign", "--kind", "design", "--out", "s3://No_Such/bucket"])
     assert code == 2
     assert "s3://bucket or s3://bucket/prefix" in capsys.readouterr().err
+
+
+def test_train_and_protocol_say_what_they_take(store_env, tmp_path: Path, capsys) -> None:
+    from server.cli import main
+
+    _, bucket = store_env
+    assert main(["train", f"s3://{bucket}/nothing", "--out", str(tmp_path / "m.json")]) == 2
+    assert f"s3://{bucket}/nothing has no manifest.json" in capsys.readouterr().err
+    assert main(["protocol", "--out", f"s3://{bucket}/run", "--scale", "ci"]) == 2
+    assert "takes a local directory" in capsys.readouterr().err
+    assert not (tmp_path / "m.json").exists()
