@@ -6,7 +6,7 @@ Layout: ``DIR/manifest.json`` (the campaign's aircraft, patterns and every fligh
 truth), ``DIR/flights/<tail>/<flight>.parquet`` (flight logs, format ``ema-flightlog/1``) and
 ``DIR/phm_features.json`` (every flight's features by flight id, valid for one feature version
 and configuration); DIR a local directory or an S3 prefix ``s3://bucket/prefix``
-(:class:`sim_worker.store.CampaignStore`, reached at ``HMSM_S3_ENDPOINT_URL`` when set). Every
+(:class:`server.campaign_store.CampaignStore`, at ``HMSM_S3_ENDPOINT_URL`` when set). Every
 flight log is decoded and checked by :mod:`server.flightlog`, exactly
 as an upload is, then its features are computed by the service's own
 :func:`server.phm.features.flight_features`.
@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from server.campaign_store import CampaignStore
 from server.flightlog import (
     FlightLog,
     FlightLogError,
@@ -53,7 +54,6 @@ from server.phm.features import (
 )
 from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
-from sim_worker.store import CampaignStore
 
 __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "campaign_store",
            "read_manifest",

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from server.config import Settings, load_settings
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from sim_worker.store import CampaignStore
+    from server.campaign_store import CampaignStore
 
 __all__ = ["main"]
 

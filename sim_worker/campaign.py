@@ -1,7 +1,7 @@
 """Campaigns: design / verification sets of flight logs plus a manifest with the ground truth.
 
 Layout: ``DIR/manifest.json`` and ``DIR/flights/<tail>/<flight>.parquet``; DIR a local
-directory or an S3 prefix ``s3://bucket/prefix`` (:class:`~sim_worker.store.CampaignStore`),
+directory or an S3 prefix ``s3://bucket/prefix`` (``server.campaign_store.CampaignStore``),
 which the workers write kept logs to directly: a Dask cluster needs no shared filesystem. The
 manifest schema (``ema-campaign/1``) is a contract with the PHM chain; see :func:`run_campaign`.
 What becomes of a rendered flight is the campaign's :class:`FlightSink`'s choice: its file
@@ -35,6 +35,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from server.campaign_store import CampaignStore
 from server.flightlog import FlightLog, write_parquet
 from server.vocabulary import POSITIONS, SENSORS, WINGLET_PAIR
 
@@ -57,7 +58,6 @@ from .flight import (
     reference_summary,
     simulate_flight,
 )
-from .store import CampaignStore
 
 __all__ = ["ScaleConfig", "SCALES", "plan_campaign", "execution_order", "run_campaign",
            "snapshot_campaign", "run_pattern", "FORMAT",
@@ -684,7 +684,7 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
     fault mode (0: the healthy ones alone, for false alarms over long healthy lives), the
     same flights as in the whole campaign.
     ``out_dir`` is a directory, ``s3://bucket/prefix`` (AWS S3) or a
-    :class:`~sim_worker.store.CampaignStore` (another S3 server's); every file of the
+    :class:`~server.campaign_store.CampaignStore` (another S3 server's); every file of the
     campaign goes there, the kept logs straight from the workers.
     ``sink`` decides what is kept of a rendered flight (default: its Parquet file). Patterns
     run on ``executor`` (any ``concurrent.futures.Executor``, e.g. a Dask client's) if given,

@@ -191,8 +191,9 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None,
                          endpoint: str | None = None) -> dict[str, Any]:
     """Run the campaign an argument namespace of :func:`add_campaign_arguments` describes;
     ``endpoint``: the S3 server of an ``s3://`` --out (None: AWS S3)."""
+    from server.campaign_store import CampaignStore
+
     from .campaign import run_campaign
-    from .store import CampaignStore
 
     out = CampaignStore.at(args.out, endpoint)  # a malformed URL fails before any simulation
     bases = tuple(b.strip() for b in args.bases.split(",")) if args.bases else None
@@ -209,7 +210,7 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None,
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
-    from .store import ENDPOINT_ENV
+    from server.campaign_store import ENDPOINT_ENV
 
     t0 = time.perf_counter()
     manifest = run_campaign_command(args, endpoint=os.environ.get(ENDPOINT_ENV))

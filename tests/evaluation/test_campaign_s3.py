@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
+from server.campaign_store import CampaignStore
 from server.campaigns import FEATURE_CACHE, FeatureSink, decode_log, load_campaign, read_manifest
 from sim_worker.campaign import SCALES, run_campaign, snapshot_campaign
-from sim_worker.store import CampaignStore
 
 MODEL = Path(__file__).resolve().parents[2] / "docs" / "results" / "protocol_model.json"
 #: the ci scale (every flight, 30 s recordings) with two healthy patterns of six flights:

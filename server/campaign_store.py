@@ -4,7 +4,10 @@ Dask cluster's workers and the client write to without sharing any filesystem.
 One small interface over :mod:`pyarrow.fs` (already a dependency, for Parquet), used by the
 campaign's writers (:mod:`sim_worker.campaign`, ``server.campaigns.FeatureSink``) and its
 readers (``server.campaigns``, ``hmsm evaluate`` / ``train``): files named by their path
-relative to the campaign (``manifest.json``, ``flights/<tail>/<flight>.parquet``).
+relative to the campaign (``manifest.json``, ``flights/<tail>/<flight>.parquet``). A leaf
+beside ``server.flightlog`` (pyarrow only, contract in pyproject's ``[tool.importlinter]``):
+the simulator may import it, and the service need not import the simulator to read a campaign;
+the service's own blob store (boto3, ``server.blobstore_s3``) stays out of the simulator.
 
 pyarrow rather than boto3: the same calls reach a local directory and a bucket, and the
 Parquet footer of a flight log is read with a ranged GET instead of the whole object.
@@ -26,8 +29,8 @@ __all__ = ["CampaignStore", "S3_URL", "ENDPOINT_ENV"]
 
 #: an S3 location: bucket (3-63 of a-z 0-9 . -), then an optional prefix (as HMSM_BLOB_URL)
 S3_URL = re.compile(r"s3://([a-z0-9][a-z0-9.-]{1,61}[a-z0-9])(/[A-Za-z0-9/_.\-]*)?")
-#: the service's setting for a store other than AWS S3 (``server.config.Settings``), read by
-#: the ``sim-worker`` script, which has no settings of its own
+#: the service's setting for a store other than AWS S3 (owned by ``server.config.Settings``),
+#: read by name by the ``sim-worker`` script, which may not import the service's settings
 ENDPOINT_ENV = "HMSM_S3_ENDPOINT_URL"
 _ENDPOINT = re.compile(r"(https?)://[^\s/?#]+/?")
 
