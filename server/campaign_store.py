@@ -74,6 +74,22 @@ class CampaignStore:
         """The directory of a local store (None for S3)."""
         return None if self.remote else Path(self.root)
 
+    def check(self) -> None:
+        """ValueError, saying why, unless an S3 store's bucket exists and answers: before hours
+        of simulation rather than at the first file written."""
+        if not self.remote:
+            return
+        from pyarrow import fs
+
+        bucket = self.root.split("/", 1)[0]
+        try:
+            found = self._fs().get_file_info(bucket).type == fs.FileType.Directory
+        except OSError as exc:
+            raise ValueError(f"{self}: the object store does not answer ({exc})") from None
+        if not found:
+            raise ValueError(f"{self}: no bucket {bucket!r} at "
+                             f"{self.endpoint or 'AWS S3'}; create it first")
+
     def _fs(self) -> Any:
         return _s3(self.endpoint) if self.remote else _local()
 

@@ -195,7 +195,8 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None,
 
     from .campaign import run_campaign
 
-    out = CampaignStore.at(args.out, endpoint)  # a malformed URL fails before any simulation
+    out = CampaignStore.at(args.out, endpoint)
+    out.check()  # a malformed URL or a missing bucket fails before any simulation
     bases = tuple(b.strip() for b in args.bases.split(",")) if args.bases else None
     with campaign_executor(args.dask) as executor:
         return run_campaign(args.kind, out, seed=args.seed, scale=args.scale,

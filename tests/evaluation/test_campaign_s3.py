@@ -146,6 +146,14 @@ def test_a_malformed_s3_location_is_refused_before_any_simulation(capsys) -> Non
     assert "s3://bucket or s3://bucket/prefix" in capsys.readouterr().err
 
 
+def test_a_missing_bucket_is_refused_before_any_simulation(store_env, capsys) -> None:
+    from sim_worker.cli import main
+
+    code = main(["campaign", "--kind", "design", "--out", "s3://no-such-bucket/camp"])
+    assert code == 2
+    assert "no bucket 'no-such-bucket'" in capsys.readouterr().err
+
+
 def test_train_and_protocol_say_what_they_take(store_env, tmp_path: Path, capsys) -> None:
     from server.cli import main
 
