@@ -462,7 +462,7 @@ def _flight_entry(flight_id: str, rel: str | None, index: int, fault: FaultState
 class PatternTask:
     """Everything a worker needs to run one pattern (it rebuilds the aircraft itself)."""
 
-    out: CampaignStore
+    out: CampaignStore | str  # a store, or a directory / s3:// URL (AWS S3)
     kind: str
     seed: int
     cfg: ScaleConfig
@@ -475,6 +475,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     """Run one pattern (a task of the pool): its manifest entry, and under ``"stored"`` what
     the sink kept for each rendered flight, by flight id."""
     cfg, spec, sink = task.cfg, task.spec, task.sink
+    out = CampaignStore.at(task.out)
     aircraft = fleet_for(task.kind, task.seed, **task.options)[spec.aircraft_index]
     if spec.sensor_study is not None:
         aircraft = _with_sensor_noise(aircraft, [
@@ -486,7 +487,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     faults = tuple(task.options.get("sensor_faults", ()))
 
     def render(fault: FaultState, index: int) -> Any:
-        fid, rel, summ, data = _render(task.out, aircraft, spec, fault, index, cfg.duration_s,
+        fid, rel, summ, data = _render(out, aircraft, spec, fault, index, cfg.duration_s,
                                        sink, faults)
         rendered.append((index, fid, rel, fault, summ))
         if data is not None:
