@@ -25,14 +25,15 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-__all__ = ["CampaignStore", "S3_URL", "ENDPOINT_ENV"]
+__all__ = ["CampaignStore", "S3_URL", "ENDPOINT_URL", "ENDPOINT_ENV"]
 
-#: an S3 location: bucket (3-63 of a-z 0-9 . -), then an optional prefix (as HMSM_BLOB_URL)
+#: an S3 location: bucket (3-63 of a-z 0-9 . -), then an optional prefix; HMSM_BLOB_URL's too
 S3_URL = re.compile(r"s3://([a-z0-9][a-z0-9.-]{1,61}[a-z0-9])(/[A-Za-z0-9/_.\-]*)?")
 #: the service's setting for a store other than AWS S3 (owned by ``server.config.Settings``),
 #: read by name by the ``sim-worker`` script, which may not import the service's settings
 ENDPOINT_ENV = "HMSM_S3_ENDPOINT_URL"
-_ENDPOINT = re.compile(r"(https?)://[^\s/?#]+/?")
+#: an S3 server's URL (HMSM_S3_ENDPOINT_URL): http(s)://host[:port]
+ENDPOINT_URL = re.compile(r"https?://[^\s/?#]+/?")
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ class CampaignStore:
         if match is None:
             raise ValueError(f"{text}: an S3 location is s3://bucket or s3://bucket/prefix "
                              "(bucket: 3-63 of a-z 0-9 . -; prefix: letters, digits, / _ . -)")
-        if endpoint is not None and not _ENDPOINT.fullmatch(endpoint):
+        if endpoint is not None and not ENDPOINT_URL.fullmatch(endpoint):
             raise ValueError(f"{ENDPOINT_ENV} must be http(s)://host[:port], got {endpoint!r}")
         prefix = (match.group(2) or "").strip("/")
         return cls(f"{match.group(1)}/{prefix}".rstrip("/"), remote=True, endpoint=endpoint)

@@ -183,9 +183,10 @@ class FeatureSink:
         _write_cache(CampaignStore.at(out), feature_config_key(self.config), stored)
 
 
-def read_started_at(path: str | os.PathLike[str]) -> datetime | None:
-    """Take-off time (UTC) of a flight-log file, from its metadata only."""
-    meta = read_parquet_metadata(Path(path))
+def read_started_at(source: str | os.PathLike[str] | Any) -> datetime | None:
+    """Take-off time (UTC) of a flight-log file (its path, or the file opened), from its
+    metadata only."""
+    meta = read_parquet_metadata(source)
     return None if meta is None else meta.started_at
 
 
@@ -237,8 +238,7 @@ def _started_at(root: CampaignStore, fl: Mapping[str, Any]) -> datetime | None:
     if fl.get("started_at"):
         return datetime.fromisoformat(str(fl["started_at"]))
     with root.open(fl["file"]) as f:  # the footer alone, a ranged read on S3
-        meta = read_parquet_metadata(f)
-    return None if meta is None else meta.started_at
+        return read_started_at(f)
 
 
 def _record(root: CampaignStore, fl: Mapping[str, Any], features: Mapping[str, Any]

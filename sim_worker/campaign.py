@@ -62,7 +62,7 @@ from .flight import (
 __all__ = ["ScaleConfig", "SCALES", "plan_campaign", "execution_order", "run_campaign",
            "snapshot_campaign", "run_pattern", "FORMAT",
            "SETTINGS_FILE", "FlightSink", "ParquetSink", "PatternTask", "SensorFault",
-           "fleet_for", "CampaignStore"]
+           "fleet_for"]
 
 FORMAT = "ema-campaign/1"
 #: the settings a finished campaign was made with, beside its manifest

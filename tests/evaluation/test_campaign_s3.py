@@ -12,7 +12,14 @@ from pathlib import Path
 import pytest
 
 from server.campaign_store import CampaignStore
-from server.campaigns import FEATURE_CACHE, FeatureSink, decode_log, load_campaign, read_manifest
+from server.campaigns import (
+    FEATURE_CACHE,
+    FeatureSink,
+    decode_log,
+    load_campaign,
+    read_manifest,
+    read_started_at,
+)
 from sim_worker.campaign import SCALES, run_campaign, snapshot_campaign
 
 MODEL = Path(__file__).resolve().parents[2] / "docs" / "results" / "protocol_model.json"
@@ -78,6 +85,8 @@ def test_a_dask_campaign_writes_to_s3_from_workers_that_share_no_directory(
     stored = json.loads(CampaignStore.at(url, server.endpoint).read(FEATURE_CACHE))["flights"]
     log = decode_log(CampaignStore.at(url, server.endpoint).read(kept[0]), kept[0])
     assert log.metadata.flight in stored
+    with CampaignStore.at(url, server.endpoint).open(kept[0]) as f:  # its footer alone
+        assert read_started_at(f) == log.metadata.started_at
     # and is evaluated from there, feature timing included (it reads kept logs back)
     assert main(["evaluate", "--campaign", url, "--model-json", str(MODEL), "--jobs", "1",
                  "--timing-flights", "2", "--no-latest", "--no-progress",
