@@ -96,6 +96,24 @@ def test_a_dask_campaign_writes_to_s3_from_workers_that_share_no_directory(
     assert result["timing"]["features"]["flights"] == 2
 
 
+@pytest.mark.slow
+def test_a_design_campaign_on_s3_trains_a_model(store_env, tmp_path: Path) -> None:
+    """The ci design (the least a model trains on), streamed to S3 by a local process pool
+    (forked workers, each its own client) and trained on from there."""
+    from server.cli import main
+    from server.phm.chain import read_model_document
+
+    _, bucket = store_env
+    url, model = f"s3://{bucket}/design", tmp_path / "model.json"
+    assert main(["campaign", "--kind", "design", "--seed", "1", "--scale", "ci", "--workers",
+                 "2", "--keep-raw-every", "10", "--no-progress", "--out", url]) == 0
+    assert main(["train", url, "--out", str(model)]) == 0
+    doc = json.loads(model.read_text())
+    read_model_document(doc)
+    trained_on = [p for p in read_manifest(url)["patterns"] if not p.get("sensor_study")]
+    assert doc["training"]["campaign"]["patterns"] == len(trained_on)
+
+
 _SIMULATED: list[str] = []
 
 
