@@ -5,7 +5,9 @@ flight's features.
 Layout: ``DIR/manifest.json`` (the campaign's aircraft, patterns and every flight's ground
 truth), ``DIR/flights/<tail>/<flight>.parquet`` (flight logs, format ``ema-flightlog/1``) and
 ``DIR/phm_features.json`` (every flight's features by flight id, valid for one feature version
-and configuration). Every flight log is decoded and checked by :mod:`server.flightlog`, exactly
+and configuration); DIR a local directory or an S3 prefix ``s3://bucket/prefix``
+(:class:`server.campaign_store.CampaignStore`, at ``HMSM_S3_ENDPOINT_URL`` when set). Every
+flight log is decoded and checked by :mod:`server.flightlog`, exactly
 as an upload is, then its features are computed by the service's own
 :func:`server.phm.recording.log_features`.
 
@@ -29,6 +31,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from server.campaign_store import CampaignStore
 from server.flightlog import (
     FlightLog,
     FlightLogError,
@@ -50,8 +53,8 @@ from server.phm.recording import log_features
 from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
 
-__all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "read_manifest",
-           "decode_log", "checked_log", "read_started_at", "load_campaign",
+__all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "campaign_store",
+           "read_manifest", "decode_log", "checked_log", "read_started_at", "load_campaign",
            "train_from_directory"]
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
@@ -63,10 +66,23 @@ class CampaignError(ValueError):
     """A campaign directory that breaks its contract (manifest or a flight log)."""
 
 
-def read_manifest(directory: str | os.PathLike[str]) -> dict[str, Any]:
-    root = Path(directory)
+Location = str | os.PathLike[str] | CampaignStore
+
+
+def campaign_store(location: Location) -> CampaignStore:
+    """The store of a campaign at a directory or ``s3://bucket/prefix`` (a ValueError if
+    malformed); an S3 one at the service's ``HMSM_S3_ENDPOINT_URL`` when that is set."""
+    if isinstance(location, CampaignStore) or not os.fspath(location).startswith("s3:"):
+        return CampaignStore.at(location)
+    from server.config import load_settings
+
+    return CampaignStore.at(location, load_settings().s3_endpoint_url)
+
+
+def read_manifest(directory: Location) -> dict[str, Any]:
+    root = campaign_store(directory)
     try:
-        manifest = json.loads((root / "manifest.json").read_text())
+        manifest = json.loads(root.read("manifest.json"))
     except (OSError, ValueError) as exc:
         raise CampaignError(f"{root}: no readable manifest.json ({exc})") from None
     if not isinstance(manifest, dict) or manifest.get("format") != CAMPAIGN_FORMAT:
@@ -103,24 +119,16 @@ def feature_config_key(cfg: FeatureConfig) -> str:
     return f"{FEATURE_VERSION} {cfg!r} {QualityConfig()!r}"
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    """A reader sees the whole file or none of it."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
-
-
-def _write_cache(root: Path, key: str, flights: Mapping[str, Any]) -> None:
+def _write_cache(root: CampaignStore, key: str, flights: Mapping[str, Any]) -> None:
     doc = {"format": _CACHE_FORMAT, "config": key, "flights": flights}
-    _write_atomic(root / FEATURE_CACHE, json.dumps(doc).encode())
+    root.write(FEATURE_CACHE, json.dumps(doc).encode())
 
 
-def _read_cache(root: Path, key: str) -> dict[str, Any]:
-    path = root / FEATURE_CACHE
-    if not path.exists():
+def _read_cache(root: CampaignStore, key: str) -> dict[str, Any]:
+    text = root.read_text(FEATURE_CACHE)
+    if text is None:
         return {}
-    doc = json.loads(path.read_text())
+    doc = json.loads(text)
     if doc.get("format") != _CACHE_FORMAT or doc.get("config") != key:
         return {}
     return dict(doc["flights"])
@@ -142,13 +150,13 @@ class FeatureSink:
                 or self.keep_raw_every < 1:
             raise ValueError("keep_raw_every must be a positive int")
 
-    def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
+    def __call__(self, out: CampaignStore | Path, rel: str, index: int, log: FlightLog,
                  ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]:
         if index % self.keep_raw_every:  # dropped: no Parquet round trip, the same channels
             return None, self._features(checked_log(log, rel), ground_temp_c)
         data = write_parquet(log)
         features = self._features(decode_log(data, rel), ground_temp_c)
-        _write_atomic(out_dir / rel, data)
+        CampaignStore.at(out).write(rel, data)
         return rel, features
 
     def _features(self, log: FlightLog, ground_temp_c: float) -> dict[str, Any]:
@@ -158,19 +166,21 @@ class FeatureSink:
         return {"sink": "features", "keep_raw_every": self.keep_raw_every,
                 "features": feature_config_key(self.config)}
 
-    def finish(self, out_dir: Path, stored: dict[str, dict[str, Any]]) -> None:
-        _write_cache(out_dir, feature_config_key(self.config), stored)
+    def finish(self, out: CampaignStore | Path, stored: dict[str, dict[str, Any]]) -> None:
+        _write_cache(CampaignStore.at(out), feature_config_key(self.config), stored)
 
 
-def read_started_at(path: str | os.PathLike[str]) -> datetime | None:
-    """Take-off time (UTC) of a flight-log file, from its metadata only."""
-    meta = read_parquet_metadata(Path(path))
+def read_started_at(source: str | os.PathLike[str] | Any) -> datetime | None:
+    """Take-off time (UTC) of a flight-log file (its path, or the file opened), from its
+    metadata only."""
+    meta = read_parquet_metadata(source)
     return None if meta is None else meta.started_at
 
 
-def _features_of(args: tuple[str, float | None, FeatureConfig]) -> dict[str, Any]:
-    path, ground, cfg = args
-    return log_features(decode_log(Path(path).read_bytes(), path), config=cfg,
+def _features_of(args: tuple[CampaignStore, str, float | None, FeatureConfig]
+                 ) -> dict[str, Any]:
+    root, rel, ground, cfg = args
+    return log_features(decode_log(root.read(rel), f"{root}/{rel}"), config=cfg,
                         ground_temp_c=ground).to_dict()
 
 
@@ -182,8 +192,8 @@ def _features_from_dict(d: Mapping[str, Any]) -> FlightFeatures:
     return FlightFeatures(summ, cond, quality=quality)
 
 
-def _cached_features(root: Path, manifest: Mapping[str, Any], cfg: FeatureConfig, jobs: int,
-                     cache: bool) -> dict[str, Any]:
+def _cached_features(root: CampaignStore, manifest: Mapping[str, Any], cfg: FeatureConfig,
+                     jobs: int, cache: bool) -> dict[str, Any]:
     """Features of every flight by flight id: the stored ones, the missing ones computed from
     their files (a flight streamed without its file must have stored features)."""
     key = feature_config_key(cfg)
@@ -198,7 +208,7 @@ def _cached_features(root: Path, manifest: Mapping[str, Any], cfg: FeatureConfig
             f"{root}: {len(lost)} flights (first {lost[0]}) were streamed without their logs "
             f"and have no features for this feature version and configuration ({key}); "
             "generate the campaign again")
-    args = [(str(root / fl["file"]), fl.get("ground_temp_c"), cfg) for fl in todo]
+    args = [(root, fl["file"], fl.get("ground_temp_c"), cfg) for fl in todo]
     if jobs > 1:
         with ProcessPoolExecutor(max_workers=jobs) as ex:
             results = list(ex.map(_features_of, args, chunksize=4))
@@ -211,13 +221,15 @@ def _cached_features(root: Path, manifest: Mapping[str, Any], cfg: FeatureConfig
     return cached
 
 
-def _started_at(root: Path, fl: Mapping[str, Any]) -> datetime | None:
+def _started_at(root: CampaignStore, fl: Mapping[str, Any]) -> datetime | None:
     if fl.get("started_at"):
         return datetime.fromisoformat(str(fl["started_at"]))
-    return read_started_at(root / fl["file"])
+    with root.open(fl["file"]) as f:  # the footer alone, a ranged read on S3
+        return read_started_at(f)
 
 
-def _record(root: Path, fl: Mapping[str, Any], features: Mapping[str, Any]) -> FlightRecord:
+def _record(root: CampaignStore, fl: Mapping[str, Any], features: Mapping[str, Any]
+            ) -> FlightRecord:
     return FlightRecord(str(fl["flight"]), int(fl["index"]), float(fl.get("severity", 0.0)),
                         float(fl.get("severity_norm", 0.0)),
                         None if fl.get("true_rul_flights") is None
@@ -226,12 +238,13 @@ def _record(root: Path, fl: Mapping[str, Any], features: Mapping[str, Any]) -> F
                         _started_at(root, fl))
 
 
-def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | None = None,
+def load_campaign(directory: Location, *, config: FeatureConfig | None = None,
                   jobs: int = 1, cache: bool = True) -> Campaign:
     """Read a campaign manifest and the features of every flight (cached with ``cache``;
     ``cache=False`` recomputes them all from the files, so a streamed campaign, whose dropped
-    logs live on only as stored features, needs the default)."""
-    root = Path(directory)
+    logs live on only as stored features, needs the default). ``directory``: a local one or
+    ``s3://bucket/prefix``."""
+    root = campaign_store(directory)
     manifest = read_manifest(root)
     cached = _cached_features(root, manifest, config or FeatureConfig(), jobs, cache)
     bases = {str(a.get("tail")): a.get("base") for a in manifest.get("aircraft", [])}
@@ -248,7 +261,7 @@ def load_campaign(directory: str | os.PathLike[str], *, config: FeatureConfig | 
                     list(manifest.get("aircraft", [])), study)
 
 
-def train_from_directory(design_dir: str | os.PathLike[str], *, seed: int = 0,
+def train_from_directory(design_dir: Location, *, seed: int = 0,
                          jobs: int | None = None,
                          progress: Callable[[str, float], None] | None = None
                          ) -> tuple[PhmModel, dict[str, Any]]:

@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 from server.config import Settings, load_settings
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from server.campaign_store import CampaignStore
 
 __all__ = ["main"]
 
@@ -157,16 +160,16 @@ def cmd_worker(args: argparse.Namespace, settings: Settings) -> int:
     return 0
 
 
-def _train_to_file(design: Path, args: argparse.Namespace) -> int:
+def _train_to_file(design: CampaignStore, args: argparse.Namespace) -> int:
     """``hmsm train DIR --out FILE``: the model document written to a file (the shape of a
     protocol run's ``model.json``), no database."""
     import json
     from pathlib import Path
 
-    from server.campaigns import train_from_directory
+    from server.campaigns import read_manifest, train_from_directory
     from server.demo_model import TRAINED_MODEL_FORMAT, trained_model_document
 
-    manifest = json.loads((design / "manifest.json").read_text())
+    manifest = read_manifest(design)
     model, report = train_from_directory(design, seed=args.seed)
     doc = trained_model_document(TRAINED_MODEL_FORMAT, {k: manifest.get(k) for k in
                                                 ("kind", "scale", "seed", "span_flights")},
@@ -182,11 +185,12 @@ def _train_to_file(design: Path, args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace, settings: Settings) -> int:
     from tqdm import tqdm
 
+    from server.campaigns import campaign_store
     from server.jobs.training_job import train_into_version
     from server.services import models as service
 
-    design = Path(args.campaign_dir)
-    if not (design / "manifest.json").exists():
+    design = campaign_store(args.campaign_dir)  # a directory or s3://bucket/prefix
+    if not design.exists("manifest.json"):
         print(f"hmsm: {design} has no manifest.json; make one with "
               "`sim-worker campaign --kind design --out DIR`", file=sys.stderr)
         return 2
@@ -194,7 +198,8 @@ def cmd_train(args: argparse.Namespace, settings: Settings) -> int:
         return _train_to_file(design, args)
     factory = _session(settings)
     with factory() as session:
-        version = service.create_version(session=session, name=args.name or design.name,
+        version = service.create_version(session=session,
+                                         name=args.name or design.root.rsplit("/", 1)[-1],
                                          training={"campaign": str(design)})
         session.commit()
         version_id = version.id
@@ -230,7 +235,8 @@ def cmd_campaign(args: argparse.Namespace, settings: Settings) -> int:
     from sim_worker.cli import run_campaign_command
 
     t0 = time.perf_counter()
-    manifest = run_campaign_command(args, sink=FeatureSink(keep_raw_every=args.keep_raw_every))
+    manifest = run_campaign_command(args, sink=FeatureSink(keep_raw_every=args.keep_raw_every),
+                                    endpoint=settings.s3_endpoint_url)
     flights = [f for p in manifest["patterns"] for f in p["flights"]]
     kept = sum(1 for f in flights if f["file"])
     print(f"{args.kind} campaign: {len(manifest['patterns'])} patterns, {len(flights)} flights "
@@ -266,7 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
     keys.set_defaults(func=cmd_keys)
 
     train = sub.add_parser("train", help="train a model version from a design campaign")
-    train.add_argument("campaign_dir", help="design campaign directory (sim-worker campaign)")
+    train.add_argument("campaign_dir", help="design campaign directory (sim-worker campaign), "
+                       "or s3://bucket/prefix")
     train.add_argument("--seed", type=int, default=0, help="seed of the 70/30 split")
     train.add_argument("--name", default=None, help="model version name")
     train.add_argument("--no-activate", action="store_true", help="do not make it active")

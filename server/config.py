@@ -6,7 +6,6 @@ and the app factory takes the settings object it is given.
 
 from __future__ import annotations
 
-import re
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -14,13 +13,12 @@ from typing import Any
 from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from server.campaign_store import ENDPOINT_URL, S3_URL
 from server.flightlog import DecodeLimits
 
 __all__ = ["Settings", "load_settings"]
 
 _DECODE = DecodeLimits()
-#: s3://bucket[/prefix]: a DNS-style bucket name and a plain key prefix
-_S3_URL = re.compile(r"s3://[a-z0-9][a-z0-9.-]{1,61}[a-z0-9](/[A-Za-z0-9/_.-]*)?")
 
 
 class Settings(BaseSettings):
@@ -123,7 +121,7 @@ class Settings(BaseSettings):
     @field_validator("blob_url")
     @classmethod
     def _s3_url(cls, value: str | None) -> str | None:
-        if value is not None and not _S3_URL.fullmatch(value):
+        if value is not None and not S3_URL.fullmatch(value):
             raise ValueError("HMSM_BLOB_URL must be s3://bucket or s3://bucket/prefix (bucket: "
                              "3-63 of a-z 0-9 . -; prefix: letters, digits, / _ . -)")
         return value
@@ -131,7 +129,7 @@ class Settings(BaseSettings):
     @field_validator("s3_endpoint_url")
     @classmethod
     def _endpoint(cls, value: str | None) -> str | None:
-        if value is not None and not re.fullmatch(r"https?://[^\s/?#]+/?", value):
+        if value is not None and not ENDPOINT_URL.fullmatch(value):
             raise ValueError("HMSM_S3_ENDPOINT_URL must be http(s)://host[:port]")
         return value
 

@@ -1,9 +1,11 @@
 """Campaigns: design / verification sets of flight logs plus a manifest with the ground truth.
 
-Layout: ``DIR/manifest.json`` and ``DIR/flights/<tail>/<flight>.parquet``. The manifest schema
-(``ema-campaign/1``) is a contract with the PHM chain; see :func:`run_campaign`. What becomes of
-a rendered flight is the campaign's :class:`FlightSink`'s choice: its file (:class:`ParquetSink`,
-the default) or, streamed, its features (``server.campaigns.FeatureSink``).
+Layout: ``DIR/manifest.json`` and ``DIR/flights/<tail>/<flight>.parquet``; DIR a local
+directory or an S3 prefix ``s3://bucket/prefix`` (``server.campaign_store.CampaignStore``),
+which the workers write kept logs to directly: a Dask cluster needs no shared filesystem. The
+manifest schema (``ema-campaign/1``) is a contract with the PHM chain; see :func:`run_campaign`.
+What becomes of a rendered flight is the campaign's :class:`FlightSink`'s choice: its file
+(:class:`ParquetSink`, the default) or, streamed, its features (``server.campaigns.FeatureSink``).
 
 Determinism: every aircraft seed, pattern seed and flight seed derives from the campaign seed via
 ``numpy.random.SeedSequence`` with a fixed key (kind, aircraft, pattern, flight), never from the
@@ -24,7 +26,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
@@ -34,6 +35,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from server.campaign_store import CampaignStore
 from server.flightlog import FlightLog, write_parquet
 from server.vocabulary import POSITIONS, SENSORS, WINGLET_PAIR
 
@@ -60,7 +62,7 @@ from .flight import (
 __all__ = ["ScaleConfig", "SCALES", "plan_campaign", "execution_order", "run_campaign",
            "snapshot_campaign", "run_pattern", "FORMAT",
            "SETTINGS_FILE", "FlightSink", "ParquetSink", "PatternTask", "SensorFault",
-           "fleet_for", "write_file"]
+           "fleet_for"]
 
 FORMAT = "ema-campaign/1"
 #: the settings a finished campaign was made with, beside its manifest
@@ -391,53 +393,46 @@ def _flight_rng(spec: PatternSpec, index: int, stream: int) -> np.random.Generat
 class FlightSink(Protocol):
     """What becomes of a rendered flight: called in the worker that simulated it.
 
-    Returns the flight's file (relative to the campaign directory, or None if no file was
-    kept) and the data stored for it in place of the file (None: nothing). ``describe`` is
+    Returns the flight's file (relative to the campaign's store ``out``, or None if no file
+    was kept) and the data stored for it in place of the file (None: nothing). ``describe`` is
     part of the campaign's settings (a resumed campaign must use the same sink); ``finish``
     writes what the sink keeps beside the manifest, once every pattern is done.
     """
 
-    def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
+    def __call__(self, out: CampaignStore, rel: str, index: int, log: FlightLog,
                  ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]: ...
 
     def describe(self) -> dict[str, Any]: ...
 
-    def finish(self, out_dir: Path, stored: dict[str, dict[str, Any]]) -> None: ...
-
-
-def write_file(path: Path, data: bytes) -> None:
-    """Write ``data`` atomically (a reader never sees half a file)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    def finish(self, out: CampaignStore, stored: dict[str, dict[str, Any]]) -> None: ...
 
 
 @dataclass(frozen=True)
 class ParquetSink:
     """Every rendered flight written as a flight-log file (``ema-flightlog/1`` Parquet)."""
 
-    def __call__(self, out_dir: Path, rel: str, index: int, log: FlightLog,
+    def __call__(self, out: CampaignStore | Path, rel: str, index: int, log: FlightLog,
                  ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]:
-        write_file(out_dir / rel, write_parquet(log))
+        CampaignStore.at(out).write(rel, write_parquet(log))
         return rel, None
 
     def describe(self) -> dict[str, Any]:
         return {"sink": "parquet"}
 
-    def finish(self, out_dir: Path, stored: dict[str, dict[str, Any]]) -> None:
+    def finish(self, out: CampaignStore | Path, stored: dict[str, dict[str, Any]]) -> None:
         return None
 
 
-def _render(out_dir: Path, aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index: int,
-            duration_s: float, sink: FlightSink, sensor_faults: tuple[SensorFault, ...] = ()
+def _render(out: CampaignStore, aircraft: Aircraft, spec: PatternSpec, fault: FaultState,
+            index: int, duration_s: float, sink: FlightSink,
+            sensor_faults: tuple[SensorFault, ...] = ()
             ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
     flight_id = f"{spec.id}-{index:04d}"
     start = flight_start(index, day_offset=spec.day_offset)
     log, summary = simulate_flight(_at_flight(aircraft, sensor_faults, index), fault, index,
                                    _flight_rng(spec, index, 0), flight_id=flight_id,
                                    started_at=start, duration_s=duration_s)
-    rel, stored = sink(out_dir, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
+    rel, stored = sink(out, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
                        _ground_temp(summary))
     return flight_id, rel, summary, stored
 
@@ -467,7 +462,7 @@ def _flight_entry(flight_id: str, rel: str | None, index: int, fault: FaultState
 class PatternTask:
     """Everything a worker needs to run one pattern (it rebuilds the aircraft itself)."""
 
-    out_dir: str
+    out: CampaignStore | str  # a store, or a directory / s3:// URL (AWS S3)
     kind: str
     seed: int
     cfg: ScaleConfig
@@ -480,7 +475,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     """Run one pattern (a task of the pool): its manifest entry, and under ``"stored"`` what
     the sink kept for each rendered flight, by flight id."""
     cfg, spec, sink = task.cfg, task.spec, task.sink
-    out_dir = Path(task.out_dir)
+    out = CampaignStore.at(task.out)
     aircraft = fleet_for(task.kind, task.seed, **task.options)[spec.aircraft_index]
     if spec.sensor_study is not None:
         aircraft = _with_sensor_noise(aircraft, [
@@ -492,7 +487,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     faults = tuple(task.options.get("sensor_faults", ()))
 
     def render(fault: FaultState, index: int) -> Any:
-        fid, rel, summ, data = _render(out_dir, aircraft, spec, fault, index, cfg.duration_s,
+        fid, rel, summ, data = _render(out, aircraft, spec, fault, index, cfg.duration_s,
                                        sink, faults)
         rendered.append((index, fid, rel, fault, summ))
         if data is not None:
@@ -616,37 +611,42 @@ def _config_settings(cfg: ScaleConfig) -> dict[str, Any]:
     return out
 
 
+_PROGRESS = "progress"
+
+
 class _Progress:
     """Finished patterns of an interrupted run, one file each in ``DIR/progress/``; a finished
     pattern is never simulated again. Removed once the manifest is written."""
 
-    def __init__(self, out: Path, settings: dict[str, Any]) -> None:
-        self.dir = out / "progress"
-        self.dir.mkdir(parents=True, exist_ok=True)
-        path = self.dir / "settings.json"
+    def __init__(self, out: CampaignStore | Path, settings: dict[str, Any]) -> None:
+        self.out = CampaignStore.at(out)
+        rel = f"{_PROGRESS}/settings.json"
         text = json.dumps(settings, sort_keys=True)
-        if path.exists() and path.read_text() != text:
-            raise ValueError(f"{out} holds an unfinished campaign with other settings "
-                             f"(see {path}); resume it with the same options or use another "
-                             "directory")
-        if not path.exists():
-            write_file(path, text.encode())
-
-    def _path(self, spec: PatternSpec) -> Path:
-        return self.dir / f"{spec.number:04d}.json"
+        held = self.out.read_text(rel)
+        if held is not None and held != text:
+            raise ValueError(f"{self.out} holds an unfinished campaign with other settings "
+                             f"(see {self.out}/{rel}); resume it with the same options or use "
+                             "another directory")
+        if held is None:
+            self.out.write(rel, text.encode())
 
     def done(self, spec: PatternSpec) -> dict[str, Any] | None:
-        path = self._path(spec)
-        return json.loads(path.read_text()) if path.exists() else None
+        text = self.out.read_text(_progress_file(spec))
+        return None if text is None else json.loads(text)
 
     def save(self, spec: PatternSpec, result: dict[str, Any]) -> None:
-        write_file(self._path(spec), json.dumps(result).encode())
+        self.out.write(_progress_file(spec), json.dumps(result).encode())
 
     def remove(self) -> None:
-        shutil.rmtree(self.dir)
+        self.out.remove_dir(_PROGRESS)
 
 
-def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "quick",
+def _progress_file(spec: PatternSpec) -> str:
+    return f"{_PROGRESS}/{spec.number:04d}.json"
+
+
+def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
+                 scale: str = "quick",
                  workers: int | None = None, progress: bool = True,
                  bases: tuple[str, ...] | None = None, noise_scale: float = 1.0,
                  sensor_faults: Iterable[SensorFault | str] = (),
@@ -684,6 +684,9 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     ``per_mode`` flies every healthy pattern and only the first ``per_mode`` patterns of each
     fault mode (0: the healthy ones alone, for false alarms over long healthy lives), the
     same flights as in the whole campaign.
+    ``out_dir`` is a directory, ``s3://bucket/prefix`` (AWS S3) or a
+    :class:`~server.campaign_store.CampaignStore` (another S3 server's); every file of the
+    campaign goes there, the kept logs straight from the workers.
     ``sink`` decides what is kept of a rendered flight (default: its Parquet file). Patterns
     run on ``executor`` (any ``concurrent.futures.Executor``, e.g. a Dask client's) if given,
     else on a local pool of ``workers`` processes; the output does not depend on either. An
@@ -705,8 +708,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
 
     from .kernel import warm_up
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = CampaignStore.at(out_dir)
     # a plain tuple of frozen dataclasses: pickled as is to pool and Dask workers
     options: dict[str, Any] = {"bases": tuple(bases) if bases else None,
                                "noise_scale": float(noise_scale),
@@ -722,7 +724,7 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     fleet = fleet_for(kind, seed, **options)
     store = _Progress(out, settings)
     results = {s.number: r for s in specs if (r := store.done(s)) is not None}
-    todo = {s.number: PatternTask(str(out), kind, seed, cfg, s, options, sink)
+    todo = {s.number: PatternTask(out, kind, seed, cfg, s, options, sink)
             for s in execution_order(specs) if s.number not in results}
     bar = tqdm(total=len(specs), initial=len(results), desc=f"{kind} campaign",
                unit="pattern", disable=not progress)
@@ -735,14 +737,14 @@ def run_campaign(kind: str, out_dir: str | Path, *, seed: int, scale: str = "qui
     ordered = [results[s.number] for s in specs]
     sink.finish(out, {fid: data for r in ordered for fid, data in r["stored"].items()})
     manifest = _manifest(settings, cfg, fleet, [r["entry"] for r in ordered])
-    write_file(out / "manifest.json", json.dumps(manifest, indent=1).encode())
-    write_file(out / SETTINGS_FILE, json.dumps(settings, sort_keys=True).encode())
+    out.write("manifest.json", json.dumps(manifest, indent=1).encode())
+    out.write(SETTINGS_FILE, json.dumps(settings, sort_keys=True).encode())
     store.remove()
     return manifest
 
 
-def snapshot_campaign(out_dir: str | Path, snap_dir: str | Path, *,
-                      sink: FlightSink | None = None) -> dict[str, Any]:
+def snapshot_campaign(out_dir: str | Path | CampaignStore, snap_dir: str | Path | CampaignStore,
+                      *, sink: FlightSink | None = None) -> dict[str, Any]:
     """The patterns an unfinished campaign in ``out_dir`` has finished so far, written to
     ``snap_dir`` as a campaign of their own, so that a run of hours can be scored before it
     ends; returns its manifest. The run itself is not touched and resumes as before.
@@ -750,16 +752,17 @@ def snapshot_campaign(out_dir: str | Path, snap_dir: str | Path, *,
     The manifest is the full campaign's for the finished patterns, in pattern order, plus
     ``"partial": {"patterns": finished, "of": planned}``; ``sink`` (the run's, default
     :class:`ParquetSink`) writes what it keeps of them, and ``snap_dir/flights`` links to the
-    run's kept logs. A finished campaign, or a sink other than the run's, is refused.
+    run's kept logs (between two local directories; else the finished patterns' kept logs are
+    copied). A finished campaign, or a sink other than the run's, is refused.
     """
-    out, snap = Path(out_dir), Path(snap_dir)
+    out, snap = CampaignStore.at(out_dir), CampaignStore.at(snap_dir)
     sink = sink if sink is not None else ParquetSink()
-    if (out / SETTINGS_FILE).exists():
+    if out.exists(SETTINGS_FILE):
         raise ValueError(f"{out} is a finished campaign: score it directly")
-    path = out / "progress" / "settings.json"
-    if not path.exists():
-        raise ValueError(f"{out}: no campaign in progress (no {path})")
-    settings = json.loads(path.read_text())
+    text = out.read_text(f"{_PROGRESS}/settings.json")
+    if text is None:
+        raise ValueError(f"{out}: no campaign in progress (no {_PROGRESS}/settings.json)")
+    settings = json.loads(text)
     if settings["sink"] != sink.describe():
         raise ValueError(f"{out} was run with the sink {settings['sink']}, not "
                          f"{sink.describe()}")
@@ -774,15 +777,27 @@ def snapshot_campaign(out_dir: str | Path, snap_dir: str | Path, *,
                       bases=tuple(settings["bases"]) if settings["bases"] else None,
                       noise_scale=settings["noise_scale"],
                       sensor_faults=_sensor_faults(settings.get("sensor_faults")))
-    snap.mkdir(parents=True, exist_ok=True)
-    flights = snap / "flights"
-    if not flights.exists():
-        flights.symlink_to((out / "flights").resolve(), target_is_directory=True)
+    entries = [r["entry"] for r in done]
+    _share_logs(out, snap, [fl["file"] for e in entries for fl in e["flights"] if fl["file"]])
     sink.finish(snap, {fid: data for r in done for fid, data in r["stored"].items()})
-    manifest = _manifest(settings, cfg, fleet, [r["entry"] for r in done])
+    manifest = _manifest(settings, cfg, fleet, entries)
     manifest["partial"] = {"patterns": len(done), "of": len(specs)}
-    write_file(snap / "manifest.json", json.dumps(manifest, indent=1).encode())
+    snap.write("manifest.json", json.dumps(manifest, indent=1).encode())
     return manifest
+
+
+def _share_logs(out: CampaignStore, snap: CampaignStore, files: list[str]) -> None:
+    """The run's kept logs seen from the snapshot: ``flights`` a link to the run's between
+    local directories (the run goes on writing there), else the given files copied."""
+    here, there = out.local_dir(), snap.local_dir()
+    if here is None or there is None:
+        for rel in files:
+            if not snap.exists(rel):
+                snap.write(rel, out.read(rel))
+        return
+    there.mkdir(parents=True, exist_ok=True)
+    if not (there / "flights").exists():
+        (there / "flights").symlink_to((here / "flights").resolve(), target_is_directory=True)
 
 
 def _manifest(settings: dict[str, Any], cfg: ScaleConfig, fleet: list[Aircraft],
@@ -831,13 +846,13 @@ def _scale_config(scale: str, kind: str, render_every: int | None,
     return cfg
 
 
-def _finished_manifest(out: Path, settings: dict[str, Any]) -> dict[str, Any] | None:
+def _finished_manifest(out: CampaignStore, settings: dict[str, Any]) -> dict[str, Any] | None:
     """The manifest of a campaign already finished in ``out`` with these settings; a finished
     campaign with other settings is refused (it is never overwritten)."""
-    path = out / SETTINGS_FILE
-    if not path.exists():
+    held = out.read_text(SETTINGS_FILE)
+    if held is None:
         return None  # nothing finished here, or a campaign of an older simulator: regenerate
-    if path.read_text() != json.dumps(settings, sort_keys=True):
-        raise ValueError(f"{out} already holds a campaign with other settings (see {path}); "
-                         "use another directory")
-    return json.loads((out / "manifest.json").read_text())
+    if held != json.dumps(settings, sort_keys=True):
+        raise ValueError(f"{out} already holds a campaign with other settings (see "
+                         f"{out}/{SETTINGS_FILE}); use another directory")
+    return json.loads(out.read("manifest.json"))

@@ -1,7 +1,9 @@
 """``sim-worker`` console script: subcommands of the simulated half-wing.
 
 ``sim-worker campaign --kind design|verification --out DIR --seed N --scale SCALE``
-writes a campaign of flight logs and its manifest (see :mod:`sim_worker.campaign`);
+writes a campaign of flight logs and its manifest (see :mod:`sim_worker.campaign`), to a
+directory or to ``s3://bucket/prefix`` (credentials from the AWS_* environment variables, a
+store other than AWS S3 at ``HMSM_S3_ENDPOINT_URL``);
 ``hmsm campaign`` takes the same options and streams it (features kept, logs sampled).
 ``sim-worker span-check --out FILE`` measures how well the test station honours a requested
 time to failure (:mod:`.span_check`).
@@ -95,8 +97,9 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
     from .campaign import SCALES
 
     camp.add_argument("--kind", choices=("design", "verification"), required=True)
-    camp.add_argument("--out", required=True, help="output directory; run again with the same "
-                      "options to resume an interrupted campaign")
+    camp.add_argument("--out", required=True, help="output directory, or s3://bucket/prefix "
+                      "(AWS_* credentials; endpoint $HMSM_S3_ENDPOINT_URL); run again with the "
+                      "same options to resume an interrupted campaign")
     camp.add_argument("--seed", type=int, default=0, help="campaign seed")
     camp.add_argument("--scale", choices=tuple(SCALES), default="quick",
                       help="quick (CI figures), paper (sparse rendering, quick looks), "
@@ -108,7 +111,8 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
     camp.add_argument("--dask", default=None, metavar="ADDRESS",
                       help="run the patterns on a Dask distributed scheduler "
                       "(e.g. tcp://host:8786) instead of local processes; its workers need "
-                      "this package and write kept flight logs under --out")
+                      "this package and write kept flight logs under --out: with --out "
+                      "s3://... they share no directory")
     camp.add_argument("--render-every", type=int, default=None,
                       help="render every k-th flight of a fault-to-failure run, k odd (default: "
                       "the scale's; 1 renders every flight, as a fleet in service downloads "
@@ -183,14 +187,19 @@ def campaign_executor(address: str | None) -> Iterator[Executor | None]:
         yield client.get_executor()
 
 
-def run_campaign_command(args: argparse.Namespace, sink: object | None = None
-                         ) -> dict[str, Any]:
-    """Run the campaign an argument namespace of :func:`add_campaign_arguments` describes."""
+def run_campaign_command(args: argparse.Namespace, sink: object | None = None,
+                         endpoint: str | None = None) -> dict[str, Any]:
+    """Run the campaign an argument namespace of :func:`add_campaign_arguments` describes;
+    ``endpoint``: the S3 server of an ``s3://`` --out (None: AWS S3)."""
+    from server.campaign_store import CampaignStore
+
     from .campaign import run_campaign
 
+    out = CampaignStore.at(args.out, endpoint)
+    out.check()  # a malformed URL or a missing bucket fails before any simulation
     bases = tuple(b.strip() for b in args.bases.split(",")) if args.bases else None
     with campaign_executor(args.dask) as executor:
-        return run_campaign(args.kind, args.out, seed=args.seed, scale=args.scale,
+        return run_campaign(args.kind, out, seed=args.seed, scale=args.scale,
                             workers=args.workers, progress=not args.no_progress, bases=bases,
                             noise_scale=args.noise_scale,
                             sensor_faults=tuple(args.sensor_fault or ()),
@@ -202,8 +211,10 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
+    from server.campaign_store import ENDPOINT_ENV
+
     t0 = time.perf_counter()
-    manifest = run_campaign_command(args)
+    manifest = run_campaign_command(args, endpoint=os.environ.get(ENDPOINT_ENV))
     n = sum(len(p["flights"]) for p in manifest["patterns"])
     print(f"{args.kind} campaign: {len(manifest['patterns'])} patterns, {n} flights written to "
           f"{args.out} in {time.perf_counter() - t0:.1f} s")

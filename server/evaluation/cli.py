@@ -49,7 +49,8 @@ __all__ = ["add_evaluate_arguments", "run_evaluate", "main_evaluate", "load_mode
 
 
 def add_evaluate_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.add_argument("--campaign", required=True, help="campaign directory to evaluate on")
+    parser.add_argument("--campaign", required=True, help="campaign directory to evaluate on, "
+                        "or s3://bucket/prefix")
     src = parser.add_mutually_exclusive_group()
     src.add_argument("--design", help="train the model on this design campaign first")
     src.add_argument("--model-json", help="model JSON file (ema-phm-model/5)")
@@ -84,11 +85,11 @@ def load_model(args: argparse.Namespace, settings: Settings
         return read_model_document(doc), {"source": f"file {path.resolve()}",
                                            **_training_info(doc.get("training"))}
     if args.design:
-        from server.campaigns import train_from_directory
+        from server.campaigns import campaign_store, train_from_directory
 
         t0 = time.perf_counter()
         model, report = train_from_directory(args.design, seed=args.seed, jobs=args.jobs)
-        return model, {"source": f"trained on {Path(args.design).resolve()} (seed {args.seed})",
+        return model, {"source": f"trained on {campaign_store(args.design)} (seed {args.seed})",
                        "training_s": time.perf_counter() - t0, **_training_info(report)}
     return _model_from_db(settings, args.model_id)
 
@@ -179,10 +180,12 @@ def run_evaluate(args: argparse.Namespace, settings: Settings, *,
     """Body of ``hmsm evaluate`` (see the module docstring); ``progress(done, total)`` is told
     of each pattern scored (the demo's background evaluation reports it to the dashboard),
     in place of the progress bar."""
+    from server.campaigns import campaign_store
+
     from .runner import evaluate_campaign
 
-    campaign = Path(args.campaign)
-    if not (campaign / "manifest.json").exists():
+    campaign = campaign_store(args.campaign)  # a directory or s3://bucket/prefix
+    if not campaign.exists("manifest.json"):
         raise ValueError(f"{campaign}: no manifest.json (not a campaign directory)")
     model, source = load_model(args, settings)
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")

@@ -98,6 +98,10 @@ def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
 
     from .cli import run_evaluate
 
+    if args.out.startswith("s3:"):  # its model and reports are local files
+        raise ValueError("hmsm protocol --out takes a local directory; stream the campaigns "
+                         "to S3 with `hmsm campaign --out s3://...` and score them with "
+                         "`hmsm train` / `hmsm evaluate --campaign s3://...`")
     root = Path(args.out)
     sink = FeatureSink(keep_raw_every=args.keep_raw_every)
     if args.model_json is not None:

@@ -16,17 +16,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import zlib
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import nullcontext
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from server.campaigns import load_campaign
+from server.campaigns import Location, campaign_store, load_campaign, read_manifest
 from server.phm.chain import MeasurementHook, PhmModel, analyze_flight
 from server.phm.dataset import Campaign, Pattern, reads_rod_ends_as_pair
 from server.vocabulary import POSITIONS
@@ -164,7 +162,7 @@ def evaluate_patterns(model: PhmModel, patterns: Sequence[Pattern], *, jobs: int
     return traces, timing
 
 
-def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, jobs: int = 1,
+def evaluate_campaign(model: PhmModel, campaign_dir: Location, *, jobs: int = 1,
                       progress: Progress | None = None, timing_flights: int = 6,
                       campaign: Campaign | None = None,
                       point_estimate: str = POINT_ESTIMATE,
@@ -176,17 +174,17 @@ def evaluate_campaign(model: PhmModel, campaign_dir: str | os.PathLike[str], *, 
     metrics score, "median" or "mode". ``noise_free``: the prognosis sees noise-free own
     features (an error budget, :func:`run_pattern`).
     """
-    root = Path(campaign_dir)
+    root = campaign_store(campaign_dir)  # a directory or s3://bucket/prefix
     camp = campaign or load_campaign(root, jobs=max(jobs, 1))
     traces, chain_timing = evaluate_patterns(model, camp.patterns, jobs=jobs, progress=progress,
                                              noise_free=noise_free)
     classes = ([str(c) for c in model.classifier.classes_.tolist()]
                if model.classifier is not None else [])
     feat = feature_timing(root, n_flights=timing_flights) if timing_flights > 0 else None
-    manifest = json.loads((root / "manifest.json").read_text())
+    manifest = read_manifest(root)
     return {
         "format": "ema-evaluation/1",
-        "campaign": {"dir": str(root.resolve()), "kind": camp.kind, "seed": camp.seed,
+        "campaign": {"dir": str(root), "kind": camp.kind, "seed": camp.seed,
                      "scale": manifest.get("scale"), "render_every": manifest.get("render_every"),
                      "duration_s": manifest.get("duration_s"),
                      "patterns": len(camp.patterns), "partial": manifest.get("partial"),

@@ -13,15 +13,13 @@ Per 80 Hz step figures are per-flight times divided by the flight's number of 80
 
 from __future__ import annotations
 
-import json
-import os
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from server.campaigns import Location
     from server.phm.chain import PhmModel
 
 __all__ = ["ChainTimer", "feature_timing", "timing_summary"]
@@ -95,18 +93,18 @@ class ChainTimer:
         return out
 
 
-def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
+def feature_timing(campaign_dir: Location, *, n_flights: int = 6
                    ) -> dict[str, Any]:
     """Mean time to read a flight file and to compute its features (3 EMAs, 20 features).
 
     The flights are spread evenly over the manifest's list (deterministic choice).
     """
-    from server.campaigns import decode_log
+    from server.campaigns import campaign_store, decode_log, read_manifest
     from server.phm.features import FeatureConfig
     from server.phm.recording import log_features
 
-    root = Path(campaign_dir)
-    manifest = json.loads((root / "manifest.json").read_text())
+    root = campaign_store(campaign_dir)  # a directory or s3://bucket/prefix
+    manifest = read_manifest(root)
     files = [(fl["file"], fl.get("ground_temp_c")) for p in manifest["patterns"]
              for fl in p["flights"] if fl.get("file")]  # a streamed flight kept no file
     if not files:
@@ -118,7 +116,7 @@ def feature_timing(campaign_dir: str | os.PathLike[str], *, n_flights: int = 6
     steps = 0
     for f, ground in chosen:
         t0 = time.perf_counter()
-        log = decode_log((root / f).read_bytes(), f)
+        log = decode_log(root.read(f), f)
         t1 = time.perf_counter()
         log_features(log, config=cfg, ground_temp_c=ground)
         t2 = time.perf_counter()

@@ -9,7 +9,7 @@ import shutil
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -17,10 +17,13 @@ from server.jobs.context import JobContext
 from server.jobs.queue import ClaimedJob
 from server.services import models as service
 
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from server.campaigns import Location
+
 __all__ = ["train_into_version", "train_model_job"]
 
 
-def train_into_version(factory: sessionmaker[Session], version_id: int, design_dir: Path, *,
+def train_into_version(factory: sessionmaker[Session], version_id: int, design_dir: Location, *,
                        seed: int, activate: bool,
                        progress: Callable[[str, float], None] | None = None) -> dict[str, Any]:
     from server.campaigns import train_from_directory
