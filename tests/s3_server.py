@@ -20,6 +20,12 @@ AWS_ENV = {"AWS_ACCESS_KEY_ID": "hmsm-test", "AWS_SECRET_ACCESS_KEY": "hmsm-test
            "AWS_DEFAULT_REGION": "us-east-1"}
 
 
+def _client(endpoint: str):  # type: ignore[no-untyped-def]
+    return boto3.client("s3", endpoint_url=endpoint, region_name="us-east-1",
+                        aws_access_key_id=AWS_ENV["AWS_ACCESS_KEY_ID"],
+                        aws_secret_access_key=AWS_ENV["AWS_SECRET_ACCESS_KEY"])
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -47,9 +53,7 @@ class MotoS3:
             self.running = False
 
     def client(self):  # type: ignore[no-untyped-def]
-        return boto3.client("s3", endpoint_url=self.endpoint, region_name="us-east-1",
-                            aws_access_key_id=AWS_ENV["AWS_ACCESS_KEY_ID"],
-                            aws_secret_access_key=AWS_ENV["AWS_SECRET_ACCESS_KEY"])
+        return _client(self.endpoint)
 
     def new_bucket(self) -> str:
         name = f"hmsm-{uuid.uuid4().hex[:16]}"
@@ -57,5 +61,10 @@ class MotoS3:
         return name
 
     def keys(self, bucket: str) -> list[str]:
-        listing = self.client().list_objects_v2(Bucket=bucket)
+        return self.keys_at(self.endpoint, bucket)
+
+    @staticmethod
+    def keys_at(endpoint: str, bucket: str) -> list[str]:
+        """The bucket's object keys on the S3 server at ``endpoint``."""
+        listing = _client(endpoint).list_objects_v2(Bucket=bucket)
         return sorted(item["Key"] for item in listing.get("Contents", []))

@@ -58,10 +58,11 @@ def system(settings: Settings, shipped_model):  # type: ignore[no-untyped-def]
 
 
 @contextmanager
-def worker(settings: Settings, *args: str) -> Iterator[subprocess.Popen[bytes]]:
+def worker(settings: Settings, *args: str, extra_env: dict[str, str] | None = None
+           ) -> Iterator[subprocess.Popen[bytes]]:
     proc = subprocess.Popen([sys.executable, "-m", "server.cli", "worker", *args],
-                            env={**os.environ, **_env(settings)}, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+                            env={**os.environ, **_env(settings), **(extra_env or {})},
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         yield proc
     finally:
@@ -135,14 +136,24 @@ def _kill_mid_job(pid: int, running: Callable[[], bool]) -> None:
     raise AssertionError("never caught the worker mid-job")
 
 
-def test_worker_killed_mid_job_loses_and_duplicates_nothing(system) -> None:  # type: ignore[no-untyped-def]
+@pytest.fixture(params=["local", "s3"])
+def blob_env(request: pytest.FixtureRequest) -> dict[str, str]:
+    """Where the API and the workers keep flight logs: the data directory, or a bucket of
+    moto's S3 server over HTTP (HMSM_BLOB_URL)."""
+    if request.param == "local":
+        return {}
+    s3 = request.getfixturevalue("s3_server")
+    return {"HMSM_BLOB_URL": f"s3://{s3.new_bucket()}/logs", "HMSM_S3_ENDPOINT_URL": s3.endpoint}
+
+
+def test_worker_killed_mid_job_loses_and_duplicates_nothing(system, blob_env) -> None:  # type: ignore[no-untyped-def]
     settings, engine, keys = system
-    with running_server(_env(settings)) as url:
+    with running_server({**_env(settings), **blob_env}) as url:
         api = Api(url, keys["admin"])
         runner = SimFleetRunner(api, n_aircraft=1, rate_per_min=1e6, seed=9, duration_s=60)
         runner.register_fleet()
         runner.run(max_flights=6)
-        with worker(settings, "--lease", "2") as doomed:
+        with worker(settings, "--lease", "2", extra_env=blob_env) as doomed:
             def running() -> bool:
                 with Session(engine) as s:
                     return s.scalar(select(Job.id).where(Job.status == "running")) is not None
@@ -153,7 +164,7 @@ def test_worker_killed_mid_job_loses_and_duplicates_nothing(system) -> None:  # 
             stranded = s.scalars(select(Job).where(Job.status == "running")).all()
             assert len(stranded) == 1  # its lease will expire
             stranded_id = stranded[0].id
-        with worker(settings, "--lease", "2"):
+        with worker(settings, "--lease", "2", extra_env=blob_env):
             wait_until(lambda: pending_flights(url, keys["viewer"]) == 0, 180, "re-analysis")
         with Session(engine) as s:
             jobs = s.scalars(select(Job)).all()
@@ -163,6 +174,12 @@ def test_worker_killed_mid_job_loses_and_duplicates_nothing(system) -> None:  # 
             indices = s.scalars(select(HealthRecord.flight_index)
                                 .order_by(HealthRecord.flight_index)).all()
             assert indices == sorted([i for i in range(1, 7) for _ in range(3)])
+    if blob_env:  # the six logs are in the bucket, none under the data directory
+        bucket = blob_env["HMSM_BLOB_URL"].removeprefix("s3://").split("/")[0]
+        from tests.s3_server import MotoS3
+
+        assert len(MotoS3.keys_at(blob_env["HMSM_S3_ENDPOINT_URL"], bucket)) == 6
+        assert not [f for f in settings.data_dir.rglob("*.parquet")]
 
 
 # several workers share a queue on PostgreSQL (SKIP LOCKED): this test has no SQLite variant
