@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from server.config import Settings
 
 __all__ = ["BlobStore", "LocalBlobStore", "SpooledUpload", "StoredBlob", "BlobTooLarge",
-           "BlobStoreUnreachable", "open_blob_store", "TMP_MAX_AGE_S"]
+           "BlobStoreUnreachable", "open_blob_store", "files_under", "TMP_MAX_AGE_S"]
 
 _HEX = set("0123456789abcdef")
 #: temporary files (and unfinished multipart uploads) older than this at start-up belong to
@@ -194,23 +194,27 @@ class LocalBlobStore(BlobStore):
         return (self.root / check_relative_path(rel_path)).read_bytes()
 
     def stored(self) -> Iterator[StoredBlob]:
-        # symbolic links not followed (a link counts as the link); entries vanishing meanwhile
-        # (retention, uploads) are skipped
-        stack = [self.root]
-        while stack:
+        for path, stat in files_under(self.root):
+            yield StoredBlob(path.name, stat.st_size, stat.st_mtime)
+
+
+def files_under(root: Path) -> Iterator[tuple[Path, os.stat_result]]:
+    """Every file under ``root`` with its status, symbolic links not followed (a link counts
+    as the link); entries vanishing meanwhile (retention, uploads finishing) are skipped."""
+    stack = [root]
+    while stack:
+        try:
+            entries = list(os.scandir(stack.pop()))
+        except (FileNotFoundError, NotADirectoryError, PermissionError):
+            continue
+        for entry in entries:
             try:
-                entries = list(os.scandir(stack.pop()))
-            except (FileNotFoundError, NotADirectoryError, PermissionError):
+                if entry.is_dir(follow_symlinks=False):
+                    stack.append(Path(entry.path))
+                else:
+                    yield Path(entry.path), entry.stat(follow_symlinks=False)
+            except FileNotFoundError:
                 continue
-            for entry in entries:
-                try:
-                    if entry.is_dir(follow_symlinks=False):
-                        stack.append(Path(entry.path))
-                    else:
-                        stat = entry.stat(follow_symlinks=False)
-                        yield StoredBlob(entry.name, stat.st_size, stat.st_mtime)
-                except FileNotFoundError:
-                    continue
 
 
 def open_blob_store(settings: Settings) -> BlobStore:

@@ -19,9 +19,7 @@ add up to the directory's.
 
 from __future__ import annotations
 
-import os
 import shutil
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,7 +27,7 @@ from typing import Any
 from sqlalchemy import case, func, select, text
 from sqlalchemy.orm import Session
 
-from server.blobstore import BlobStore
+from server.blobstore import BlobStore, files_under
 from server.errors import DomainError
 from server.models import ApiKey, Flight
 from server.vocabulary import FlightStatus
@@ -99,30 +97,12 @@ class _Tally:
         return {"files": self.files, "bytes": self.bytes}
 
 
-def _files_under(root: Path) -> Iterator[tuple[Path, int]]:
-    """Every file under ``root`` with its size, symbolic links not followed (a link counts as
-    the link); entries vanishing meanwhile (uploads finishing) are skipped."""
-    stack = [root]
-    while stack:
-        try:
-            entries = list(os.scandir(stack.pop()))
-        except (FileNotFoundError, NotADirectoryError, PermissionError):
-            continue
-        for entry in entries:
-            try:
-                if entry.is_dir(follow_symlinks=False):
-                    stack.append(Path(entry.path))
-                else:
-                    yield Path(entry.path), entry.stat(follow_symlinks=False).st_size
-            except FileNotFoundError:
-                continue
-
-
 def _file_kinds(data_dir: Path) -> tuple[list[dict[str, Any]], _Tally]:
     """The data directory's files by kind (campaigns one by one), and all of them."""
     tallies: dict[tuple[str, str | None], _Tally] = {}
     total = _Tally()
-    for path, size in _files_under(data_dir):
+    for path, stat in files_under(data_dir):
+        size = stat.st_size
         parts = path.relative_to(data_dir).parts
         if len(parts) == 1 and parts[0] in _SQLITE_FILES:
             key: tuple[str, str | None] = ("database", None)
