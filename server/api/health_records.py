@@ -217,14 +217,7 @@ def alarms(session: SessionDep, _: Reader,
 
 
 def _one(session: SessionDep, alarm_id: int) -> AlarmRead:
-    from server.models import Actuator, ActuatorState, Aircraft, Alarm
-
-    alarm = session.get(Alarm, alarm_id)
-    actuator = session.get(Actuator, alarm.actuator_id)  # type: ignore[union-attr]
-    state = session.get(ActuatorState, actuator.id)  # type: ignore[union-attr]
-    u, expired = service.alarm_urgency(alarm, actuator, state.flights_seen if state else 0)  # type: ignore[arg-type]
-    tail = session.get(Aircraft, actuator.aircraft_id).tail  # type: ignore[union-attr]
-    return alarm_read(service.AlarmRow(alarm, actuator, tail, u, expired))  # type: ignore[arg-type]
+    return alarm_read(service.alarm_row(session=session, alarm_id=alarm_id))
 
 
 @router.get("/alarms/{alarm_id}/events", response_model=list[AlarmEventRead],

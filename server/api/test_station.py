@@ -27,7 +27,7 @@ from server.schemas import (
     Page,
     SensorInjectionCreate,
 )
-from server.services import conditions
+from server.services import conditions, fleet
 from server.services import sensor_injections as sensors
 from server.services import test_station as service
 from server.vocabulary import SENSOR_OF_SIGNAL
@@ -97,9 +97,7 @@ def _truth_read(row: GroundTruth) -> GroundTruthRead:
 
 
 def _tail(session: SessionDep, row: Injection | SensorInjection | SimCondition) -> str:
-    from server.models import Aircraft
-
-    return session.get(Aircraft, row.aircraft_id).tail  # type: ignore[union-attr]
+    return fleet.tail_of(session=session, aircraft_id=row.aircraft_id)
 
 
 @router.post("/injections", status_code=201, response_model=InjectionRead,

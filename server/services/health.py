@@ -153,6 +153,15 @@ def get_alarm(*, session: Session, alarm_id: int) -> Alarm:
     return row
 
 
+def alarm_row(*, session: Session, alarm_id: int) -> AlarmRow:
+    """One alarm as the inbox shows it (actuator, tail, urgency); 404 for an unknown one."""
+    alarm = get_alarm(session=session, alarm_id=alarm_id)
+    actuator = _actuator(session, alarm.actuator_id)
+    state = session.get(ActuatorState, actuator.id)
+    u, expired = alarm_urgency(alarm, actuator, state.flights_seen if state else 0)
+    return AlarmRow(alarm, actuator, actuator.aircraft.tail, u, expired)
+
+
 def _alarm(session: Session, alarm_id: int) -> Alarm:
     return get_alarm(session=session, alarm_id=alarm_id)
 
