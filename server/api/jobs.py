@@ -2,35 +2,15 @@
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Query
-from pydantic import BaseModel, ConfigDict
 
 from server.api.deps import Reader, SessionDep
-from server.schemas import MAX_INT32, JobStatusFilter, Offset, Page
+from server.schemas import MAX_INT32, JobRead, JobStatusFilter, Offset, Page
 from server.services import jobs as service
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
-
-
-class JobRead(BaseModel):
-    model_config = ConfigDict(from_attributes=True)
-    id: int
-    kind: str
-    flight_id: int | None
-    lock_key: str
-    status: str
-    attempts: int
-    max_attempts: int
-    run_after: datetime
-    lease_until: datetime | None
-    locked_by: str | None
-    last_error: str | None
-    created_at: datetime
-    started_at: datetime | None
-    finished_at: datetime | None
 
 
 @router.get("", response_model=Page[JobRead], summary="List jobs")
