@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import hmac
 import secrets
+from collections.abc import Iterable
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -22,7 +23,8 @@ from sqlalchemy.orm import Session
 from server.errors import Conflict, NotFound
 from server.models import ROLES, ApiKey, utcnow
 
-__all__ = ["KEY_PREFIX", "hash_key", "create_key", "authenticate", "revoke_key", "ALLOWED",
+__all__ = ["KEY_PREFIX", "hash_key", "create_key", "list_keys", "keys_by_id", "authenticate",
+           "revoke_key", "ALLOWED",
            "may", "SESSION_COOKIE", "SIGNIN_COOKIE", "CSRF_HEADER", "SAFE_METHODS", "csrf_token",
            "session_write_refusal"]
 
@@ -64,6 +66,19 @@ def create_key(*, session: Session, name: str, role: str) -> tuple[ApiKey, str]:
     session.add(row)
     session.flush()
     return row, plaintext
+
+
+def list_keys(*, session: Session) -> list[ApiKey]:
+    """Every key, revoked ones too, in the order they were made."""
+    return list(session.scalars(select(ApiKey).order_by(ApiKey.id)))
+
+
+def keys_by_id(*, session: Session, key_ids: Iterable[int | None]) -> dict[int, ApiKey]:
+    """The keys of these ids (a flight's uploader may be none: ``None`` is skipped)."""
+    wanted = {i for i in key_ids if i is not None}
+    if not wanted:
+        return {}
+    return {k.id: k for k in session.scalars(select(ApiKey).where(ApiKey.id.in_(wanted)))}
 
 
 def authenticate(*, session: Session, plaintext: str) -> ApiKey | None:

@@ -73,11 +73,8 @@ def cmd_store(args: argparse.Namespace, settings: Settings) -> int:
 
 
 def cmd_keys(args: argparse.Namespace, settings: Settings) -> int:
-    from sqlalchemy import select
-
-    from server.auth import create_key, revoke_key
+    from server.auth import create_key, list_keys, revoke_key
     from server.db import session_scope
-    from server.models import ApiKey
 
     factory = _session(settings)
     with session_scope(factory) as session:
@@ -89,7 +86,7 @@ def cmd_keys(args: argparse.Namespace, settings: Settings) -> int:
             row = revoke_key(session=session, key_id=args.id)
             print(f"revoked key {row.id} ({row.name})")
         else:
-            for row in session.scalars(select(ApiKey).order_by(ApiKey.id)):
+            for row in list_keys(session=session):
                 state = "revoked" if row.revoked_at else "active"
                 print(f"{row.id:4d}  {row.role:8s}  {state:7s}  {row.prefix}...  {row.name}")
     return 0

@@ -9,10 +9,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from sqlalchemy import Engine, create_engine, event
+from sqlalchemy import Engine, create_engine, event, text
+from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
-__all__ = ["make_engine", "make_session_factory", "session_scope"]
+__all__ = ["make_engine", "make_session_factory", "session_scope", "DatabaseUnavailable",
+           "unavailable_on_error", "ping"]
 
 
 def make_engine(url: str) -> Engine:
@@ -47,3 +49,23 @@ def session_scope(factory: sessionmaker[Session]) -> Iterator[Session]:
         raise
     finally:
         session.close()
+
+
+class DatabaseUnavailable(Exception):
+    """The database did not answer: SQLAlchemy's error, in a name the routes may import (the
+    API is kept from importing SQLAlchemy by a contract in pyproject.toml)."""
+
+
+@contextmanager
+def unavailable_on_error() -> Iterator[None]:
+    """Any SQLAlchemy error in the block raised as :class:`DatabaseUnavailable`."""
+    try:
+        yield
+    except SQLAlchemyError as exc:
+        raise DatabaseUnavailable(str(exc)) from exc
+
+
+def ping(engine: Engine) -> None:
+    """Raise :class:`DatabaseUnavailable` unless the database answers a trivial query."""
+    with unavailable_on_error(), engine.connect() as conn:
+        conn.execute(text("SELECT 1"))

@@ -442,6 +442,114 @@ def condition_problem(kind: str, value: float | None, base: str | None) -> str |
     return None if inside else f"{kind} must be {condition_range(kind)}"
 
 
+# the test station's bodies and read models of the API (server/api/test_station.py)
+
+MAX_SEVERITY = 10.0  # ground truth: severity and severity_norm (see GroundTruthIn)
+
+
+class InjectionRead(BaseModel):
+    id: int
+    aircraft: str
+    position: str
+    fault_mode: str
+    onset_flight: int
+    time_to_failure_flights: int | None
+    severity: float | None
+    status: str
+    created_by: str
+    created_at: datetime
+    cancelled_at: datetime | None
+    failure_flight: int | None
+    planned_failure_flight: int | None = Field(
+        None, description="Progressive faults: the flight the simulator steers the fault to "
+        "fail at (its start plus the requested or drawn time to failure).")
+    warnings: list[str] = Field(default_factory=list, description=(
+        "What the operator should know, e.g. a time to failure outside the spans the active "
+        "model was trained on."))
+
+
+class InjectionStatus(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    status: Annotated[str, Field(pattern="^(active|failed)$")]
+    failure_flight: FlightNumber | None = None
+    planned_failure_flight: FlightNumber | None = None
+
+
+class GroundTruthIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    flight: Identifier
+    flight_number: FlightNumber
+    # the fault's size in its own unit (m, ohm, ...; every failure threshold is at most 1), and
+    # as a fraction of the threshold: a fault is failed at 1, reported a little beyond at most
+    severity: float = Field(ge=0, le=MAX_SEVERITY, allow_inf_nan=False)
+    severity_norm: float = Field(ge=0, le=MAX_SEVERITY, allow_inf_nan=False)
+    true_rul_flights: FlightNumber | None = None
+
+
+class GroundTruthRead(GroundTruthIn):
+    model_config = ConfigDict(extra="ignore")
+    injection_id: int
+
+
+class SensorInjectionRead(BaseModel):
+    id: int
+    aircraft: str
+    position: str
+    sensor: str
+    channels: list[str] = Field(description='the flight-log channels it degrades, e.g. "WT.x"')
+    kind: str
+    value: float
+    onset_flight: int
+    started_flight: int | None
+    status: str
+    created_by: str
+    created_at: datetime
+    cancelled_at: datetime | None
+
+
+class SensorTruthIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    flight: Identifier
+    flight_number: FlightNumber
+    applied: float = Field(allow_inf_nan=False, ge=-1e6, le=1e6, description=(
+        "what was applied on the flight: the noise factor, the LVDT offset added [m] or the "
+        "quantisation step"))
+
+
+class SensorTruthRead(SensorTruthIn):
+    model_config = ConfigDict(extra="ignore")
+    sensor_injection_id: int
+
+
+class ConditionRead(BaseModel):
+    id: int
+    aircraft: str
+    kind: str
+    value: float | None
+    base: str | None
+    onset_flight: int
+    started_flight: int | None
+    status: str
+    created_by: str
+    created_at: datetime
+    cancelled_at: datetime | None
+
+
+class ConditionTruthIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    flight: Identifier
+    flight_number: FlightNumber
+    applied: float = Field(allow_inf_nan=False, ge=-1e6, le=1e6, description=(
+        "what was flown: the value (K, factor, N), or for a base the flight's ground "
+        "temperature drawn from its climate [degC]"))
+
+
+class ConditionTruthRead(ConditionTruthIn):
+    model_config = ConfigDict(extra="ignore")
+    condition_id: int
+
+
+
 # ---------------------------------------------------------------------------------------------
 # GET /api/v1/storage (server/services/storage.py)
 # ---------------------------------------------------------------------------------------------
@@ -506,3 +614,223 @@ class StorageReport(BaseModel):
     files: list[FileUsage]
     data_dir: DirectoryUsage
     database: DatabaseUsage
+
+
+# ---------------------------------------------------------------------------------------------
+# GET /api/v1/jobs (the queue: server/jobs)
+# ---------------------------------------------------------------------------------------------
+
+class JobRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    kind: str
+    flight_id: int | None
+    lock_key: str
+    status: str
+    attempts: int
+    max_attempts: int
+    run_after: datetime
+    lease_until: datetime | None
+    locked_by: str | None
+    last_error: str | None
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+
+
+# ---------------------------------------------------------------------------------------------
+# Actuator health, prognoses, alarms, the fleet grid (server/api/health_records.py)
+# ---------------------------------------------------------------------------------------------
+
+class HealthRecordRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    flight_id: int
+    flight_index: int
+    started_at: datetime | None
+    features: dict[str, Any]
+    scores: dict[str, Any]
+    confidence: float
+    alarm: bool
+    class_probabilities: dict[str, float | None] | None
+
+
+class RulDistributionRead(BaseModel):
+    """The particle filter's RUL distribution document (``RulDistribution.to_dict``)."""
+
+    version: int
+    kind: str
+    flight_index: int | None
+    quantiles: list[tuple[float, float | None]] = Field(
+        description="[level (fraction), RUL [flights]] pairs; null beyond the horizon")
+    mean: float | None
+    p_fail_within: list[tuple[int, float]] = Field(
+        description="[horizon [flights], probability of failure within it] pairs")
+    p_beyond_horizon: float
+    histogram_edges: list[float]
+    histogram_mass: list[float]
+    severity_mean: float
+    severity_std: float
+    most_probable: float | None = None
+    hours_per_flight: float | None = None
+
+
+class PrognosisRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    flight_id: int
+    flight_index: int
+    fault_mode: str
+    distribution: RulDistributionRead
+    created_at: datetime
+
+
+class AlarmRead(BaseModel):
+    id: int
+    aircraft: str
+    position: str
+    actuator_id: int
+    flight_id: int
+    status: str
+    urgency: str | None = Field(description="replace_now | act_within | monitor | deferred; "
+                                "the inbox order (server/services/urgency.py); null once the "
+                                "alarm is closed (a closed alarm claims no live urgency)")
+    urgency_label: str | None
+    act_within_flights: int | None
+    confidence: float
+    fault_mode: str | None = Field(description="the leading class now (it follows the "
+                                   "evidence while the alarm is not closed)")
+    raised_fault_mode: str | None = Field(description="the leading class when the alarm was "
+                                          "raised; later changes are its events")
+    class_probability: float | None
+    features: list[str]
+    rul_median_flights: float | None = Field(description="median of the latest RUL; 0 once "
+                                             "the unit has failed")
+    rul_low_flights: float | None = Field(description="5 % quantile of the latest RUL; 0 once "
+                                          "the unit has failed")
+    created_at: datetime
+    acknowledged_by: str | None
+    acknowledged_at: datetime | None
+    closed_by: str | None
+    closed_at: datetime | None
+    note: str | None
+    resolution: str | None = Field(description="replaced | no_fault_found | closed")
+    deferred_until_flight: int | None
+    deferred_until: datetime | None
+    deferral_expired: bool
+
+
+class AlarmEventRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    alarm_id: int
+    kind: str = Field(description="class_change: the leading class went from from_mode to "
+                      "to_mode on this flight")
+    flight_id: int | None
+    flight_index: int | None
+    from_mode: str | None
+    to_mode: str | None
+    created_at: datetime
+
+
+class AlarmAction(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    note: str | None = Field(None, max_length=2000)
+
+
+class SensorFindingRead(BaseModel):
+    """A channel whose signal-quality figure left its healthy band (server/phm/sensor_health.py)."""
+
+    channel: str = Field(description='"<position>.<signal>", e.g. "WT.x" (the LVDT)')
+    sensor: str = Field(description="current | voltage | resolver | lvdt")
+    metric: str = Field(description="noise (floor, rms) | offset (LVDT against the motor "
+                        "shaft, m) | lsb (quantisation step) | stuck | saturated (share)")
+    value: float | None
+    low: float | None = Field(description="healthy band, learned on the design campaign")
+    high: float | None
+
+
+class SensorFlightRead(BaseModel):
+    flight_id: int
+    flight_index: int
+    started_at: datetime | None
+    findings: list[SensorFindingRead]
+    set_aside: list[str] = Field(description="features not judged on this flight")
+    widened: dict[str, float] = Field(
+        description="features judged with a widened flight scatter: added variance [z^2]")
+
+
+class GridCellRead(BaseModel):
+    tail: str
+    base: str
+    position: str
+    actuator_id: int
+    serial: str
+    status: str = Field(description="the urgency's colour: red | amber | yellow | grey | green")
+    urgency: str  # replace_now | act_within | monitor | deferred | healthy
+    urgency_label: str
+    act_within_flights: int | None
+    failed_at_flight: int | None
+    confidence: float
+    fault_mode: str | None
+    rul_median: float | None
+    rul_low: float | None
+    open_alarm_id: int | None
+    flights_seen: int
+    sensor_findings: list[SensorFindingRead] = Field(
+        description="sensor advisory: findings of the latest analysed flight")
+
+
+# ---------------------------------------------------------------------------------------------
+# PHM model versions (server/api/models_api.py)
+# ---------------------------------------------------------------------------------------------
+
+# No leading dot: "." and ".." would name the campaigns directory or the data directory.
+_MODEL_NAME = r"^[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}$"
+
+
+class ModelRead(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    name: str
+    status: str
+    active: bool
+    metrics: dict[str, Any]
+    training: dict[str, Any]
+    error: str | None
+    created_at: datetime
+    finished_at: datetime | None
+
+
+class ModelSummary(BaseModel):
+    id: int
+    name: str
+    status: str
+    active: bool
+    accuracy: float | None
+    created_at: datetime
+
+
+class GenerateSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    seed: int = Field(ge=0, le=2**31 - 1, strict=True)
+    # quick alone: about 920 flights in 3 minutes on 2 cores, streamed (docs/SECURITY.md);
+    # paper (about 8 GB) and protocol (hours) campaigns are for `hmsm campaign` / `protocol`
+    scale: Literal["quick"] = Field("quick", description=(
+        "Only quick; larger campaigns come from the command line (`hmsm campaign`)."))
+
+
+class TrainRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    campaign: str = Field(pattern=_MODEL_NAME, description=(
+        "Design campaign directory name under HMSM_DATA_DIR/campaigns."))
+    generate: GenerateSpec | None = Field(None, description=(
+        "Simulate the design campaign first if it does not exist yet; it is removed once "
+        "training has read it."))
+    seed: int = Field(0, ge=0, le=2**31 - 1, strict=True,
+                      description="Seed of the 70/30 split.")
+    name: str | None = Field(None, pattern=_MODEL_NAME)
+    activate: bool = True
+
+
+class TrainAccepted(BaseModel):
+    model_id: int
+    job_id: int
+    status_url: str

@@ -9,6 +9,7 @@ adds an ``Authorization`` header to a cross-site request by itself."""
 from __future__ import annotations
 
 import hmac
+from collections.abc import Callable
 from typing import Annotated
 
 from fastapi import Depends, Request
@@ -74,7 +75,7 @@ def _refuse_forged_write(request: Request, cookie: str) -> None:
 CurrentKey = Annotated[ApiKey, Depends(current_key)]
 
 
-def _require(action: str):  # type: ignore[no-untyped-def]
+def _require(action: str) -> Callable[[ApiKey], ApiKey]:
     def dependency(key: CurrentKey) -> ApiKey:
         if not may(key.role, action):
             raise Forbidden(f"Role '{key.role}' may not do this; it needs one of: "

@@ -14,13 +14,14 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, Response
-from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
 from server.api.deps import Admin, BlobsDep, Reader, SessionDep, SettingsDep, Uploader
 from server.api.openapi import errors
 from server.api.presenters import flight_read
-from server.blobstore import BlobStoreUnreachable, BlobTooLarge
+from server.auth import keys_by_id
+from server.blobstore import BlobStore, BlobStoreUnreachable, BlobTooLarge, SpooledUpload
+from server.config import Settings
 from server.errors import (
     BadRequest,
     PayloadTooLarge,
@@ -29,7 +30,7 @@ from server.errors import (
     error_body,
 )
 from server.flightlog import METADATA_FIELDS
-from server.models import ApiKey
+from server.models import ApiKey, Flight
 from server.schemas import (
     FlightAccepted,
     FlightRead,
@@ -161,7 +162,9 @@ def _storage_unavailable(exc: OSError) -> StorageUnavailable:
                               details={"errno": exc.errno}, headers={"Retry-After": "60"})
 
 
-def _ingest(session, blobs, spooled, kind, form_metadata, key, settings):  # type: ignore[no-untyped-def]
+def _ingest(session: SessionDep, blobs: BlobStore, spooled: SpooledUpload, kind: str,
+            form_metadata: dict[str, str], key: ApiKey, settings: Settings
+            ) -> tuple[Flight, bool]:
     try:
         flight, duplicate = service.ingest_flight(
             session=session, blobs=blobs, upload=spooled, kind=kind,
@@ -184,22 +187,24 @@ def list_(session: SessionDep, _: Reader,
           offset: Offset = 0) -> Page[FlightRead]:
     rows, total = service.list_flights(session=session, tail=aircraft, status=status,
                                        limit=limit, offset=offset)
-    keys = _uploaders(session, {r.uploader_key_id for r in rows})
-    return Page(items=[flight_read(r, keys.get(r.uploader_key_id)) for r in rows], total=total,
+    keys = keys_by_id(session=session, key_ids=[r.uploader_key_id for r in rows])
+    return Page(items=[flight_read(r, _uploader(keys, r)) for r in rows], total=total,
                 limit=limit, offset=offset)
 
 
-def _uploaders(session: SessionDep, ids: set[int | None]) -> dict[int, ApiKey]:
-    wanted = {i for i in ids if i is not None}
-    if not wanted:
-        return {}
-    return {k.id: k for k in session.scalars(select(ApiKey).where(ApiKey.id.in_(wanted)))}
+def _uploader(keys: dict[int, ApiKey], row: Flight) -> ApiKey | None:
+    return None if row.uploader_key_id is None else keys.get(row.uploader_key_id)
+
+
+def _with_uploader(session: SessionDep, row: Flight) -> FlightRead:
+    return flight_read(row, _uploader(keys_by_id(session=session, key_ids=[row.uploader_key_id]),
+                                      row))
 
 
 @router.get("/{flight_id}", response_model=FlightRead, summary="One flight: status and reasons")
 def get(flight_id: int, session: SessionDep, _: Reader) -> FlightRead:
     row = service.get_flight(session=session, flight_id=flight_id)
-    return flight_read(row, _uploaders(session, {row.uploader_key_id}).get(row.uploader_key_id))
+    return _with_uploader(session, row)
 
 
 @router.get("/{flight_id}/signals", response_model=SignalsRead, responses=errors(410, 503),
@@ -247,4 +252,4 @@ def retry(flight_id: int, session: SessionDep, _: Admin) -> FlightRead:
     with a fresh count of attempts; 409 ``not_failed`` for a flight in any other state."""
     row = analysis_service.retry_failed(session=session, flight_id=flight_id)
     session.commit()
-    return flight_read(row, _uploaders(session, {row.uploader_key_id}).get(row.uploader_key_id))
+    return _with_uploader(session, row)

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
-from sqlalchemy import text
-from sqlalchemy.exc import SQLAlchemyError
 
+from server.db import DatabaseUnavailable, ping, unavailable_on_error
 from server.errors import error_body
 from server.migrate import current_revision, head_revision
 
@@ -22,10 +21,10 @@ def live() -> dict[str, str]:
 def ready(request: Request) -> JSONResponse:
     engine = request.app.state.engine
     try:
-        with engine.connect() as conn:
-            conn.execute(text("SELECT 1"))
-        revision = current_revision(engine)
-    except SQLAlchemyError:
+        ping(engine)
+        with unavailable_on_error():
+            revision = current_revision(engine)
+    except DatabaseUnavailable:
         return JSONResponse(error_body("database_unavailable", "The database does not answer."),
                             status_code=503)
     if revision != head_revision():

@@ -2,37 +2,15 @@
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Query
-from pydantic import BaseModel, ConfigDict
-from sqlalchemy import func, select
 
 from server.api.deps import Reader, SessionDep
-from server.errors import NotFound
-from server.models import Job
-from server.schemas import MAX_INT32, JobStatusFilter, Offset, Page
+from server.schemas import MAX_INT32, JobRead, JobStatusFilter, Offset, Page
+from server.services import jobs as service
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
-
-
-class JobRead(BaseModel):
-    model_config = ConfigDict(from_attributes=True)
-    id: int
-    kind: str
-    flight_id: int | None
-    lock_key: str
-    status: str
-    attempts: int
-    max_attempts: int
-    run_after: datetime
-    lease_until: datetime | None
-    locked_by: str | None
-    last_error: str | None
-    created_at: datetime
-    started_at: datetime | None
-    finished_at: datetime | None
 
 
 @router.get("", response_model=Page[JobRead], summary="List jobs")
@@ -41,20 +19,12 @@ def list_(session: SessionDep, _: Reader,
           flight_id: Annotated[int | None, Query(ge=1, le=MAX_INT32)] = None,
           limit: Annotated[int, Query(ge=1, le=500)] = 50,
           offset: Offset = 0) -> Page[JobRead]:
-    query = select(Job)
-    if status:
-        query = query.where(Job.status == status)
-    if flight_id is not None:
-        query = query.where(Job.flight_id == flight_id)
-    total = session.scalar(select(func.count()).select_from(query.subquery())) or 0
-    rows = session.scalars(query.order_by(Job.id.desc()).limit(limit).offset(offset)).all()
+    rows, total = service.list_jobs(session=session, status=status, flight_id=flight_id,
+                                    limit=limit, offset=offset)
     return Page(items=[JobRead.model_validate(r) for r in rows], total=total, limit=limit,
                 offset=offset)
 
 
 @router.get("/{job_id}", response_model=JobRead, summary="One job")
 def get(job_id: int, session: SessionDep, _: Reader) -> JobRead:
-    row = session.get(Job, job_id)
-    if row is None:
-        raise NotFound(f"Job {job_id} does not exist.")
-    return JobRead.model_validate(row)
+    return JobRead.model_validate(service.get_job(session=session, job_id=job_id))

@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 from fastapi import APIRouter
-from sqlalchemy import select
 
 from server.api.deps import Admin, SessionDep
 from server.api.openapi import errors
 from server.api.presenters import key_read
-from server.auth import create_key, revoke_key
-from server.models import ApiKey
+from server.auth import create_key, list_keys, revoke_key
 from server.schemas import KeyCreate, KeyCreated, KeyRead
 
 router = APIRouter(prefix="/keys", tags=["keys"])
@@ -18,7 +16,7 @@ router = APIRouter(prefix="/keys", tags=["keys"])
 @router.get("", response_model=list[KeyRead], responses=errors(403),
             summary="List keys (admin)")
 def list_(session: SessionDep, _: Admin) -> list[KeyRead]:
-    return [key_read(r) for r in session.scalars(select(ApiKey).order_by(ApiKey.id))]
+    return [key_read(r) for r in list_keys(session=session)]
 
 
 @router.post("", status_code=201, response_model=KeyCreated, summary="Create a key (admin)")

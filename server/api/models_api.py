@@ -2,73 +2,20 @@
 
 from __future__ import annotations
 
-from datetime import datetime
-from typing import Any, Literal
+from typing import Any
 
 from fastapi import APIRouter
-from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Admin, Reader, SessionDep, SettingsDep
 from server.api.openapi import errors
 from server.errors import NotFound, Unprocessable
+from server.schemas import ModelRead, ModelSummary, TrainAccepted, TrainRequest
 from server.services import models as service
 
 router = APIRouter(prefix="/models", tags=["models"])
 
-# No leading dot: "." and ".." would name the campaigns directory or the data directory.
 # ``{model_id:int}`` in the paths: otherwise ``GET /models/train`` would be read as a model id
 # (422) rather than answer 405.
-_NAME = r"^[A-Za-z0-9_-][A-Za-z0-9._-]{0,63}$"
-
-
-class ModelRead(BaseModel):
-    model_config = ConfigDict(from_attributes=True)
-    id: int
-    name: str
-    status: str
-    active: bool
-    metrics: dict[str, Any]
-    training: dict[str, Any]
-    error: str | None
-    created_at: datetime
-    finished_at: datetime | None
-
-
-class ModelSummary(BaseModel):
-    id: int
-    name: str
-    status: str
-    active: bool
-    accuracy: float | None
-    created_at: datetime
-
-
-class GenerateSpec(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    seed: int = Field(ge=0, le=2**31 - 1, strict=True)
-    # quick alone: about 920 flights in 3 minutes on 2 cores, streamed (docs/SECURITY.md);
-    # paper (about 8 GB) and protocol (hours) campaigns are for `hmsm campaign` / `protocol`
-    scale: Literal["quick"] = Field("quick", description=(
-        "Only quick; larger campaigns come from the command line (`hmsm campaign`)."))
-
-
-class TrainRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    campaign: str = Field(pattern=_NAME, description=(
-        "Design campaign directory name under HMSM_DATA_DIR/campaigns."))
-    generate: GenerateSpec | None = Field(None, description=(
-        "Simulate the design campaign first if it does not exist yet; it is removed once "
-        "training has read it."))
-    seed: int = Field(0, ge=0, le=2**31 - 1, strict=True,
-                      description="Seed of the 70/30 split.")
-    name: str | None = Field(None, pattern=_NAME)
-    activate: bool = True
-
-
-class TrainAccepted(BaseModel):
-    model_id: int
-    job_id: int
-    status_url: str
 
 
 @router.get("", response_model=list[ModelSummary], summary="Model versions")

@@ -72,7 +72,7 @@ def document_errors(app: FastAPI) -> None:
 
 
 def _add_inferred(path: str, method: str, operation: dict[str, Any]) -> None:
-    codes = set()
+    codes: set[int] = set()
     if operation.get("security"):
         codes.update((401, 429))
         if method in WRITE_METHODS:

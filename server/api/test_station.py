@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Query
-from pydantic import BaseModel, ConfigDict, Field
 
 from server.api.deps import Operator, Reader, SessionDep
 from server.api.openapi import errors
@@ -20,65 +18,27 @@ from server.models import (
 )
 from server.schemas import (
     ConditionCreate,
-    FlightNumber,
-    Identifier,
+    ConditionRead,
+    ConditionTruthIn,
+    ConditionTruthRead,
+    GroundTruthIn,
+    GroundTruthRead,
     InjectionCreate,
+    InjectionRead,
+    InjectionStatus,
     Offset,
     Page,
     SensorInjectionCreate,
+    SensorInjectionRead,
+    SensorTruthIn,
+    SensorTruthRead,
 )
-from server.services import conditions
+from server.services import conditions, fleet
 from server.services import sensor_injections as sensors
 from server.services import test_station as service
 from server.vocabulary import SENSOR_OF_SIGNAL
 
 router = APIRouter(prefix="/test-station", tags=["test station"])
-MAX_SEVERITY = 10.0  # ground truth: severity and severity_norm (see GroundTruthIn)
-
-class InjectionRead(BaseModel):
-    id: int
-    aircraft: str
-    position: str
-    fault_mode: str
-    onset_flight: int
-    time_to_failure_flights: int | None
-    severity: float | None
-    status: str
-    created_by: str
-    created_at: datetime
-    cancelled_at: datetime | None
-    failure_flight: int | None
-    planned_failure_flight: int | None = Field(
-        None, description="Progressive faults: the flight the simulator steers the fault to "
-        "fail at (its start plus the requested or drawn time to failure).")
-    warnings: list[str] = Field(default_factory=list, description=(
-        "What the operator should know, e.g. a time to failure outside the spans the active "
-        "model was trained on."))
-
-
-class InjectionStatus(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    status: Annotated[str, Field(pattern="^(active|failed)$")]
-    failure_flight: FlightNumber | None = None
-    planned_failure_flight: FlightNumber | None = None
-
-
-class GroundTruthIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    flight: Identifier
-    flight_number: FlightNumber
-    # the fault's size in its own unit (m, ohm, ...; every failure threshold is at most 1), and
-    # as a fraction of the threshold: a fault is failed at 1, reported a little beyond at most
-    severity: float = Field(ge=0, le=MAX_SEVERITY, allow_inf_nan=False)
-    severity_norm: float = Field(ge=0, le=MAX_SEVERITY, allow_inf_nan=False)
-    true_rul_flights: FlightNumber | None = None
-
-
-class GroundTruthRead(GroundTruthIn):
-    model_config = ConfigDict(extra="ignore")
-    injection_id: int
-
-
 def _read(row: Injection, tail: str, warnings: list[str] | None = None) -> InjectionRead:
     return InjectionRead(id=row.id, aircraft=tail, position=row.position,
                          fault_mode=row.fault_mode, onset_flight=row.onset_flight,
@@ -97,9 +57,7 @@ def _truth_read(row: GroundTruth) -> GroundTruthRead:
 
 
 def _tail(session: SessionDep, row: Injection | SensorInjection | SimCondition) -> str:
-    from server.models import Aircraft
-
-    return session.get(Aircraft, row.aircraft_id).tail  # type: ignore[union-attr]
+    return fleet.tail_of(session=session, aircraft_id=row.aircraft_id)
 
 
 @router.post("/injections", status_code=201, response_model=InjectionRead,
@@ -176,36 +134,6 @@ def ground_truth(injection_id: int, session: SessionDep, _: Reader) -> list[Grou
 
 # ---- sensor injections (a table of their own: see server/services/sensor_injections.py) ---
 
-class SensorInjectionRead(BaseModel):
-    id: int
-    aircraft: str
-    position: str
-    sensor: str
-    channels: list[str] = Field(description='the flight-log channels it degrades, e.g. "WT.x"')
-    kind: str
-    value: float
-    onset_flight: int
-    started_flight: int | None
-    status: str
-    created_by: str
-    created_at: datetime
-    cancelled_at: datetime | None
-
-
-class SensorTruthIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    flight: Identifier
-    flight_number: FlightNumber
-    applied: float = Field(allow_inf_nan=False, ge=-1e6, le=1e6, description=(
-        "what was applied on the flight: the noise factor, the LVDT offset added [m] or the "
-        "quantisation step"))
-
-
-class SensorTruthRead(SensorTruthIn):
-    model_config = ConfigDict(extra="ignore")
-    sensor_injection_id: int
-
-
 def _sensor_read(row: SensorInjection, tail: str) -> SensorInjectionRead:
     channels = [f"{row.position}.{s}" for s, of in SENSOR_OF_SIGNAL.items() if of == row.sensor]
     return SensorInjectionRead(
@@ -281,34 +209,6 @@ def _sensor_truth_read(row: SensorGroundTruth) -> SensorTruthRead:
 
 
 # ---- simulation conditions on an aircraft (server/services/conditions.py) --------------------
-
-class ConditionRead(BaseModel):
-    id: int
-    aircraft: str
-    kind: str
-    value: float | None
-    base: str | None
-    onset_flight: int
-    started_flight: int | None
-    status: str
-    created_by: str
-    created_at: datetime
-    cancelled_at: datetime | None
-
-
-class ConditionTruthIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    flight: Identifier
-    flight_number: FlightNumber
-    applied: float = Field(allow_inf_nan=False, ge=-1e6, le=1e6, description=(
-        "what was flown: the value (K, factor, N), or for a base the flight's ground "
-        "temperature drawn from its climate [degC]"))
-
-
-class ConditionTruthRead(ConditionTruthIn):
-    model_config = ConfigDict(extra="ignore")
-    condition_id: int
-
 
 def _condition_read(row: SimCondition, tail: str) -> ConditionRead:
     return ConditionRead(id=row.id, aircraft=tail, kind=row.kind, value=row.value, base=row.base,

@@ -11,7 +11,7 @@ from server.errors import Conflict, NotFound
 from server.flightlog import POSITIONS
 from server.models import Actuator, Aircraft
 
-__all__ = ["create_aircraft", "get_aircraft", "list_aircraft", "installed_serials",
+__all__ = ["create_aircraft", "get_aircraft", "list_aircraft", "tail_of", "installed_serials",
            "get_actuator", "list_actuators"]
 
 
@@ -52,6 +52,14 @@ def list_aircraft(*, session: Session, base: str | None, limit: int, offset: int
     rows = session.scalars(query.order_by(Aircraft.tail).limit(limit).offset(offset)
                            .options(selectinload(Aircraft.actuators))).all()
     return list(rows), total
+
+
+def tail_of(*, session: Session, aircraft_id: int) -> str:
+    """The tail of a registered aircraft (the rows that point at it are kept by foreign key)."""
+    aircraft = session.get(Aircraft, aircraft_id)
+    if aircraft is None:
+        raise NotFound(f"Aircraft {aircraft_id} does not exist.")
+    return aircraft.tail
 
 
 def installed_serials(*, session: Session, tail: str) -> dict[str, str] | None:

@@ -6,7 +6,7 @@ Inbox order and the grid's colours follow one rule, :func:`server.services.urgen
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
@@ -24,11 +24,12 @@ from server.models import (
     Prognosis,
     utcnow,
 )
+from server.schemas import GridCellRead
 from server.services.urgency import Urgency, deferral_active, sort_key, urgency
 from server.vocabulary import WINGLET_PAIR
 
 __all__ = ["alarm_urgency", "list_alarms", "acknowledge_alarm", "close_alarm",
-           "health_records", "prognoses", "fleet_grid", "GridCell", "close_alarms_of",
+           "health_records", "prognoses", "fleet_grid", "close_alarms_of",
            "AlarmRow", "actuator_urgency", "pair_winglet_alarms", "winglet_partner_alarm",
            "remaining_life", "current_prognoses", "alarm_events", "get_alarm"]
 
@@ -153,6 +154,15 @@ def get_alarm(*, session: Session, alarm_id: int) -> Alarm:
     return row
 
 
+def alarm_row(*, session: Session, alarm_id: int) -> AlarmRow:
+    """One alarm as the inbox shows it (actuator, tail, urgency); 404 for an unknown one."""
+    alarm = get_alarm(session=session, alarm_id=alarm_id)
+    actuator = _actuator(session, alarm.actuator_id)
+    state = session.get(ActuatorState, actuator.id)
+    u, expired = alarm_urgency(alarm, actuator, state.flights_seen if state else 0)
+    return AlarmRow(alarm, actuator, actuator.aircraft.tail, u, expired)
+
+
 def _alarm(session: Session, alarm_id: int) -> Alarm:
     return get_alarm(session=session, alarm_id=alarm_id)
 
@@ -263,28 +273,6 @@ def alarm_events(*, session: Session, alarm_ids: list[int]) -> list[AlarmEvent]:
                                 .order_by(AlarmEvent.id)))
 
 
-@dataclass(frozen=True)
-class GridCell:
-    tail: str
-    base: str
-    position: str
-    actuator_id: int
-    serial: str
-    status: str  # the urgency's colour: red | amber | yellow | grey | green
-    urgency: str  # replace_now | act_within | monitor | deferred | healthy
-    urgency_label: str
-    act_within_flights: int | None
-    failed_at_flight: int | None
-    confidence: float
-    fault_mode: str | None
-    rul_median: float | None
-    rul_low: float | None
-    open_alarm_id: int | None
-    flights_seen: int
-    #: sensor findings of the actuator's latest analysed flight (SensorFinding.to_dict)
-    sensor_findings: list[dict[str, Any]] = field(default_factory=list)
-
-
 def actuator_urgency(*, session: Session, actuator: Actuator) -> tuple[Urgency, Alarm | None,
                                                                         bool]:
     """One actuator's bucket, its latest not-closed alarm and whether a deferral expired."""
@@ -299,9 +287,10 @@ def actuator_urgency(*, session: Session, actuator: Actuator) -> tuple[Urgency, 
     return u, alarm, expired
 
 
-def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCell]:
+def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCellRead]:
     """One cell per installed actuator, coloured by its urgency bucket
-    (:mod:`server.services.urgency`)."""
+    (:mod:`server.services.urgency`). The API's schema is the cell itself: the dashboard's
+    fleet page and ``GET /fleet/health`` show the one structure."""
     query = (select(Aircraft.tail, Aircraft.base, Actuator, ActuatorState)
              .join(Actuator, Actuator.aircraft_id == Aircraft.id)
              .outerjoin(ActuatorState, ActuatorState.actuator_id == Actuator.id)
@@ -322,18 +311,18 @@ def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCell]:
                         fault_mode=None, rul_low_flights=None)
         else:
             u, _ = _open_alarm_urgency(alarm, act, seen, now)
-        cells.append(GridCell(tail=tail, base=base_name, position=act.position,
-                              actuator_id=act.id, serial=act.serial, status=u.colour,
-                              urgency=u.bucket, urgency_label=u.label,
-                              act_within_flights=u.within_flights,
-                              failed_at_flight=act.failed_at_flight,
-                              confidence=float(det.get("confidence", 0.0)),
-                              fault_mode=alarm.fault_mode if alarm else None,
-                              rul_median=remaining_life(
-                                  act, alarm.rul_median_flights if alarm else None),
-                              rul_low=remaining_life(
-                                  act, alarm.rul_low_flights if alarm else None),
-                              open_alarm_id=alarm.id if alarm else None,
-                              flights_seen=seen,
-                              sensor_findings=list(det.get("sensor_findings") or [])))
+        cells.append(GridCellRead(tail=tail, base=base_name, position=act.position,
+                                  actuator_id=act.id, serial=act.serial, status=u.colour,
+                                  urgency=u.bucket, urgency_label=u.label,
+                                  act_within_flights=u.within_flights,
+                                  failed_at_flight=act.failed_at_flight,
+                                  confidence=float(det.get("confidence", 0.0)),
+                                  fault_mode=alarm.fault_mode if alarm else None,
+                                  rul_median=remaining_life(
+                                      act, alarm.rul_median_flights if alarm else None),
+                                  rul_low=remaining_life(
+                                      act, alarm.rul_low_flights if alarm else None),
+                                  open_alarm_id=alarm.id if alarm else None,
+                                  flights_seen=seen,
+                                  sensor_findings=list(det.get("sensor_findings") or [])))
     return cells
