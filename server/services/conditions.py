@@ -10,16 +10,16 @@ of different kinds compose (hotter air and larger loads on the same flights).
 
 from __future__ import annotations
 
-from sqlalchemy import func, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
-from server.models import Aircraft, ConditionGroundTruth, SimCondition, utcnow
+from server.models import Aircraft, ConditionGroundTruth, SimCondition
+from server.services.station_items import LIVE, cancel_live, page_with_tail
 
-__all__ = ["LIVE", "create", "describe", "get", "list_", "cancel", "report_truth", "list_truth",
+__all__ = ["create", "describe", "get", "list_", "cancel", "report_truth", "list_truth",
            "flights_under"]
 
-LIVE = ("pending", "active")
 
 
 def create(*, session: Session, tail: str, kind: str, value: float | None, base: str | None,
@@ -55,25 +55,13 @@ def get(*, session: Session, condition_id: int) -> SimCondition:
 
 def list_(*, session: Session, tail: str | None, status: str | None, limit: int, offset: int
           ) -> tuple[list[tuple[SimCondition, str]], int]:
-    query = select(SimCondition, Aircraft.tail).join(Aircraft)
-    if tail:
-        query = query.where(Aircraft.tail == tail)
-    if status:
-        query = query.where(SimCondition.status == status)
-    total = session.scalar(select(func.count()).select_from(query.subquery())) or 0
-    rows = session.execute(query.order_by(SimCondition.id.desc()).limit(limit)
-                           .offset(offset)).all()
-    return [(r[0], r[1]) for r in rows], total
+    return page_with_tail(session=session, model=SimCondition, tail=tail, status=status,
+                          limit=limit, offset=offset)
 
 
 def cancel(*, session: Session, condition_id: int) -> SimCondition:
-    row = get(session=session, condition_id=condition_id)
-    if row.status not in LIVE:
-        raise Conflict(f"Condition {condition_id} is {row.status}; only pending or active "
-                       "ones can be cancelled.", code="not_live")
-    row.status = "cancelled"
-    row.cancelled_at = utcnow()
-    return row
+    return cancel_live(get(session=session, condition_id=condition_id),
+                       f"Condition {condition_id}")
 
 
 def report_truth(*, session: Session, condition_id: int, flight_code: str, flight_number: int,

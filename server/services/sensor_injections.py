@@ -9,15 +9,15 @@ injection on the same actuator, as a worn sensor may sit on a degrading drive.
 
 from __future__ import annotations
 
-from sqlalchemy import func, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
 from server.models import Aircraft, SensorGroundTruth, SensorInjection, utcnow
+from server.services.station_items import LIVE, cancel_live, page_with_tail
 
 __all__ = ["create", "get", "list_", "cancel", "report_truth", "list_truth", "end_at"]
 
-LIVE = ("pending", "active")
 
 
 def create(*, session: Session, tail: str, position: str, sensor: str, kind: str, value: float,
@@ -50,25 +50,13 @@ def get(*, session: Session, injection_id: int) -> SensorInjection:
 
 def list_(*, session: Session, tail: str | None, status: str | None, limit: int, offset: int
           ) -> tuple[list[tuple[SensorInjection, str]], int]:
-    query = select(SensorInjection, Aircraft.tail).join(Aircraft)
-    if tail:
-        query = query.where(Aircraft.tail == tail)
-    if status:
-        query = query.where(SensorInjection.status == status)
-    total = session.scalar(select(func.count()).select_from(query.subquery())) or 0
-    rows = session.execute(query.order_by(SensorInjection.id.desc()).limit(limit)
-                           .offset(offset)).all()
-    return [(r[0], r[1]) for r in rows], total
+    return page_with_tail(session=session, model=SensorInjection, tail=tail, status=status,
+                          limit=limit, offset=offset)
 
 
 def cancel(*, session: Session, injection_id: int) -> SensorInjection:
-    row = get(session=session, injection_id=injection_id)
-    if row.status not in LIVE:
-        raise Conflict(f"Sensor injection {injection_id} is {row.status}; only pending or "
-                       "active ones can be cancelled.", code="not_live")
-    row.status = "cancelled"
-    row.cancelled_at = utcnow()
-    return row
+    return cancel_live(get(session=session, injection_id=injection_id),
+                       f"Sensor injection {injection_id}")
 
 
 def report_truth(*, session: Session, injection_id: int, flight_code: str, flight_number: int,

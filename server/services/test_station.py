@@ -10,18 +10,18 @@ unit is healthy.
 
 from __future__ import annotations
 
-from sqlalchemy import func, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound, Unprocessable
 from server.models import Actuator, Aircraft, GroundTruth, Injection, utcnow
+from server.services.station_items import LIVE, cancel_live, page_with_tail
 from server.vocabulary import FAULT_MODES, PROGRESSIVE
 
 __all__ = ["PROGRESSIVE", "create_injection", "span_warning", "list_injections", "get_injection",
            "cancel_injection", "update_injection_status", "report_ground_truth",
            "list_ground_truth", "end_injections_at"]
 
-LIVE = ("pending", "active")
 
 
 def create_injection(*, session: Session, tail: str, position: str, fault_mode: str,
@@ -80,24 +80,13 @@ def get_injection(*, session: Session, injection_id: int) -> Injection:
 
 def list_injections(*, session: Session, tail: str | None, status: str | None, limit: int,
                     offset: int) -> tuple[list[tuple[Injection, str]], int]:
-    query = select(Injection, Aircraft.tail).join(Aircraft)
-    if tail:
-        query = query.where(Aircraft.tail == tail)
-    if status:
-        query = query.where(Injection.status == status)
-    total = session.scalar(select(func.count()).select_from(query.subquery())) or 0
-    rows = session.execute(query.order_by(Injection.id.desc()).limit(limit).offset(offset)).all()
-    return [(r[0], r[1]) for r in rows], total
+    return page_with_tail(session=session, model=Injection, tail=tail, status=status,
+                          limit=limit, offset=offset)
 
 
 def cancel_injection(*, session: Session, injection_id: int) -> Injection:
-    row = get_injection(session=session, injection_id=injection_id)
-    if row.status not in LIVE:
-        raise Conflict(f"Injection {injection_id} is {row.status}; only pending or active "
-                       "injections can be cancelled.", code="not_live")
-    row.status = "cancelled"
-    row.cancelled_at = utcnow()
-    return row
+    return cancel_live(get_injection(session=session, injection_id=injection_id),
+                       f"Injection {injection_id}")
 
 
 def update_injection_status(*, session: Session, injection_id: int, status: str,

@@ -1,0 +1,47 @@
+"""What the test station's three kinds of item share (fault injections, sensor injections,
+conditions): the states in which one is live, a page of them with their aircraft's tail, and
+cancelling a live one."""
+
+from __future__ import annotations
+
+from typing import Any, TypeVar
+
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from server.errors import Conflict
+from server.models import Aircraft, utcnow
+
+__all__ = ["LIVE", "page_with_tail", "cancel_live"]
+
+#: a pending item starts on its onset flight; an active one is being flown
+LIVE = ("pending", "active")
+
+Item = TypeVar("Item")
+
+
+def page_with_tail(*, session: Session, model: type[Item], tail: str | None,
+                   status: str | None, limit: int, offset: int
+                   ) -> tuple[list[tuple[Item, str]], int]:
+    """Items of ``model`` (newest first) with their aircraft's tail, and how many there are,
+    optionally of one aircraft and one status."""
+    table: Any = model  # a mapped class with aircraft_id, status and id
+    query = select(table, Aircraft.tail).join(Aircraft)
+    if tail:
+        query = query.where(Aircraft.tail == tail)
+    if status:
+        query = query.where(table.status == status)
+    total = session.scalar(select(func.count()).select_from(query.subquery())) or 0
+    rows = session.execute(query.order_by(table.id.desc()).limit(limit).offset(offset)).all()
+    return [(r[0], r[1]) for r in rows], total
+
+
+def cancel_live(row: Item, what: str) -> Item:
+    """``row`` cancelled now; a 409 ``not_live`` naming ``what`` if it is not live."""
+    item: Any = row
+    if item.status not in LIVE:
+        raise Conflict(f"{what} is {item.status}; only pending or active ones can be "
+                       "cancelled.", code="not_live")
+    item.status = "cancelled"
+    item.cancelled_at = utcnow()
+    return row
