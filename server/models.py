@@ -30,7 +30,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-from server.vocabulary import FAULT_MODES, FlightStatus, JobStatus
+from server.vocabulary import FAULT_MODES, STATION_LIVE, FlightStatus, JobStatus
 
 __all__ = [
     "JobKind",
@@ -126,6 +126,14 @@ def status_type(states: type[StrEnum]) -> Enum:
     return Enum(states, name="status", native_enum=False, create_constraint=True, length=16,
                 values_callable=lambda members: [m.value for m in members],
                 validate_strings=True)
+
+
+def _one_live(table: str, *columns: str) -> Index:
+    """At most one live test-station item per ``columns`` (the check before an insert gives
+    the friendly 409; this index holds under concurrent requests)."""
+    live = text("status IN (" + ", ".join(f"'{s}'" for s in STATION_LIVE) + ")")
+    return Index(f"uq_{table}_live", *columns, unique=True, sqlite_where=live,
+                 postgresql_where=live)
 
 
 class Base(DeclarativeBase):
@@ -452,6 +460,7 @@ class Injection(Base):
     """A fault injected by a test-station operator into a simulated aircraft's actuator."""
 
     __tablename__ = "injections"
+    __table_args__ = (_one_live("injections", "aircraft_id"),)  # one fault at a time
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)
@@ -493,6 +502,7 @@ class SensorInjection(Base):
     may be live beside an actuator fault (one per actuator sensor at a time)."""
 
     __tablename__ = "sensor_injections"
+    __table_args__ = (_one_live("sensor_injections", "aircraft_id", "position", "sensor"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)
@@ -534,6 +544,7 @@ class SimCondition(Base):
     acts on the whole aircraft, not on an actuator, and one of each kind is live at a time."""
 
     __tablename__ = "sim_conditions"
+    __table_args__ = (_one_live("sim_conditions", "aircraft_id", "kind"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)

@@ -109,6 +109,12 @@ CONDITION_KINDS: tuple[str, ...] = ("ambient_offset", "load_scale", "load_offset
                                     "command_scale", "base")
 
 
+#: the states in which a test-station item (fault injection, sensor injection, condition) is
+#: live: a pending one starts on its onset flight, an active one is being flown. The database
+#: holds one live item per slot by a partial unique index (server/models.py, migration 0013)
+STATION_LIVE: tuple[str, ...] = ("pending", "active")
+
+
 class FlightStatus(StrEnum):
     """Where an uploaded flight is. The values are the API's and the database's text (a CHECK
     constraint holds the column to them): renaming one is a migration and an API change."""

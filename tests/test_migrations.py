@@ -212,3 +212,49 @@ def test_the_database_refuses_a_status_outside_the_vocabulary_from_0009(
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
+
+
+def _live_injection(conn, id_: int, status: str = "pending") -> None:  # type: ignore[no-untyped-def]
+    import sqlalchemy as sa
+
+    conn.execute(sa.text(
+        "INSERT INTO injections (id, aircraft_id, position, fault_mode, onset_flight, status, "
+        "created_by, created_at) VALUES (:id, 1, 'WT', 'DMD', 0, :status, 't', "
+        "CURRENT_TIMESTAMP)"), {"id": id_, "status": status})
+
+
+def test_one_live_station_item_per_slot_from_0013(settings: Settings) -> None:
+    """0013 refuses to index a database holding two live injections on one aircraft (and says
+    which), takes it once one is cancelled, then the database refuses a second live one; 0012
+    again allows it."""
+    import pytest
+    import sqlalchemy as sa
+    from sqlalchemy.exc import IntegrityError
+
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0012")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
+        _live_injection(conn, 1, "active")
+        _live_injection(conn, 2, "pending")
+        _live_injection(conn, 3, "cancelled")
+    with pytest.raises(RuntimeError, match="injections: more than one live item"):
+        upgrade(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("UPDATE injections SET status = 'cancelled' WHERE id = 2"))
+    upgrade(url)
+    with pytest.raises(IntegrityError), engine.begin() as conn:
+        _live_injection(conn, 4, "pending")
+    with engine.begin() as conn:  # not live: no slot taken
+        _live_injection(conn, 4, "failed")
+
+    downgrade(url, "0012")
+    with engine.begin() as conn:  # two live ones again, as before 0013
+        _live_injection(conn, 5, "pending")
+        conn.execute(sa.text("DELETE FROM injections"))
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

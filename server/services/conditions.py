@@ -15,7 +15,8 @@ from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
 from server.models import Aircraft, ConditionGroundTruth, SimCondition
-from server.services.station_items import LIVE, cancel_live, page_with_tail
+from server.services.station_items import add_live, cancel_live, page_with_tail
+from server.vocabulary import STATION_LIVE
 
 __all__ = ["create", "describe", "get", "list_", "cancel", "report_truth", "list_truth",
            "flights_under"]
@@ -29,16 +30,16 @@ def create(*, session: Session, tail: str, kind: str, value: float | None, base:
         raise NotFound(f"Aircraft '{tail}' does not exist.")
     live = session.scalar(select(SimCondition).where(
         SimCondition.aircraft_id == aircraft.id, SimCondition.kind == kind,
-        SimCondition.status.in_(LIVE)))
+        SimCondition.status.in_(STATION_LIVE)))
     if live is not None:
         raise Conflict(f"{tail} already has a live {kind} condition ({describe(live)}); "
                        "cancel it first.", code="condition_exists",
                        details={"condition_id": live.id})
     row = SimCondition(aircraft_id=aircraft.id, kind=kind, value=value, base=base,
                        onset_flight=onset_flight, created_by=created_by, status="pending")
-    session.add(row)
-    session.flush()
-    return row
+    return add_live(session, row, lambda: Conflict(
+        f"{tail} was given a live {kind} condition concurrently; cancel it first.",
+        code="condition_exists"))
 
 
 def describe(row: SimCondition) -> str:

@@ -14,7 +14,8 @@ from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
 from server.models import Aircraft, SensorGroundTruth, SensorInjection, utcnow
-from server.services.station_items import LIVE, cancel_live, page_with_tail
+from server.services.station_items import add_live, cancel_live, page_with_tail
+from server.vocabulary import STATION_LIVE
 
 __all__ = ["create", "get", "list_", "cancel", "report_truth", "list_truth", "end_at"]
 
@@ -27,7 +28,7 @@ def create(*, session: Session, tail: str, position: str, sensor: str, kind: str
         raise NotFound(f"Aircraft '{tail}' does not exist.")
     live = session.scalar(select(SensorInjection).where(
         SensorInjection.aircraft_id == aircraft.id, SensorInjection.position == position,
-        SensorInjection.sensor == sensor, SensorInjection.status.in_(LIVE)))
+        SensorInjection.sensor == sensor, SensorInjection.status.in_(STATION_LIVE)))
     if live is not None:
         # two transforms of one sensor would compose in an order the operator did not choose
         raise Conflict(f"The {sensor} of {tail} {position} already has a live sensor injection "
@@ -36,9 +37,9 @@ def create(*, session: Session, tail: str, position: str, sensor: str, kind: str
     row = SensorInjection(aircraft_id=aircraft.id, position=position, sensor=sensor, kind=kind,
                           value=value, onset_flight=onset_flight, created_by=created_by,
                           status="pending")
-    session.add(row)
-    session.flush()
-    return row
+    return add_live(session, row, lambda: Conflict(
+        f"The {sensor} of {tail} {position} was given a live sensor injection concurrently; "
+        "cancel it first.", code="sensor_injection_exists"))
 
 
 def get(*, session: Session, injection_id: int) -> SensorInjection:
@@ -90,7 +91,7 @@ def end_at(*, session: Session, aircraft_id: int, position: str) -> list[SensorI
     """The actuator at ``position`` was replaced: its live sensor injections are cancelled."""
     rows = list(session.scalars(select(SensorInjection).where(
         SensorInjection.aircraft_id == aircraft_id, SensorInjection.position == position,
-        SensorInjection.status.in_(LIVE))))
+        SensorInjection.status.in_(STATION_LIVE))))
     now = utcnow()
     for row in rows:
         row.status, row.cancelled_at = "cancelled", now

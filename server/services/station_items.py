@@ -4,18 +4,18 @@ cancelling a live one."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, TypeVar
 
 from sqlalchemy import func, select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict
 from server.models import Aircraft, utcnow
+from server.vocabulary import STATION_LIVE
 
-__all__ = ["LIVE", "page_with_tail", "cancel_live"]
-
-#: a pending item starts on its onset flight; an active one is being flown
-LIVE = ("pending", "active")
+__all__ = ["add_live", "page_with_tail", "cancel_live"]
 
 Item = TypeVar("Item")
 
@@ -39,9 +39,20 @@ def page_with_tail(*, session: Session, model: type[Item], tail: str | None,
 def cancel_live(row: Item, what: str) -> Item:
     """``row`` cancelled now; a 409 ``not_live`` naming ``what`` if it is not live."""
     item: Any = row
-    if item.status not in LIVE:
+    if item.status not in STATION_LIVE:
         raise Conflict(f"{what} is {item.status}; only pending or active ones can be "
                        "cancelled.", code="not_live")
     item.status = "cancelled"
     item.cancelled_at = utcnow()
+    return row
+
+
+def add_live(session: Session, row: Item, conflict: Callable[[], Conflict]) -> Item:
+    """``row`` (a new live item) added and flushed; ``conflict()`` raised if a concurrent
+    request made a live item in the same slot first (the database's partial unique index)."""
+    session.add(row)
+    try:
+        session.flush()
+    except IntegrityError:
+        raise conflict() from None
     return row

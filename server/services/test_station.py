@@ -15,8 +15,8 @@ from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound, Unprocessable
 from server.models import Actuator, Aircraft, GroundTruth, Injection, utcnow
-from server.services.station_items import LIVE, cancel_live, page_with_tail
-from server.vocabulary import FAULT_MODES, PROGRESSIVE
+from server.services.station_items import add_live, cancel_live, page_with_tail
+from server.vocabulary import FAULT_MODES, PROGRESSIVE, STATION_LIVE
 
 __all__ = ["PROGRESSIVE", "create_injection", "span_warning", "list_injections", "get_injection",
            "cancel_injection", "update_injection_status", "report_ground_truth",
@@ -39,7 +39,7 @@ def create_injection(*, session: Session, tail: str, position: str, fault_mode: 
         raise Unprocessable(f"{fault_mode} is imposed a priori; it has no time to failure.",
                             code="not_progressive")
     live = session.scalar(select(Injection).where(
-        Injection.aircraft_id == aircraft.id, Injection.status.in_(LIVE)))
+        Injection.aircraft_id == aircraft.id, Injection.status.in_(STATION_LIVE)))
     if live is not None:
         raise Conflict(f"Aircraft '{tail}' already has a live injection ({live.fault_mode} on "
                        f"{live.position}); the simulator runs one fault at a time.",
@@ -47,9 +47,9 @@ def create_injection(*, session: Session, tail: str, position: str, fault_mode: 
     row = Injection(aircraft_id=aircraft.id, position=position, fault_mode=fault_mode,
                     onset_flight=onset_flight, time_to_failure_flights=time_to_failure_flights,
                     severity=severity, created_by=created_by, status="pending")
-    session.add(row)
-    session.flush()
-    return row
+    return add_live(session, row, lambda: Conflict(
+        f"Aircraft '{tail}' was given a live injection concurrently; the simulator runs one "
+        "fault at a time.", code="injection_exists"))
 
 
 def span_warning(*, session: Session, fault_mode: str,
@@ -95,7 +95,7 @@ def update_injection_status(*, session: Session, injection_id: int, status: str,
     """Sim worker: pending -> active at onset (with the flight a progressive fault is planned
     to fail at), active -> failed at the threshold."""
     row = get_injection(session=session, injection_id=injection_id)
-    if planned_failure_flight is not None and row.status in LIVE:
+    if planned_failure_flight is not None and row.status in STATION_LIVE:
         row.planned_failure_flight = planned_failure_flight
     allowed = {"pending": {"active", "failed"}, "active": {"failed"}}
     if status == row.status:
@@ -122,10 +122,10 @@ def end_injections_at(*, session: Session, aircraft_id: int, position: str) -> l
     that its unit is gone."""
     rows = list(session.scalars(select(Injection).where(
         Injection.aircraft_id == aircraft_id, Injection.position == position,
-        Injection.status.in_((*LIVE, "failed")), Injection.cancelled_at.is_(None))))
+        Injection.status.in_((*STATION_LIVE, "failed")), Injection.cancelled_at.is_(None))))
     now = utcnow()
     for row in rows:
-        if row.status in LIVE:
+        if row.status in STATION_LIVE:
             row.status = "cancelled"
         row.cancelled_at = now
     return rows

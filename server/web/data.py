@@ -36,7 +36,6 @@ from server.services import sensor_injections as sensor_service
 from server.services import test_station as station_service
 from server.services import urgency as urgency_rule
 from server.services.evaluation_status import read_progress
-from server.services.station_items import LIVE
 from server.vocabulary import (
     BASES,
     CONDITION_KINDS,
@@ -47,6 +46,7 @@ from server.vocabulary import (
     PROGRESSIVE,
     SENSOR_OF_SIGNAL,
     SENSORS,
+    STATION_LIVE,
 )
 
 __all__ = ["STATUS_RANK", "fleet_view", "failed_flights", "alarms_view", "actuator_view",
@@ -289,7 +289,7 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     for inj, _t in injections:
         if inj.position != actuator.position:
             continue
-        live_plan = inj.planned_failure_flight if inj.status in LIVE else None
+        live_plan = inj.planned_failure_flight if inj.status in STATION_LIVE else None
         for gt in station_service.list_ground_truth(session=session, injection_id=inj.id):
             if gt.true_rul_flights is not None:
                 truth_by_code[gt.flight_code] = float(gt.true_rul_flights)
@@ -363,10 +363,10 @@ def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
         warning = station_service.span_warning(
             session=session, fault_mode=inj.fault_mode,
             time_to_failure_flights=inj.time_to_failure_flights) \
-            if inj.status in LIVE else None
+            if inj.status in STATION_LIVE else None
         items.append({"injection": inj, "tail": tail, "truth_count": len(truth),
                       "truth_latest": truth[-1] if truth else None, "warning": warning,
-                      "live": inj.status in LIVE})
+                      "live": inj.status in STATION_LIVE})
     aircraft, _ = fleet_service.list_aircraft(session=session, base=None, limit=1000, offset=0)
     return {"items": items, "total": total, "tails": [a.tail for a in aircraft],
             "positions": POSITIONS, "modes": FAULT_MODES,
@@ -418,7 +418,7 @@ def _sensor_items(session: Session, limit: int) -> list[dict[str, Any]]:
         truth = sensor_service.list_truth(session=session, injection_id=inj.id)
         items.append({"injection": inj, "tail": tail, "truth_count": len(truth),
                       "truth_latest": truth[-1] if truth else None,
-                      "live": inj.status in LIVE})
+                      "live": inj.status in STATION_LIVE})
     return items
 
 
@@ -431,7 +431,7 @@ def _condition_items(session: Session, limit: int) -> list[dict[str, Any]]:
         truth = condition_service.list_truth(session=session, condition_id=row.id)
         items.append({"condition": row, "tail": tail, "what": condition_service.describe(row),
                       "truth_count": len(truth), "truth_latest": truth[-1] if truth else None,
-                      "live": row.status in LIVE})
+                      "live": row.status in STATION_LIVE})
     return items
 
 

@@ -1,0 +1,105 @@
+"""One live test-station item per slot, held by the database (migration 0013) as well as by the
+services' check: a request whose check ran before a concurrent one committed still gets the
+409, not a second live item, on SQLite and PostgreSQL."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+from sqlalchemy.orm import Session, sessionmaker
+
+from server.config import Settings
+from server.db import make_engine, make_session_factory
+from server.errors import Conflict
+from server.migrate import ensure_schema
+from server.models import Injection, SensorInjection, SimCondition
+from server.services import conditions, fleet, sensor_injections, test_station
+from server.services.station_items import add_live
+
+SERIALS = {"WL1": "S-1", "WL2": "S-2", "WT": "S-3"}
+
+
+@pytest.fixture
+def factory(settings: Settings) -> Iterator[sessionmaker[Session]]:
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    url = settings.effective_database_url
+    engine = make_engine(url)
+    ensure_schema(engine, url, auto_upgrade=True)
+    make = make_session_factory(engine)
+    with make() as s:
+        fleet.create_aircraft(session=s, tail="I-SLOT", base="Turin", serials=SERIALS)
+        s.commit()
+    yield make
+    engine.dispose()
+
+
+def _injection(aircraft_id: int, **kw: Any) -> Injection:
+    return Injection(aircraft_id=aircraft_id, position=kw.get("position", "WT"),
+                     fault_mode="DMD", onset_flight=0, time_to_failure_flights=100,
+                     created_by="t", status="pending")
+
+
+def _sensor(aircraft_id: int, **kw: Any) -> SensorInjection:
+    return SensorInjection(aircraft_id=aircraft_id, position="WT", sensor=kw.get("sensor", "lvdt"),
+                           kind="noise", value=2.0, onset_flight=0, created_by="t",
+                           status="pending")
+
+
+def _condition(aircraft_id: int, **kw: Any) -> SimCondition:
+    return SimCondition(aircraft_id=aircraft_id, kind=kw.get("kind", "ambient_offset"),
+                        value=5.0, onset_flight=0, created_by="t", status="pending")
+
+
+def _create(kind: str, s: Session) -> Any:
+    if kind == "injection":
+        return test_station.create_injection(
+            session=s, tail="I-SLOT", position="WT", fault_mode="DMD", onset_flight=0,
+            time_to_failure_flights=100, severity=None, created_by="t")
+    if kind == "sensor":
+        return sensor_injections.create(session=s, tail="I-SLOT", position="WT", sensor="lvdt",
+                                        kind="noise", value=2.0, onset_flight=0, created_by="t")
+    return conditions.create(session=s, tail="I-SLOT", kind="ambient_offset", value=5.0,
+                             base=None, onset_flight=0, created_by="t")
+
+
+ROWS: dict[str, Callable[..., Any]] = {"injection": _injection, "sensor": _sensor,
+                                       "condition": _condition}
+
+
+@pytest.mark.parametrize("kind", list(ROWS))
+def test_a_racing_second_live_item_is_a_409_not_a_second_row(
+        kind: str, factory: sessionmaker[Session]) -> None:
+    with factory() as first:
+        row = _create(kind, first)
+        first.commit()
+        aircraft_id = row.aircraft_id
+    with factory() as racing:  # its check ran before the first committed: straight to insert
+        with pytest.raises(Conflict) as refused:
+            add_live(racing, ROWS[kind](aircraft_id), lambda: Conflict("taken", code="taken"))
+        assert refused.value.code == "taken"
+        racing.rollback()
+        assert racing.query(type(row)).count() == 1
+
+
+@pytest.mark.parametrize("kind", list(ROWS))
+def test_a_cancelled_item_frees_its_slot_and_other_slots_stay_free(
+        kind: str, factory: sessionmaker[Session]) -> None:
+    with factory() as s:
+        row = _create(kind, s)
+        s.commit()
+        aircraft_id = row.aircraft_id
+        if kind == "sensor":  # another sensor of the same actuator is another slot
+            add_live(s, _sensor(aircraft_id, sensor="current"), lambda: Conflict("x"))
+        if kind == "condition":  # another kind of condition on the same aircraft too
+            add_live(s, _condition(aircraft_id, kind="load_scale"), lambda: Conflict("x"))
+        with pytest.raises(Conflict):
+            _create(kind, s)  # the service's own check: the friendly 409
+        s.rollback()
+        row = s.get(type(row), row.id)
+        row.status = "cancelled"
+        s.commit()
+        _create(kind, s)
+        s.commit()
+        assert s.query(type(row)).filter(type(row).status == "pending").count() == 1
