@@ -8,13 +8,18 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import TypeAlias
 
 from sqlalchemy import Engine, create_engine, event, text
 from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
-__all__ = ["make_engine", "make_session_factory", "session_scope", "DatabaseUnavailable",
-           "unavailable_on_error", "ping"]
+__all__ = ["SessionFactory", "make_engine", "make_session_factory", "session_scope",
+           "DatabaseUnavailable", "unavailable_on_error", "ping"]
+
+#: what opens a session (``app.state.session_factory``): callers outside the services name
+#: its type by this, without importing SQLAlchemy
+SessionFactory: TypeAlias = sessionmaker[Session]
 
 
 def make_engine(url: str) -> Engine:
@@ -33,12 +38,12 @@ def make_engine(url: str) -> Engine:
     return create_engine(url, pool_pre_ping=True, pool_size=10, max_overflow=20)
 
 
-def make_session_factory(engine: Engine) -> sessionmaker[Session]:
+def make_session_factory(engine: Engine) -> SessionFactory:
     return sessionmaker(engine, expire_on_commit=False)
 
 
 @contextmanager
-def session_scope(factory: sessionmaker[Session]) -> Iterator[Session]:
+def session_scope(factory: SessionFactory) -> Iterator[Session]:
     """One unit of work: commit on success, roll back on any error."""
     session = factory()
     try:

@@ -1,5 +1,6 @@
 """What changed in the database, as the dashboard's live updates need it: a snapshot of a
-few aggregates (a fixed number of indexed queries, whatever the fleet size)."""
+few aggregates (a fixed number of indexed queries, whatever the fleet size), and the stream's
+own short sessions: whether its key is active, and the snapshot while it is."""
 
 from __future__ import annotations
 
@@ -9,9 +10,26 @@ from typing import Any
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from server.auth import authenticate
+from server.db import SessionFactory
 from server.models import Alarm, AlarmEvent, HealthRecord, Injection, ModelVersion, Prognosis
 
-__all__ = ["snapshot"]
+__all__ = ["snapshot", "key_is_active", "snapshot_while_active"]
+
+
+def key_is_active(factory: SessionFactory, token: str) -> bool:
+    """Whether ``token`` is an active API key, in a short session of its own."""
+    with factory() as session:
+        return authenticate(session=session, plaintext=token) is not None
+
+
+def snapshot_while_active(factory: SessionFactory, token: str) -> dict[str, Any] | None:
+    """The snapshot, or None once the key ``token`` is revoked: one short session, the key's
+    check and the snapshot in the same transaction."""
+    with factory() as session:
+        if authenticate(session=session, plaintext=token) is None:
+            return None
+        return snapshot(session)
 
 
 def snapshot(session: Session) -> dict[str, Any]:

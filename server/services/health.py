@@ -31,7 +31,8 @@ from server.vocabulary import WINGLET_PAIR
 __all__ = ["alarm_urgency", "list_alarms", "acknowledge_alarm", "close_alarm",
            "health_records", "prognoses", "fleet_grid", "close_alarms_of",
            "AlarmRow", "actuator_urgency", "pair_winglet_alarms", "winglet_partner_alarm",
-           "remaining_life", "current_prognoses", "alarm_events", "get_alarm"]
+           "remaining_life", "current_prognoses", "alarm_events", "get_alarm",
+           "SensorFlight", "sensor_findings"]
 
 
 def remaining_life(actuator: Actuator, rul_flights: float | None) -> float | None:

@@ -34,11 +34,11 @@ from anyio import to_thread
 from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import StreamingResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
-from sqlalchemy.orm import Session, sessionmaker
 
-from server.auth import SESSION_COOKIE, authenticate
+from server.auth import SESSION_COOKIE
+from server.db import SessionFactory
 from server.errors import Unauthorized
-from server.services.events import snapshot
+from server.services.events import key_is_active, snapshot, snapshot_while_active
 
 __all__ = ["router", "snapshot", "diff_events", "POLL_S"]
 
@@ -63,29 +63,20 @@ def _format(event: str, data: dict[str, Any]) -> str:
     return f"event: {event}\ndata: {json.dumps(data)}\n\n"
 
 
-def _authenticate(factory: sessionmaker[Session], token: str | None) -> str:
+def _authenticate(factory: SessionFactory, token: str | None) -> str:
     if not token:
         raise Unauthorized("An API key is required (Authorization: Bearer ... or the "
                            "hmsm_session cookie).", headers={"WWW-Authenticate": "Bearer"})
-    with factory() as session:
-        if authenticate(session=session, plaintext=token) is None:
-            raise Unauthorized("The API key is unknown or revoked.",
-                               headers={"WWW-Authenticate": "Bearer"})
+    if not key_is_active(factory, token):
+        raise Unauthorized("The API key is unknown or revoked.",
+                           headers={"WWW-Authenticate": "Bearer"})
     return token
 
 
-def _take(factory: sessionmaker[Session], token: str) -> dict[str, Any] | None:
-    """The snapshot, or None once the stream's key is revoked."""
-    with factory() as session:
-        if authenticate(session=session, plaintext=token) is None:
-            return None
-        return snapshot(session)
-
-
-async def _stream(request: Request, factory: sessionmaker[Session], token: str, *,
+async def _stream(request: Request, factory: SessionFactory, token: str, *,
                   poll_s: float, timeout_s: float) -> AsyncIterator[str]:
     yield "retry: 2000\n\n"
-    state = await to_thread.run_sync(_take, factory, token)
+    state = await to_thread.run_sync(snapshot_while_active, factory, token)
     if state is None:
         return
     yield _format("hello", {"poll_s": poll_s})
@@ -94,7 +85,7 @@ async def _stream(request: Request, factory: sessionmaker[Session], token: str, 
         await asyncio.sleep(poll_s)
         if await request.is_disconnected():
             return
-        new = await to_thread.run_sync(_take, factory, token)
+        new = await to_thread.run_sync(snapshot_while_active, factory, token)
         if new is None:
             yield _format("revoked", {})
             return
@@ -118,7 +109,7 @@ async def events(
     poll: Annotated[float, Query(ge=0.2, le=30, description="Polling period [s].")] = POLL_S,
 ) -> StreamingResponse:
     """Any valid key (viewer and up). The session is held only while polling, not in between."""
-    factory: sessionmaker[Session] = request.app.state.session_factory
+    factory: SessionFactory = request.app.state.session_factory
     token = credentials.credentials if credentials else request.cookies.get(SESSION_COOKIE)
     token = await to_thread.run_sync(_authenticate, factory, token)
     return StreamingResponse(_stream(request, factory, token, poll_s=poll, timeout_s=timeout),

@@ -86,8 +86,8 @@ def feature_label(name: str) -> str:
 
 def mark_station(fig: go.Figure, marks: Sequence[Mapping[str, Any]]) -> go.Figure:
     """Shade the flights flown under test-station injections or conditions (grey bands, one
-    per run of flights, ``server.web.data.station_marks``): what the chart shows there is not
-    the aircraft's own service."""
+    per run of flights, ``server.services.dashboard.station_marks``): what the chart shows
+    there is not the aircraft's own service."""
     for m in marks:
         fig.add_vrect(x0=m["first"] - 0.5, x1=m["last"] + 0.5, fillcolor="rgba(80,80,80,0.14)",
                       line_width=0, layer="below")

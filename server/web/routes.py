@@ -1,7 +1,10 @@
 """Dashboard pages (server-rendered Jinja2) and their form posts.
 
-Handlers are thin: authenticate from the ``hmsm_session`` cookie, call the same services as the
-JSON API (through :mod:`server.web.data`), build figures with :mod:`server.web.figures`, render.
+Handlers are thin: authenticate from the ``hmsm_session`` cookie, read the page's model from
+:mod:`server.services.dashboard` (built on the same services as the JSON API) and call those
+services for the form posts, word it with :mod:`server.web.data`, build figures with
+:mod:`server.web.figures`, render. No SQLAlchemy here: the session is
+``server.dependencies.SessionDep``'s, passed on to the services.
 
 Security:
 
@@ -19,7 +22,7 @@ import secrets
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 from urllib.parse import quote, urlsplit
 
 import plotly
@@ -51,6 +54,7 @@ from server.schemas import (
     SensorInjectionCreate,
 )
 from server.services import conditions as condition_service
+from server.services import dashboard
 from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
@@ -67,6 +71,9 @@ TEMPLATE_DIR = WEB_DIR / "templates"
 STATIC_DIR = WEB_DIR / "static"
 PLOTLY_JS = Path(plotly.__file__).resolve().parent / "package_data" / "plotly.min.js"
 _NO_STORE = {"Cache-Control": "no-store"}
+
+#: a form post's schema (the API's), the type its handler's service call takes
+Body = TypeVar("Body", bound=BaseModel)
 
 router = APIRouter(include_in_schema=False)
 
@@ -227,8 +234,8 @@ def fleet_page(request: Request, session: SessionDep, sort: str = "rul",
     if key is None:
         return _signin_redirect(request)
     return _render(request, "fleet.html", key,
-                   **data.fleet_view(session=session, sort=sort, base=base or None,
-                                     status=status or None))
+                   **dashboard.fleet_view(session=session, sort=sort, base=base or None,
+                                          status=status or None))
 
 
 @router.get("/alarms", response_class=HTMLResponse)
@@ -237,8 +244,8 @@ def alarms_page(request: Request, session: SessionDep, status: str | None = None
     if key is None:
         return _signin_redirect(request)
     status = status if status in ("open", "acknowledged", "closed") else None
-    return _render(request, "alarms.html", key, **data.alarms_view(session=session,
-                                                                   status=status))
+    return _render(request, "alarms.html", key, **dashboard.alarms_view(session=session,
+                                                                        status=status))
 
 
 def _alarm_action(request: Request, session: SessionDep, alarm_id: int, note: str, csrf: str,
@@ -286,7 +293,8 @@ def actuator_page(request: Request, session: SessionDep, actuator_id: int) -> Re
     if key is None:
         return _signin_redirect(request)
     try:
-        view = data.actuator_view(session=session, actuator_id=actuator_id)
+        view = data.actuator_view(dashboard.actuator_view(session=session,
+                                                          actuator_id=actuator_id))
     except DomainError as exc:
         return _problem(request, key, exc.status_code, exc.message)
     figs = {
@@ -311,7 +319,8 @@ def _form_error(exc: ValidationError) -> str:
 
 
 def _maintenance(request: Request, session: SessionDep, actuator_id: int, csrf: str,
-                 schema: type, raw: dict[str, str], act: Any) -> Response:
+                 schema: type[Body], raw: dict[str, str], act: Callable[[ApiKey, Body], int]
+                 ) -> Response:
     """A maintenance form post: CSRF and role (``maintain``), the API's schema, the service."""
     key = _check_post(request, session, csrf, "maintain")
     if not isinstance(key, ApiKey):
@@ -378,7 +387,7 @@ def models_page(request: Request, session: SessionDep, id: int | None = None) ->
     key = _key(request, session)
     if key is None:
         return _signin_redirect(request)
-    view = data.models_view(session=session, model_id=id)
+    view = dashboard.models_view(session=session, model_id=id)
     fig = figures.confusion_matrix(view["confusion"]) if view["confusion"] else None
     return _render(request, "models.html", key, fig=fig, **view)
 
@@ -412,12 +421,12 @@ def _station(request: Request, session: SessionDep, key: ApiKey, status_code: in
     (``fault``, ``sensor``, ``condition``; None: a cancel) with what was typed in it."""
     return _render(request, "test_station.html", key, status_code=status_code, error=error,
                    failed=failed, forms={failed: form or {}} if failed else {},
-                   **data.station_view(session=session), **data.station_forms())
+                   **dashboard.station_view(session=session), **data.station_forms())
 
 
 def _create_on_station(request: Request, session: SessionDep, csrf: str, failed: str,
-                       form: dict[str, str], schema: type[BaseModel],
-                       create: Callable[[ApiKey, Any], object]) -> Response:
+                       form: dict[str, str], schema: type[Body],
+                       create: Callable[[ApiKey, Body], object]) -> Response:
     """An operator's create from a station form: the API's schema, then its service; the page
     again with the form and the schema's or the service's message, or back to it once
     committed."""

@@ -131,8 +131,8 @@ def test_the_api_documents_compose_into_one_set_of_conditions() -> None:
 
 def test_every_kind_of_the_vocabulary_is_flown_bounded_and_explained() -> None:
     from server.schemas import CONDITION_BOUNDS
+    from server.services.dashboard import CONDITION_MOVES
     from server.vocabulary import CONDITION_KINDS
-    from server.web.data import CONDITION_MOVES
     from sim_worker.conditions import _FIELD
 
     kinds = set(CONDITION_KINDS)
