@@ -99,6 +99,22 @@ def test_standby_currents_are_the_damping_currents_its_back_emf_drives(aircraft)
     assert np.sqrt(np.mean((res.signals[moving, WL2, 3] - va_expected) ** 2)) < 1.2  # V
 
 
+def test_a_stuck_standby_s_currents_decay_to_zero_not_to_subnormal_floats(aircraft):
+    """Holding still, the standby's shaft sticks and its currents decay geometrically; they end
+    at 0, not on the smallest subnormal float, which x86 cores compute in microcode (a flight
+    was four times slower on an Intel Xeon): no subnormal in any true state or output."""
+    sc = make_scenario(3.0, lambda t: ramp(t, 0.5, 1.0, 0.0, 0.008), const(0.0),
+                       const(-1500.0), const(0.0))
+    res = run(aircraft, sc, active=WL1_DRIVES)
+    tiny = np.finfo(np.float64).tiny
+    for name in ("truth", "signals", "acc"):
+        values = np.asarray(getattr(res, name))
+        assert not np.any((values != 0.0) & (np.abs(values) < tiny)), name
+    still = sc.t >= 2.5
+    assert np.all(res.truth[still, WL2, D.W] == 0.0)  # stuck, the case that made subnormals
+    assert np.all(res.truth[still, WL2, D.IQ] == 0.0)
+
+
 @pytest.mark.parametrize("drives, load_n, lagging", [
     (WL1_DRIVES, 0.0, ("WL1", "WL2")),  # no hinge load: both rod ends change flank
     (WL1_DRIVES, -1500.0, ("WL2",)),  # one-sided load: the active stays on its flank

@@ -50,9 +50,9 @@ EXPECTED: dict[str, str] = {
     "MTEL": "5118634d36f1f18376b1bb0a3ba361d8a465b45acbfec0628fb08f194b8275a5",
     "MTWEAR": "7fdaa7a14039630aed6a8a3b0b22f7a6394472615b3bf91fad5eb76caa3752ed",
     "REWEAR": "11cba0a96bdc8830971142f55cd60cc5f37a5fb4cfee292ca19494c77ea52dff",
-    "standby healthy": "6b2ef7de7bf2bac7dcf426cc93c301c677ec89f2beca6bf1f11b8eea56d2c776",
-    "standby TTS": "247f3da079285da2b9675e181f0355429a33c5ad206b42637654c5e5587c77c5",
-    "standby REWEAR": "6a310181149f441c7dd8ad37ddcc3153f2e78c13e4a6db35290d3ad7752dac7d",
+    "standby healthy": "eabaeb942ecd7d37aedd33e0607763dbe20454d1200cd01aa5c65a96e4ed053d",
+    "standby TTS": "17371622f0a97451207b4b8b8d7a8efef94734655a1e7c38d9330e28dc1f6b67",
+    "standby REWEAR": "caa6c807e9b3915518f6427f6e1881a34183c7d91f0dea12b16e00dbc3268c8d",
 }
 
 EXPECTED_MOTOR = "c0b0407ad9ed9f2c4e29c02ceb1a52c5722a824db545550d387eeaba00179815"
