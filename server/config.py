@@ -16,7 +16,10 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from server.campaign_store import ENDPOINT_URL, S3_URL
 from server.flightlog import DecodeLimits
 
-__all__ = ["Settings", "load_settings"]
+__all__ = ["SQLITE_FILE_NAME", "Settings", "load_settings"]
+
+#: the embedded default database's file under the data directory
+SQLITE_FILE_NAME = "hmsm.sqlite3"
 
 _DECODE = DecodeLimits()
 
@@ -28,7 +31,7 @@ class Settings(BaseSettings):
 
     data_dir: Path = Field(Path("./var"), description="Blobs, temporary uploads, SQLite file.")
     database_url: str | None = Field(
-        None, description="SQLAlchemy URL; default: SQLite file hmsm.sqlite3 under data_dir."
+        None, description=f"SQLAlchemy URL; default: SQLite file {SQLITE_FILE_NAME} under data_dir."
     )
     max_upload_bytes: int = Field(64 * 1024 * 1024, gt=0, description="Largest request body [B].")
     host: str = Field("127.0.0.1", description="Bind address of `hmsm serve`.")
@@ -154,7 +157,12 @@ class Settings(BaseSettings):
             if url.startswith("postgresql://"):
                 url = "postgresql+psycopg://" + url[len("postgresql://"):]
             return url
-        return f"sqlite:///{self.data_dir / 'hmsm.sqlite3'}"
+        return f"sqlite:///{self.sqlite_file}"
+
+    @property
+    def sqlite_file(self) -> Path:
+        """The embedded default database's file (used when no ``database_url`` is set)."""
+        return self.data_dir / SQLITE_FILE_NAME
 
     @property
     def is_sqlite(self) -> bool:

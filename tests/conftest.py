@@ -4,8 +4,10 @@
 from __future__ import annotations
 
 import os
+import shutil
 import uuid
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from sqlalchemy import create_engine, text
@@ -57,13 +59,28 @@ def backend(request: pytest.FixtureRequest) -> str:
     return request.param
 
 
+@pytest.fixture(scope="session")
+def sqlite_at_head(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An SQLite database migrated to head once for the session: each test's database starts
+    as a copy of it instead of running every migration again (0.4 s a test; the migrations
+    themselves are tests/test_migrations.py's, which go down to base and up again)."""
+    from server.migrate import upgrade
+
+    template = Settings(data_dir=tmp_path_factory.mktemp("sqlite_at_head"))
+    upgrade(template.effective_database_url)
+    return template.sqlite_file
+
+
 @pytest.fixture
 def settings(backend: str, tmp_path, request: pytest.FixtureRequest) -> Settings:
     if backend == "postgres":
         url = request.getfixturevalue("pg_database")
         truncate_all(url)
         return Settings(data_dir=tmp_path / "data", database_url=url)
-    return Settings(data_dir=tmp_path / "data")
+    settings = Settings(data_dir=tmp_path / "data")
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(request.getfixturevalue("sqlite_at_head"), settings.sqlite_file)
+    return settings
 
 
 # ---------------------------------------------------------------------------------------------

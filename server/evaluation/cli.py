@@ -109,7 +109,7 @@ def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, 
     from server.errors import NotFound
     from server.services import models as model_service
 
-    if settings.is_sqlite and not (settings.data_dir / "hmsm.sqlite3").exists() \
+    if settings.is_sqlite and not settings.sqlite_file.exists() \
             and not settings.database_url:
         raise ValueError(f"no database under {settings.data_dir}: pass --design, --model-json "
                          "or set HMSM_DATA_DIR / HMSM_DATABASE_URL")

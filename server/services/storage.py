@@ -28,6 +28,7 @@ from sqlalchemy import case, func, select, text
 from sqlalchemy.orm import Session
 
 from server.blobstore import BlobStore, files_under
+from server.config import SQLITE_FILE_NAME
 from server.errors import DomainError
 from server.models import ApiKey, Flight
 from server.vocabulary import FlightStatus
@@ -41,7 +42,7 @@ REJECTED_MIN_CHARGE = 64 * 1024
 #: campaigns and the evaluation of :mod:`server.services.models` and ``server.demo``)
 _TOP_LEVEL = {"blobs": "blobs", "tmp": "temporary_uploads", "campaigns": "campaign",
               "evaluation": "evaluation_reports", "logs": "logs"}
-_SQLITE_FILES = ("hmsm.sqlite3", "hmsm.sqlite3-wal", "hmsm.sqlite3-shm", "hmsm.sqlite3-journal")
+_SQLITE_FILES = tuple(SQLITE_FILE_NAME + end for end in ("", "-wal", "-shm", "-journal"))
 
 
 class RejectedQuotaExceeded(DomainError):
