@@ -115,7 +115,7 @@ __all__ = [
 
 #: bumped whenever a feature formula or validity changes (invalidates cached campaign
 #: features); the history of the bumps is in docs/TUNING.md
-FEATURE_VERSION = "features/8"
+FEATURE_VERSION = "features/9"
 #: the sensors each generic feature reads: its own actuator's, both winglet drives' for
 #: F_REWEAR. Every feature's validity windows read the motor speed, hence the resolver
 FEATURE_SENSORS: dict[str, tuple[str, ...]] = {
@@ -200,11 +200,15 @@ class FeatureConfig:
     #: extension): hinge-load gradient k [N/m of rod travel] and bias [N], per position
     aero_gradient_n_per_m: Mapping[str, float] = field(default_factory=_default_aero)
     aero_bias_n: Mapping[str, float] = field(default_factory=_default_aero_bias)
-    #: degC, ambient at cruise, where the dynamic pressure is the design one
-    cruise_temp_c: float = -40.0
-    #: degC, F_MTEL only where T_amb <= cruise_temp_c + band (constant dynamic pressure: the
-    #: hinge load is linear in the deflection)
+    #: K, F_MTEL only where T_amb is within this of the flight's coldest air: its cruise, where
+    #: the dynamic pressure is the design one (the hinge load linear in the deflection). Read
+    #: from the flight's own coldest air, so a warmer or colder day (an ISA deviation, a test
+    #: station's ambient offset) moves the window with the air instead of emptying it
     cruise_band_c: float = 3.0
+    #: K, the air must cool by at least this from the flight's warmest to its coldest for the
+    #: flight to have a cruise at all (3 km of climb at the standard lapse rate); a run on the
+    #: ground has no F_MTEL
+    cruise_min_climb_k: float = 20.0
     #: N m, F_MTEL's reference torque T_ref = c0 / k0 of the healthy hysteresis line
     #: W = c0 + k0 |L| measured on healthy cruise flights, so that W / (T_ref + |L|) is k0
     #: whatever the load. Physics alone gives c0 = 2 x 0.04 N m drag and k0 =
@@ -740,8 +744,9 @@ def validity_windows(steps: ActuatorSteps, *, config: FeatureConfig | None = Non
 
     ``steady_cruise`` keeps the steps moving faster than ``mtel_min_electrical_hz`` with an
     acceleration below ``steady_accel_rad_s2`` and, when ``t_amb_c`` (800 Hz, degC) covers the
-    flight, an ambient within ``cruise_band_c`` of ``cruise_temp_c``. It has no current floor:
-    dropping the low-torque steps would drop one direction's moves under a light load.
+    flight, an ambient within ``cruise_band_c`` of the flight's coldest (none if the air cooled
+    by less than ``cruise_min_climb_k``). It has no current floor: dropping the low-torque
+    steps would drop one direction's moves under a light load.
     """
     cfg = config or FeatureConfig()
     w_mean = steps.speed
@@ -755,7 +760,7 @@ def validity_windows(steps: ActuatorSteps, *, config: FeatureConfig | None = Non
     cut = steps.n_samples
     if t_amb_c is not None and len(t_amb_c) >= cut:
         t_amb = block_mean(np.asarray(t_amb_c[:cut], dtype=np.float64), cfg.decimation)
-        steady_cruise &= t_amb <= cfg.cruise_temp_c + cfg.cruise_band_c
+        steady_cruise &= _cruise(t_amb, cfg)
     return ValidityWindows(
         electrical_ok=electrical_ok,
         current_ok=electrical_ok & (steps.current > cfg.min_current_a),
@@ -763,6 +768,16 @@ def validity_windows(steps: ActuatorSteps, *, config: FeatureConfig | None = Non
         still=still,
         steady_cruise=steady_cruise,
     )
+
+
+def _cruise(t_amb: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
+    """Steps within ``cruise_band_c`` of the flight's coldest air, if it climbed to a cruise."""
+    if t_amb.size == 0:
+        return np.zeros(0, dtype=bool)
+    coldest = float(t_amb.min())
+    if float(t_amb.max()) - coldest < cfg.cruise_min_climb_k:
+        return np.zeros(t_amb.size, dtype=bool)
+    return t_amb <= coldest + cfg.cruise_band_c
 
 
 def winding_resistance(steps: ActuatorSteps, still: np.ndarray, *,

@@ -250,6 +250,21 @@ def test_flight_features_gives_twenty_with_conditions() -> None:
             assert s.n_valid > 0, name
 
 
+@pytest.mark.parametrize("offset_k", [0.0, 5.0, 15.0, -15.0])
+def test_cruise_is_the_flight_s_coldest_air_whatever_the_day(offset_k: float) -> None:
+    """F_MTEL's cruise window follows the air: the same steps on a day 5 or 15 K warmer or
+    15 K colder (a fixed -37 degC threshold found none above +3 K and took in the climb at
+    -15 K); a run that never climbed has none."""
+    t = np.linspace(0.0, 1.0, 1000)
+    alt = np.clip(np.minimum(t, 1.0 - t) / 0.2, 0.0, 1.0)  # climb, cruise, descent
+    air = 15.0 + (-40.0 - 15.0) * alt  # ground to the design cruise air
+    cfg = FeatureConfig()
+    nominal = features_module._cruise(air, cfg)
+    assert nominal.sum() == np.count_nonzero(air <= -37.0) > 0
+    assert np.array_equal(features_module._cruise(air + offset_k, cfg), nominal)
+    assert not features_module._cruise(np.full(1000, 15.0 + offset_k), cfg).any()
+
+
 def test_config_validation() -> None:
     with pytest.raises(ValueError):
         FeatureConfig(decimation=0)
