@@ -1,5 +1,7 @@
-"""The committed protocol model (``docs/results/protocol_model.json``) stays readable by the
-chain as it is: ``hmsm protocol --model-json`` with it scores the verification alone."""
+"""The committed protocol models (``docs/results/protocol_model.json``, the headline's;
+``protocol_long_design_model.json``, trained on the design with long healthy cycles) stay
+readable by the chain as it is: ``hmsm protocol --model-json`` with one scores the
+verification alone."""
 
 from __future__ import annotations
 
@@ -11,11 +13,12 @@ import pytest
 from server.evaluation.protocol import MODEL_FORMAT
 from server.phm.chain import read_model_document
 
-MODEL = Path(__file__).resolve().parents[2] / "docs" / "results" / "protocol_model.json"
+RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results"
 
 
-def test_the_committed_protocol_model_is_read_by_the_chain() -> None:
-    doc = json.loads(MODEL.read_text())
+@pytest.mark.parametrize("name", ["protocol_model.json", "protocol_long_design_model.json"])
+def test_the_committed_protocol_model_is_read_by_the_chain(name: str) -> None:
+    doc = json.loads((RESULTS / name).read_text())
     assert doc["format"] == MODEL_FORMAT
     assert doc["design"] == {"kind": "design", "scale": "protocol", "seed": 1}
     model = read_model_document(doc)
