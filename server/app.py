@@ -174,6 +174,7 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     for router, prefix in routers:
         app.include_router(router, prefix=prefix)
         templates.add_router(router, prefix)
+    app.add_exception_handler(web_routes.SignInRequired, web_routes.signin_redirect)
     from fastapi.staticfiles import StaticFiles
 
     app.mount("/static", StaticFiles(directory=web_routes.STATIC_DIR), name="static")

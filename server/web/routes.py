@@ -22,11 +22,11 @@ import secrets
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
 from urllib.parse import quote, urlsplit
 
 import plotly
-from fastapi import APIRouter, Form, Request
+from fastapi import APIRouter, Depends, Form, Request
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
 from pydantic import BaseModel, ValidationError
@@ -98,6 +98,27 @@ def _key(request: Request, session: SessionDep) -> ApiKey | None:
 def _signin_redirect(request: Request) -> RedirectResponse:
     target = request.url.path + (f"?{request.url.query}" if request.url.query else "")
     return RedirectResponse(f"/signin?next={quote(target, safe='')}", status_code=303)
+
+
+class SignInRequired(Exception):
+    """A page asked for without a signed-in key; the app answers it with
+    :func:`signin_redirect` (to the sign-in page, and back to the page after)."""
+
+
+def signin_redirect(request: Request, exc: Exception) -> Response:
+    """The app's handler of :class:`SignInRequired`."""
+    return _signin_redirect(request)
+
+
+def _signed_in(request: Request, session: SessionDep) -> ApiKey:
+    key = _key(request, session)
+    if key is None:
+        raise SignInRequired
+    return key
+
+
+#: the signed-in key of a dashboard page (a redirect to the sign-in page without one)
+SignedInKey = Annotated[ApiKey, Depends(_signed_in)]
 
 
 def _safe_next(value: str | None) -> str:
@@ -228,21 +249,16 @@ def signout(request: Request, csrf: str = Form("")) -> Response:
 
 
 @router.get("/fleet", response_class=HTMLResponse)
-def fleet_page(request: Request, session: SessionDep, sort: str = "rul",
+def fleet_page(request: Request, key: SignedInKey, session: SessionDep, sort: str = "rul",
                base: str | None = None, status: str | None = None) -> Response:
-    key = _key(request, session)
-    if key is None:
-        return _signin_redirect(request)
     return _render(request, "fleet.html", key,
                    **dashboard.fleet_view(session=session, sort=sort, base=base or None,
                                           status=status or None))
 
 
 @router.get("/alarms", response_class=HTMLResponse)
-def alarms_page(request: Request, session: SessionDep, status: str | None = None) -> Response:
-    key = _key(request, session)
-    if key is None:
-        return _signin_redirect(request)
+def alarms_page(request: Request, key: SignedInKey, session: SessionDep,
+                status: str | None = None) -> Response:
     status = status if status in ("open", "acknowledged", "closed") else None
     return _render(request, "alarms.html", key, **dashboard.alarms_view(session=session,
                                                                         status=status))
@@ -288,10 +304,8 @@ def close(request: Request, session: SessionDep, alarm_id: int, note: str = Form
 
 
 @router.get("/actuators/{actuator_id}", response_class=HTMLResponse)
-def actuator_page(request: Request, session: SessionDep, actuator_id: int) -> Response:
-    key = _key(request, session)
-    if key is None:
-        return _signin_redirect(request)
+def actuator_page(request: Request, key: SignedInKey, session: SessionDep,
+                  actuator_id: int) -> Response:
     try:
         view = data.actuator_view(dashboard.actuator_view(session=session,
                                                           actuator_id=actuator_id))
@@ -383,10 +397,8 @@ def defer(request: Request, session: SessionDep, actuator_id: int,
 
 
 @router.get("/models", response_class=HTMLResponse)
-def models_page(request: Request, session: SessionDep, id: int | None = None) -> Response:
-    key = _key(request, session)
-    if key is None:
-        return _signin_redirect(request)
+def models_page(request: Request, key: SignedInKey, session: SessionDep,
+                id: int | None = None) -> Response:
     view = dashboard.models_view(session=session, model_id=id)
     fig = figures.confusion_matrix(view["confusion"]) if view["confusion"] else None
     return _render(request, "models.html", key, fig=fig, **view)
@@ -407,10 +419,7 @@ def activate(request: Request, session: SessionDep, model_id: int, csrf: str = F
 
 
 @router.get("/test-station", response_class=HTMLResponse)
-def station_page(request: Request, session: SessionDep) -> Response:
-    key = _key(request, session)
-    if key is None:
-        return _signin_redirect(request)
+def station_page(request: Request, key: SignedInKey, session: SessionDep) -> Response:
     return _station(request, session, key)
 
 
@@ -535,9 +544,6 @@ def _cancel_on_station(request: Request, session: SessionDep, csrf: str,
 
 
 @router.get("/evaluation", response_class=HTMLResponse)
-def evaluation_page(request: Request, session: SessionDep, settings: SettingsDep) -> Response:
-    key = _key(request, session)
-    if key is None:
-        return _signin_redirect(request)
+def evaluation_page(request: Request, key: SignedInKey, settings: SettingsDep) -> Response:
     return _render(request, "evaluation.html", key,
                    **data.evaluation_view(data_dir=settings.data_dir))
