@@ -337,27 +337,33 @@ def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
             "condition_items": _condition_items(session, limit)}
 
 
+def _with_truth(rows: list[tuple[Any, str]], truth_of: Any, name: str,
+                **extra: Any) -> list[dict[str, Any]]:
+    """Station items (``name``: the row), each with its tail, whether it is live and its
+    ground truth's count and last entry (what it applied); ``extra`` maps more keys to
+    functions of the row."""
+    items = []
+    for row, tail in rows:
+        truth = truth_of(row.id)
+        items.append({name: row, "tail": tail, "truth_count": len(truth),
+                      "truth_latest": truth[-1] if truth else None,
+                      "live": row.status in STATION_LIVE,
+                      **{key: f(row) for key, f in extra.items()}})
+    return items
+
+
 def _sensor_items(session: Session, limit: int) -> list[dict[str, Any]]:
-    """The latest sensor injections, each with its last ground truth (what it applied)."""
+    """The latest sensor injections, each with its last ground truth."""
     rows, _ = sensor_service.list_(session=session, tail=None, status=None, limit=limit,
                                    offset=0)
-    items = []
-    for inj, tail in rows:
-        truth = sensor_service.list_truth(session=session, injection_id=inj.id)
-        items.append({"injection": inj, "tail": tail, "truth_count": len(truth),
-                      "truth_latest": truth[-1] if truth else None,
-                      "live": inj.status in STATION_LIVE})
-    return items
+    return _with_truth(rows, lambda i: sensor_service.list_truth(session=session,
+                                                                 injection_id=i), "injection")
 
 
 def _condition_items(session: Session, limit: int) -> list[dict[str, Any]]:
-    """The latest conditions, each with its last ground truth (what it applied)."""
+    """The latest conditions, each with its last ground truth and what it does in words."""
     rows, _ = condition_service.list_(session=session, tail=None, status=None, limit=limit,
                                       offset=0)
-    items = []
-    for row, tail in rows:
-        truth = condition_service.list_truth(session=session, condition_id=row.id)
-        items.append({"condition": row, "tail": tail, "what": condition_service.describe(row),
-                      "truth_count": len(truth), "truth_latest": truth[-1] if truth else None,
-                      "live": row.status in STATION_LIVE})
-    return items
+    return _with_truth(rows, lambda i: condition_service.list_truth(session=session,
+                                                                    condition_id=i),
+                       "condition", what=condition_service.describe)

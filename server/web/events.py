@@ -38,9 +38,9 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from server.auth import SESSION_COOKIE
 from server.db import SessionFactory
 from server.errors import Unauthorized
-from server.services.events import key_is_active, snapshot, snapshot_while_active
+from server.services.events import key_is_active, snapshot_while_active
 
-__all__ = ["router", "snapshot", "diff_events", "POLL_S"]
+__all__ = ["router", "diff_events", "POLL_S"]
 
 POLL_S = 1.5
 KEEPALIVE_S = 15.0
