@@ -92,8 +92,7 @@ def replay(detector: FaultDetector, meta: dict[str, Any], arr: dict[str, np.ndar
     for i in range(z.shape[0]):
         zd = {n: float(z[i, k]) for k, n in enumerate(AIRCRAFT_FEATURES)}
         ev = {n: float(extra[i, k]) for k, n in enumerate(AIRCRAFT_FEATURES) if extra[i, k]}
-        for pos, st in states.items():
-            res = detector.update(st, zd, ev)
+        for pos, res in detector.update_units(states, zd, ev).items():
             if res.new_alarm:
                 alarms.append({"pattern": pid, "aircraft": meta["aircraft"],
                                "base": meta["base"], "unit": pos, "flight": int(idx[i]),

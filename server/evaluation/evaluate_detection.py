@@ -66,8 +66,7 @@ def run_pattern(model: DetectionModel, p: Pattern) -> PatternOutcome:
     feats: list[str] = []
     for r in p.flights:
         z = model.baseline.zscores(r.features)
-        for u, st in states.items():
-            res = model.detector.update(st, z)
+        for u, res in model.detector.update_units(states, z).items():
             if not res.new_alarm:
                 continue
             pre_onset = onset is None or r.index < int(onset)

@@ -64,7 +64,7 @@ class ChainTimer:
 
         targets: list[tuple[Any, str, str]] = [
             (FleetBaseline, "zscores", "zscores"),
-            (FaultDetector, "update", "detector"),
+            (FaultDetector, "observe", "detector"),  # a unit's judgement of one flight
             (FaultClassifier, "predict_log_proba", "classifier"),
             (pf_module.ParticleFilterPrognoser, "update", "pf_update"),
             (pf_module.ParticleFilterPrognoser, "predict", "pf_predict"),

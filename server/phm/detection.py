@@ -109,6 +109,7 @@ from server.vocabulary import (
     POSITIONS,
     PROGRESSIVE,
     REWEAR_FEATURE,
+    WINGLET_PAIR,
 )
 
 __all__ = [
@@ -122,6 +123,9 @@ __all__ = [
     "unit_features",
     "DetectionState",
     "DetectionResult",
+    "Observation",
+    "PAIR_COUPLED_FEATURES",
+    "partner_held",
     "FaultDetector",
     "running_statistics",
     "self_referenced_sequence",
@@ -137,6 +141,8 @@ _STATE_FORMATS = (STATE_FORMAT, "ema-detection-state/1")  # /1 had no reference
 _MEDIAN_VARIANCE_FACTOR = math.pi / 2
 #: monitored units and the prefix of their feature names: the actuators
 UNITS: tuple[str, ...] = POSITIONS
+#: generic features a winglet drive's partner moves through the tab (:func:`partner_held`)
+PAIR_COUPLED_FEATURES: tuple[str, ...] = (OWN_FEATURE["MTEL"],)
 
 
 @dataclass(frozen=True)
@@ -404,6 +410,44 @@ class DetectionResult:
     z_self: dict[str, float] = field(default_factory=dict)
     #: the actuator's own offset ``u_hat`` (``z`` units) removed from each feature
     offset: dict[str, float] = field(default_factory=dict)
+    #: features whose evidence was left to the partner drive this flight (:func:`partner_held`)
+    held: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One flight's judgement of one unit's features, before the alarm is decided."""
+
+    confidence: dict[str, float]  # per feature, in [0, 1]
+    #: per feature, the median of its last ``max(windows)`` self-referenced residuals along
+    #: the fault's direction, unclipped (-inf with none): how far the unit has moved
+    level: dict[str, float]
+    z_self: dict[str, float]
+    offset: dict[str, float]
+
+
+def partner_held(levels: Mapping[str, Mapping[str, float]]) -> dict[str, list[str]]:
+    """The features of each winglet drive whose evidence belongs to its partner.
+
+    ``levels``: unit -> feature -> :attr:`Observation.level` of one flight. The active drive
+    back-drives its attached standby through the tab, so the standby's screw and motor drag is
+    part of the hinge work in the active drive's friction ratio: an MTEL-aged partner raises
+    it by 0.44-0.49 of its own rise (``python bench/partner_drag.py``: 6.5 flight-scatter sd at
+    half the failure severity). Of the pair, a coupled feature's evidence is the drive's that
+    has moved further (the levels, not the alarm statistics: those are clipped, and late in a
+    life both drives' would stand at the clip); the other drive's is held (it raises no
+    alarm), so an aged drive alarms on itself and its healthy partner does not. A fault of a
+    drive's own still moves that drive further (its partner sees under half of it)."""
+    held: dict[str, list[str]] = {}
+    for unit, partner in ((WINGLET_PAIR[0], WINGLET_PAIR[1]), (WINGLET_PAIR[1], WINGLET_PAIR[0])):
+        if unit not in levels or partner not in levels:
+            continue
+        for g in PAIR_COUPLED_FEATURES:
+            mine = levels[unit].get(f"{unit}.{g}", -math.inf)
+            theirs = levels[partner].get(f"{partner}.{g}", -math.inf)
+            if theirs > mine:
+                held.setdefault(unit, []).append(f"{unit}.{g}")
+    return held
 
 
 class FaultDetector:
@@ -684,7 +728,15 @@ class FaultDetector:
 
     def update(self, state: DetectionState, z: Mapping[str, float],
                extra_variance: Mapping[str, float] | None = None) -> DetectionResult:
-        """Add one flight's residuals to ``state`` (in place) and evaluate the alarm.
+        """Add one flight's residuals to ``state`` (in place) and evaluate the alarm
+        (:meth:`observe`, then :meth:`decide` with nothing held)."""
+        return self.decide(state, self.observe(state, z, extra_variance))
+
+    def observe(self, state: DetectionState, z: Mapping[str, float],
+                extra_variance: Mapping[str, float] | None = None) -> Observation:
+        """Add one flight's residuals to ``state`` (in place) and judge every feature, without
+        deciding the alarm: the chain first sets a winglet drive's evidence beside its
+        partner's (:func:`partner_held`).
 
         ``extra_variance`` (feature -> variance in residual units) widens a feature's flight
         scatter for this flight: the share a sensor measured noisier than in design adds
@@ -692,7 +744,8 @@ class FaultDetector:
         extra = extra_variance or {}
         self._check()
         keep = max(self.windows)
-        conf: dict[str, float] = {}
+        margin: dict[str, float] = {}
+        level: dict[str, float] = {}
         z_self: dict[str, float] = {}
         offset: dict[str, float] = {}
         for f in state.features:
@@ -707,34 +760,59 @@ class FaultDetector:
                     ref.append(float(v))
                 hist.append(z_self[f])
                 del hist[:-keep]
-            d = self.directions.get(generic_feature(f), 0)
-            min_w = self._min_window(f)
-            c = 0.0
-            for k, w in enumerate(self.windows):
-                if len(hist) < max(w, min_w):
-                    break  # a window is judged once it is full (its band is a full one's)
-                if w < min_w:
-                    continue
-                last = hist[-w:]
-                if w > 1:
-                    last = [min(max(x, -self.window_clip), self.window_clip) for x in last]
-                if self._median(w):
-                    s = float(np.median(last)) * math.sqrt(float(_median_n_eff(len(last))))
-                else:
-                    s = sum(last) / math.sqrt(len(last))
-                s = abs(s) if d == 0 else d * s
-                c = max(c, float(ndtr(s - self.band_[i, k])))
-            conf[f] = c
+            margin[f] = self._margin(f, i, hist)
+            d = self.directions.get(generic_feature(f), 0) or 1
+            level[f] = d * float(np.median(hist)) if hist else -math.inf
         state.n_flights += 1
-        state.confidence = conf
-        firing = [f for f, c in conf.items() if c >= self.alarm_confidence]
+        state.confidence = {f: float(ndtr(m)) for f, m in margin.items()}
+        return Observation(dict(state.confidence), level, z_self, offset)
+
+    def _margin(self, f: str, i: int, hist: Sequence[float]) -> float:
+        """How far the feature's running statistic stands beyond its band, the largest over
+        the judged windows [standard error]; -inf with no window judged."""
+        d = self.directions.get(generic_feature(f), 0)
+        min_w = self._min_window(f)
+        best = -math.inf
+        for k, w in enumerate(self.windows):
+            if len(hist) < max(w, min_w):
+                break  # a window is judged once it is full (its band is a full one's)
+            if w < min_w:
+                continue
+            last = list(hist[-w:])
+            if w > 1:
+                last = [min(max(x, -self.window_clip), self.window_clip) for x in last]
+            if self._median(w):
+                s = float(np.median(last)) * math.sqrt(float(_median_n_eff(len(last))))
+            else:
+                s = sum(last) / math.sqrt(len(last))
+            s = abs(s) if d == 0 else d * s
+            best = max(best, s - float(self.band_[i, k]))
+        return best
+
+    def update_units(self, states: Mapping[str, DetectionState], z: Mapping[str, float],
+                     extra_variance: Mapping[str, float] | None = None
+                     ) -> dict[str, DetectionResult]:
+        """One flight of every unit of an aircraft: each judged, then the alarms decided with
+        the winglet pair's coupled evidence set beside each other (:func:`partner_held`)."""
+        seen = {u: self.observe(st, z, extra_variance) for u, st in states.items()}
+        held = partner_held({u: o.level for u, o in seen.items()})
+        return {u: self.decide(st, seen[u], held.get(u, ())) for u, st in states.items()}
+
+    def decide(self, state: DetectionState, observation: Observation,
+               held: Iterable[str] = ()) -> DetectionResult:
+        """Latch the alarm if a feature reached ``alarm_confidence``; features in ``held``
+        (evidence that belongs to another unit) do not raise it."""
+        hold = set(held)
+        conf = observation.confidence
+        firing = [f for f, c in conf.items() if c >= self.alarm_confidence and f not in hold]
         new_alarm = bool(firing) and not state.alarm
         if new_alarm:
             state.alarm = True
             state.alarm_flight = state.n_flights
             state.alarm_features = firing
         return DetectionResult(conf, max(conf.values(), default=0.0), state.alarm, new_alarm,
-                               list(state.alarm_features), z_self, offset)
+                               list(state.alarm_features), observation.z_self,
+                               observation.offset, sorted(hold & set(conf)))
 
     def to_dict(self) -> dict[str, Any]:
         self._check()

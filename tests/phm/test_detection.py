@@ -16,6 +16,7 @@ from server.phm.detection import (
     DetectionState,
     FaultDetector,
     offset_components,
+    partner_held,
     running_statistics,
 )
 from server.phm.detection_model import DetectionModel
@@ -404,3 +405,61 @@ def test_summary_rows_cover_every_mode(verification_outcomes) -> None:
     rows = summarise(verification_outcomes)
     assert {r["mode"] for r in rows} >= {"healthy", "TTS", "DMD", "SE", "BDO", "MTEL",
                                           "MTWEAR", "REWEAR"}
+
+
+def _winglet_pair_detector(rng: np.random.Generator) -> tuple[FaultDetector, list[str]]:
+    names = ["WL1.F_MTEL", "WL1.F_DMD", "WL2.F_MTEL", "WL2.F_DMD"]
+    return FaultDetector().fit([rng.standard_normal((200, 4)) for _ in range(8)], names), names
+
+
+def _pair_run(det: FaultDetector, names: list[str], faulty: str, rng: np.random.Generator,
+              *, share: float = 0.45, gate: bool = True) -> dict[str, int | None]:
+    """A drift of the friction ratio on ``faulty``, ``share`` of it on its partner (the
+    standby's back-driven drag, bench/partner_drag.py); each drive valid on alternate flights
+    as in active-standby. The flight of each unit's first alarm (None: none)."""
+    states = {u: DetectionState.new(u, [n for n in names if n.startswith(u)])
+              for u in ("WL1", "WL2")}
+    first: dict[str, int | None] = dict.fromkeys(states)
+    for k in range(300):
+        rise = 0.05 * max(k - 20, 0)
+        active = "WL1" if k % 2 == 0 else "WL2"
+        z = {n: float(rng.standard_normal()) for n in names}
+        for u in states:
+            if u != active:
+                z[f"{u}.F_MTEL"] = float("nan")
+        z[f"{active}.F_MTEL"] += rise if active == faulty else share * rise
+        res = (det.update_units(states, z) if gate
+               else {u: det.update(st, z) for u, st in states.items()})
+        for u, r in res.items():
+            if r.new_alarm:
+                first[u] = k
+    return first
+
+
+@pytest.mark.parametrize("faulty", ["WL1", "WL2"])
+def test_a_partner_s_friction_alarms_the_partner_not_the_healthy_drive(faulty) -> None:
+    rng = np.random.default_rng(21)
+    det, names = _winglet_pair_detector(rng)
+    healthy = "WL2" if faulty == "WL1" else "WL1"
+    gated = _pair_run(det, names, faulty, np.random.default_rng(5))
+    assert gated[faulty] is not None and gated[healthy] is None
+    # judged alone, the healthy drive alarms on its partner's drag: the pair is what holds it
+    alone = _pair_run(det, names, faulty, np.random.default_rng(5), gate=False)
+    assert alone[healthy] is not None
+    assert alone[faulty] == gated[faulty]  # the faulty drive's own alarm is not delayed
+
+
+def test_partner_held_leaves_each_drive_its_own_evidence() -> None:
+    # levels: how far each unit's features have moved
+    m = {"WL1": {"WL1.F_MTEL": 1.0, "WL1.F_DMD": 9.0},
+         "WL2": {"WL2.F_MTEL": 4.0, "WL2.F_DMD": -1.0}, "WT": {"WT.F_MTEL": 50.0}}
+    assert partner_held(m) == {"WL1": ["WL1.F_MTEL"]}  # only the coupled feature, only the pair
+    assert partner_held({"WL1": m["WL1"], "WT": m["WT"]}) == {}  # no partner judged
+    st = DetectionState.new("WL1", ["WL1.F_MTEL"])
+    det = FaultDetector().fit([np.random.default_rng(0).standard_normal((200, 1))],
+                              ["WL1.F_MTEL"])
+    for _ in range(det.reference_flights):
+        det.update(st, {"WL1.F_MTEL": 0.0})
+    for _ in range(3):  # F_MTEL, a progressive fault's feature, alarms on 3 flights or more
+        res = det.decide(st, det.observe(st, {"WL1.F_MTEL": 40.0}), held=["WL1.F_MTEL"])
+    assert not res.alarm and res.held == ["WL1.F_MTEL"] and res.max_confidence > 0.98

@@ -89,12 +89,16 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     judged = _judge_sensors(model, features, z_all)
     if judged is not None:
         z_all = judged.z
+    index_of: dict[str, int] = {}
+    for position, h in health.items():
+        index_of[position] = _advance(h, flight_index)
+        _track_calendar(h, index_of[position], started_at)
+    detected = model.detector.update_units(
+        {p: h.detection for p, h in health.items()}, z_all,
+        None if judged is None else judged.extra_variance)
     out: dict[str, ActuatorOutcome] = {}
     for position, h in health.items():
-        index = _advance(h, flight_index)
-        _track_calendar(h, index, started_at)
-        det = model.detector.update(h.detection, z_all,
-                                    None if judged is None else judged.extra_variance)
+        index, det = index_of[position], detected[position]
         if det.new_alarm:
             h.alarm_index = index
         generic = measurement_values(self_residuals(model.baseline, z_all, det), position)
