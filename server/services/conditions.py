@@ -15,7 +15,13 @@ from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
 from server.models import Aircraft, ConditionGroundTruth, SimCondition
-from server.services.station_items import add_live, cancel_live, page_with_tail
+from server.services.station_items import (
+    add_live,
+    applied_truths,
+    cancel_live,
+    page_with_tail,
+    record_applied,
+)
 from server.vocabulary import STATION_LIVE
 
 __all__ = ["create", "describe", "get", "list_", "cancel", "report_truth", "list_truth",
@@ -69,27 +75,14 @@ def report_truth(*, session: Session, condition_id: int, flight_code: str, fligh
                  applied: float) -> ConditionGroundTruth:
     """Record (idempotently) what the condition did to one flight; the first report makes a
     pending condition active from that flight."""
-    condition = get(session=session, condition_id=condition_id)
-    if condition.status == "pending":
-        condition.status = "active"
-        condition.started_flight = flight_number
-    row = session.scalar(select(ConditionGroundTruth).where(
-        ConditionGroundTruth.condition_id == condition_id,
-        ConditionGroundTruth.flight_code == flight_code))
-    if row is None:
-        row = ConditionGroundTruth(condition_id=condition_id, flight_code=flight_code)
-        session.add(row)
-    row.flight_number = flight_number
-    row.applied = applied
-    session.flush()
-    return row
+    return record_applied(session, get(session=session, condition_id=condition_id),
+                          ConditionGroundTruth, "condition_id", flight_code=flight_code,
+                          flight_number=flight_number, applied=applied)
 
 
 def list_truth(*, session: Session, condition_id: int) -> list[ConditionGroundTruth]:
     get(session=session, condition_id=condition_id)  # 404 for an unknown one
-    return list(session.scalars(select(ConditionGroundTruth).where(
-        ConditionGroundTruth.condition_id == condition_id)
-        .order_by(ConditionGroundTruth.flight_number)))
+    return applied_truths(session, ConditionGroundTruth, "condition_id", condition_id)
 
 
 def flights_under(*, session: Session, aircraft_id: int) -> dict[str, list[SimCondition]]:

@@ -14,7 +14,13 @@ from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound
 from server.models import Aircraft, SensorGroundTruth, SensorInjection, utcnow
-from server.services.station_items import add_live, cancel_live, page_with_tail
+from server.services.station_items import (
+    add_live,
+    applied_truths,
+    cancel_live,
+    page_with_tail,
+    record_applied,
+)
 from server.vocabulary import STATION_LIVE
 
 __all__ = ["create", "get", "list_", "cancel", "report_truth", "list_truth", "end_at"]
@@ -64,27 +70,14 @@ def report_truth(*, session: Session, injection_id: int, flight_code: str, fligh
                  applied: float) -> SensorGroundTruth:
     """Record (idempotently) what the injection did to one flight; the first report makes a
     pending injection active from that flight."""
-    injection = get(session=session, injection_id=injection_id)
-    if injection.status == "pending":
-        injection.status = "active"
-        injection.started_flight = flight_number
-    row = session.scalar(select(SensorGroundTruth).where(
-        SensorGroundTruth.sensor_injection_id == injection_id,
-        SensorGroundTruth.flight_code == flight_code))
-    if row is None:
-        row = SensorGroundTruth(sensor_injection_id=injection_id, flight_code=flight_code)
-        session.add(row)
-    row.flight_number = flight_number
-    row.applied = applied
-    session.flush()
-    return row
+    return record_applied(session, get(session=session, injection_id=injection_id),
+                          SensorGroundTruth, "sensor_injection_id", flight_code=flight_code,
+                          flight_number=flight_number, applied=applied)
 
 
 def list_truth(*, session: Session, injection_id: int) -> list[SensorGroundTruth]:
     get(session=session, injection_id=injection_id)  # 404 for an unknown one
-    return list(session.scalars(select(SensorGroundTruth).where(
-        SensorGroundTruth.sensor_injection_id == injection_id)
-        .order_by(SensorGroundTruth.flight_number)))
+    return applied_truths(session, SensorGroundTruth, "sensor_injection_id", injection_id)
 
 
 def end_at(*, session: Session, aircraft_id: int, position: str) -> list[SensorInjection]:

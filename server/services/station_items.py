@@ -1,6 +1,7 @@
 """What the test station's three kinds of item share (fault injections, sensor injections,
-conditions): the states in which one is live, a page of them with their aircraft's tail, and
-cancelling a live one."""
+conditions): the states in which one is live, a page of them with their aircraft's tail,
+cancelling a live one, and (for sensor injections and conditions) the value each applied to a
+flight, as the sim worker reports it."""
 
 from __future__ import annotations
 
@@ -15,9 +16,10 @@ from server.errors import Conflict
 from server.models import Aircraft, utcnow
 from server.vocabulary import STATION_LIVE
 
-__all__ = ["add_live", "page_with_tail", "cancel_live"]
+__all__ = ["add_live", "page_with_tail", "cancel_live", "record_applied", "applied_truths"]
 
 Item = TypeVar("Item")
+Truth = TypeVar("Truth")
 
 
 def page_with_tail(*, session: Session, model: type[Item], tail: str | None,
@@ -56,3 +58,31 @@ def add_live(session: Session, row: Item, conflict: Callable[[], Conflict]) -> I
     except IntegrityError:
         raise conflict() from None
     return row
+
+
+def record_applied(session: Session, item: Any, truth: type[Truth], item_key: str, *,
+                   flight_code: str, flight_number: int, applied: float) -> Truth:
+    """Record (idempotently) the value ``item`` applied to one flight, as a row of ``truth``
+    whose ``item_key`` column names the item; the first report makes a pending item active
+    from that flight."""
+    if item.status == "pending":
+        item.status = "active"
+        item.started_flight = flight_number
+    table: Any = truth  # a mapped class with item_key, flight_code, flight_number, applied
+    row = session.scalar(select(table).where(getattr(table, item_key) == item.id,
+                                             table.flight_code == flight_code))
+    if row is None:
+        row = table(**{item_key: item.id, "flight_code": flight_code})
+        session.add(row)
+    row.flight_number = flight_number
+    row.applied = applied
+    session.flush()
+    return row
+
+
+def applied_truths(session: Session, truth: type[Truth], item_key: str, item_id: int
+                   ) -> list[Truth]:
+    """The values one item applied, flight by flight."""
+    table: Any = truth
+    return list(session.scalars(select(table).where(getattr(table, item_key) == item_id)
+                                .order_by(table.flight_number)))
