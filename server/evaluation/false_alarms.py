@@ -7,14 +7,16 @@ tab) and on the other surface. Each alarm there is a false-alarm event, whatever
 carries elsewhere. The rate is events per unit-flight at risk, with its exact (Clopper-Pearson)
 90 % interval, set beside the detector's design rate; the events are split by cause and by the
 age of the unit's reference (flights since the unit was installed: its reference is its first
-valid flights).
+valid flights) and by the features they were raised on.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from server.phm.detection import generic_feature
 from server.phm.metrics import event_rate
 from server.vocabulary import POSITIONS, alarming_positions, is_winglet
 
@@ -74,7 +76,8 @@ def exposure_of(trace: Mapping[str, Any]) -> dict[str, Any]:
             at_risk[cause] += 1
             if unit in new:
                 events.append({"pattern": trace["id"], "unit": unit, "flight": index,
-                               "cause": cause, "age": index - first})
+                               "cause": cause, "age": index - first,
+                               "features": list(f.get("raised_on", {}).get(unit, []))})
         alarmed |= set(f["alarms"])
     return {"unit_flights": at_risk, "events": events}
 
@@ -90,8 +93,10 @@ def summarise_false_alarms(traces: Sequence[Mapping[str, Any]],
     total = event_rate(len(events), sum(r["unit_flights"] for r in by_cause.values()), LEVEL)
     ages = {b: sum(_age_bin(e["age"]) == b for e in events)
             for b in dict.fromkeys(_age_bin(a) for a in AGE_BINS)}
+    features = Counter(generic_feature(n) for e in events for n in e["features"])
     return {**total, "level": LEVEL, "design_rate": design_rate,
             "design_rate_inside": (None if total["interval"] is None or design_rate is None
                                    else total["interval"][0] <= design_rate
                                    <= total["interval"][1]),
-            "by_cause": by_cause, "events_by_reference_age": ages, "list": events}
+            "by_cause": by_cause, "events_by_reference_age": ages,
+            "events_by_feature": dict(sorted(features.items())), "list": events}

@@ -204,6 +204,9 @@ def _per_unit_flight(det: Mapping[str, Any]) -> list[str]:
     ages = ", ".join(f"{k}: {v}" for k, v in pu["events_by_reference_age"].items())
     lines += ["", f"Alarm events by age of the unit's reference [flights since installation]: "
                   f"{ages or 'none'}."]
+    if "events_by_feature" in pu:  # evaluations before it was kept have no features
+        feats = ", ".join(f"{k}: {v}" for k, v in pu["events_by_feature"].items())
+        lines.append(f"Alarm events by the feature they were raised on: {feats or 'none'}.")
     return lines
 
 

@@ -8,14 +8,15 @@ from server.evaluation.false_alarms import exposure_of, summarise_false_alarms
 
 
 def _trace(mode: str, position: str | None, onset: int | None, n: int,
-           raised: dict[int, str]) -> dict:
+           raised: dict[int, str], feature: str = "F_MTEL") -> dict:
     """A pattern's trace of ``n`` flights where ``raised`` maps flight -> unit newly alarmed
-    (alarms latch)."""
+    on ``feature`` (alarms latch)."""
     flights, latched = [], set()
     for i in range(n):
         new = [raised[i]] if i in raised else []
         latched |= set(new)
-        flights.append({"index": i, "new_alarms": new, "alarms": sorted(latched)})
+        flights.append({"index": i, "new_alarms": new, "alarms": sorted(latched),
+                        "raised_on": {u: [f"{u}.{feature}"] for u in new}})
     return {"id": f"{mode}-x", "mode": mode, "position": position, "onset": onset,
             "flights": flights}
 
@@ -33,7 +34,7 @@ def test_every_unit_without_a_fault_is_at_risk_until_it_alarms() -> None:
 
 
 def test_the_summary_sets_the_rate_beside_the_design_rate() -> None:
-    healthy = _trace("healthy", None, None, 400, {320: "WT"})
+    healthy = _trace("healthy", None, None, 400, {320: "WT"}, feature="F_DMD")
     dmd = _trace("DMD", "WT", 2, 100, {})
     s = summarise_false_alarms([healthy, dmd], 3e-5)
     assert s["by_cause"]["healthy cycle"]["unit_flights"] == 400 * 3 - 79
@@ -45,5 +46,6 @@ def test_the_summary_sets_the_rate_beside_the_design_rate() -> None:
     assert lo == pytest.approx(3.88e-5, rel=0.01) and s["design_rate_inside"] is False
     assert summarise_false_alarms([healthy, dmd], 1e-4)["design_rate_inside"] is True
     assert s["events_by_reference_age"] == {"0-49": 0, "50-149": 0, "150-299": 0, ">=300": 1}
+    assert s["events_by_feature"] == {"F_DMD": 1} and s["list"][0]["features"] == ["WT.F_DMD"]
     none = summarise_false_alarms([dmd], 3e-5)
     assert none["events"] == 0 and none["interval"][0] == 0.0
