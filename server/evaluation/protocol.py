@@ -5,7 +5,8 @@ every pattern simulated, features kept, logs sampled), trains the chain on the d
 evaluates it on the verification one::
 
     OUT/design/          streamed design campaign (seed --design-seed)
-    OUT/model.json       the model trained on it (training seed 0), with its training report
+    OUT/model.json       the model trained on it (training seed 0) as soon as it is complete,
+                         with its training report
     OUT/verification/    streamed verification campaign (seed --verification-seed)
     OUT/evaluation/      hmsm evaluate's outputs: summary.json, evaluation.json, report.html
 
@@ -118,6 +119,8 @@ def run_protocol(args: argparse.Namespace, settings: Settings) -> int:
         n = sum(len(p["flights"]) for p in manifest["patterns"])
         print(f"{kind} campaign: {len(manifest['patterns'])} patterns, {n} flights "
               f"({time.perf_counter() - t0:.0f} s so far)", flush=True)
+        if kind == "design":  # on disk before the verification's hours: usable at once
+            _trained_model(args, root)
     code = run_evaluate(_evaluate_args(args, _model(args, root), root / "verification",
                                        root / "evaluation"), settings)
     print(f"protocol run finished in {time.perf_counter() - t0:.0f} s: "

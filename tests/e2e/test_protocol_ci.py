@@ -52,6 +52,15 @@ def test_every_flight_is_streamed_and_a_sample_kept(protocol_run: Path, kind: st
     assert not (protocol_run / kind / "progress").exists()
 
 
+def test_the_model_is_on_disk_before_the_verification_streams(protocol_run: Path) -> None:
+    """A run stopped during the verification's hours keeps the model of its finished design
+    (`hmsm protocol --model-json OUT/model.json` scores the verification alone)."""
+    logs = list((protocol_run / "verification" / "flights").rglob("*.parquet"))
+    assert logs
+    first_log = min(f.stat().st_mtime for f in logs)
+    assert (protocol_run / "model.json").stat().st_mtime < first_log
+
+
 def test_every_verification_flight_is_analysed_and_scored_with_intervals(
         protocol_run: Path) -> None:
     manifest = _manifest(protocol_run, "verification")
