@@ -82,6 +82,11 @@ step faults (SE, BDO); the long window accumulates evidence of slow drifts. The 
 until maintenance: replacing an actuator gives it a fresh state
 (:meth:`DetectionState.reset` does the same in place).
 
+The units of one aircraft are judged together (:meth:`FaultDetector.update_units`): every unit
+is observed first, then the alarms are decided, so that a winglet drive's friction evidence,
+which its partner's drag moves too, is left to the drive of the pair that has moved further
+(:func:`partner_held`).
+
 The test is one-sided along each fault's physical direction (``DEFAULT_DIRECTIONS``: every
 feature grows with its fault), ``|S_w|`` being replaced by ``direction * S_w``, and one
 band serves a generic feature on every position (``pool_positions``: its scale is measured on
