@@ -424,8 +424,9 @@ class Observation:
     """One flight's judgement of one unit's features, before the alarm is decided."""
 
     confidence: dict[str, float]  # per feature, in [0, 1]
-    #: per feature, the median of its last ``max(windows)`` self-referenced residuals along
-    #: the fault's direction, unclipped (-inf with none): how far the unit has moved
+    #: per pair-coupled feature (``PAIR_COUPLED_FEATURES``), the median of its last
+    #: ``max(windows)`` self-referenced residuals along the fault's direction, unclipped (-inf
+    #: with none): how far the unit has moved
     level: dict[str, float]
     z_self: dict[str, float]
     offset: dict[str, float]
@@ -766,13 +767,14 @@ class FaultDetector:
                 hist.append(z_self[f])
                 del hist[:-keep]
             margin[f] = self._margin(f, i, hist)
-            d = self.directions.get(generic_feature(f), 0) or 1
-            level[f] = d * float(np.median(hist)) if hist else -math.inf
+            if generic_feature(f) in PAIR_COUPLED_FEATURES:  # only the pair rule reads it
+                d = self.directions.get(generic_feature(f), 0) or 1
+                level[f] = d * float(np.median(hist)) if hist else -math.inf
         state.n_flights += 1
         state.confidence = {f: float(ndtr(m)) for f, m in margin.items()}
         return Observation(dict(state.confidence), level, z_self, offset)
 
-    def _margin(self, f: str, i: int, hist: Sequence[float]) -> float:
+    def _margin(self, f: str, i: int, hist: list[float]) -> float:
         """How far the feature's running statistic stands beyond its band, the largest over
         the judged windows [standard error]; -inf with no window judged."""
         d = self.directions.get(generic_feature(f), 0)
@@ -783,7 +785,7 @@ class FaultDetector:
                 break  # a window is judged once it is full (its band is a full one's)
             if w < min_w:
                 continue
-            last = list(hist[-w:])
+            last = hist[-w:]
             if w > 1:
                 last = [min(max(x, -self.window_clip), self.window_clip) for x in last]
             if self._median(w):
