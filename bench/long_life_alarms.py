@@ -9,9 +9,10 @@ Two steps, so that detector variants are scored in seconds without simulating ag
     python bench/long_life_alarms.py score OUT.npz MODEL_JSON [--json REPORT.json]
 
 ``extract`` keeps, per flight: the standardised residuals ``z`` of the 20 aircraft features
-after the sensor judgement, its extra variance, each position's operating conditions and the
-take-off time. ``score`` replays :meth:`FaultDetector.update` per unit and pattern (the chain's
-own detection path, without classification or prognosis, which an alarm does not need).
+after the sensor judgement, its extra variance, its evidence weights, each position's
+operating conditions and the take-off time. ``score`` replays
+:meth:`FaultDetector.update_units` per pattern (the chain's own detection path, without
+classification or prognosis, which an alarm does not need).
 """
 
 from __future__ import annotations
@@ -32,7 +33,6 @@ from server.phm.chain.model import PhmModel, read_model_document  # noqa: E402
 from server.phm.detection import DetectionState, FaultDetector  # noqa: E402
 from server.phm.features import AIRCRAFT_FEATURES, CONDITION_NAMES  # noqa: E402
 from server.phm.metrics import event_rate  # noqa: E402
-from server.phm.sensor_health import evidence_weights  # noqa: E402
 from server.vocabulary import POSITIONS  # noqa: E402
 
 
@@ -48,12 +48,13 @@ def extract(campaign_dir: str, model_json: str, out: str) -> None:
     for p in camp.patterns:
         z = np.full((len(p.flights), len(AIRCRAFT_FEATURES)), np.nan)
         extra = np.zeros_like(z)
+        evidence = model.baseline.evidence_matrix([r.features for r in p.flights])
         cond = np.full((len(p.flights), len(POSITIONS), len(CONDITION_NAMES)), np.nan)
         for i, r in enumerate(p.flights):
             zz = model.baseline.zscores(r.features)
             if model.sensors is not None and r.features.quality:
                 j = model.sensors.judge(r.features.quality, zz,
-                                        evidence_weights(model.baseline, r.features))
+                                        model.baseline.evidence_weights(r.features))
                 zz = j.z
                 for k, v in j.extra_variance.items():
                     extra[i, AIRCRAFT_FEATURES.index(k)] = v
@@ -62,6 +63,7 @@ def extract(campaign_dir: str, model_json: str, out: str) -> None:
                 cond[i, a] = [r.features.conditions[pos].get(c, np.nan) for c in CONDITION_NAMES]
         arrays[f"{p.id}/z"] = z
         arrays[f"{p.id}/extra"] = extra
+        arrays[f"{p.id}/evidence"] = evidence
         arrays[f"{p.id}/cond"] = cond
         arrays[f"{p.id}/index"] = np.array([r.index for r in p.flights])
         arrays[f"{p.id}/day"] = np.array([r.started_at.timetuple().tm_yday - 1
@@ -84,6 +86,7 @@ def replay(detector: FaultDetector, meta: dict[str, Any], arr: dict[str, np.ndar
     """New alarms of every unit over one pattern (healthy units only)."""
     pid = meta["id"]
     z, extra, day = arr[f"{pid}/z"], arr[f"{pid}/extra"], arr[f"{pid}/day"]
+    weights = arr.get(f"{pid}/evidence", np.ones_like(z))
     idx = arr[f"{pid}/index"]
     feats = [n for n in AIRCRAFT_FEATURES if n in detector.feature_names_]
     states = {pos: DetectionState.new(pos, [f for f in feats if f.split(".")[0] == pos])
@@ -92,7 +95,8 @@ def replay(detector: FaultDetector, meta: dict[str, Any], arr: dict[str, np.ndar
     for i in range(z.shape[0]):
         zd = {n: float(z[i, k]) for k, n in enumerate(AIRCRAFT_FEATURES)}
         ev = {n: float(extra[i, k]) for k, n in enumerate(AIRCRAFT_FEATURES) if extra[i, k]}
-        for pos, res in detector.update_units(states, zd, ev).items():
+        wd = {n: float(weights[i, k]) for k, n in enumerate(AIRCRAFT_FEATURES)}
+        for pos, res in detector.update_units(states, zd, ev, wd).items():
             if res.new_alarm:
                 alarms.append({"pattern": pid, "aircraft": meta["aircraft"],
                                "base": meta["base"], "unit": pos, "flight": int(idx[i]),

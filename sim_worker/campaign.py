@@ -39,6 +39,7 @@ from server.campaign_store import CampaignStore
 from server.flightlog import FlightLog, write_parquet
 from server.vocabulary import POSITIONS, SENSORS, WINGLET_PAIR
 
+from .conditions import NO_CONDITIONS, Conditions
 from .faults import (
     A_PRIORI,
     ENVELOPE_FLIGHTS,
@@ -96,7 +97,22 @@ class ScaleConfig:
     #: as many runs between 30 and 100 flights as between 300 and 1000: a design campaign
     #: over the test station's whole envelope)
     span_draw: str = "uniform"
+    #: recording lengths [s] each rendered flight draws from (uniformly, from the flight's
+    #: seed); empty: every flight ``duration_s``. A fleet's recordings vary in length, and a
+    #: feature's scatter with them (server.phm.detection: the evidence of a flight)
+    recordings_s: tuple[float, ...] = ()
+    #: healthy patterns fly in blocks of this many flights, each after the first under the
+    #: test station's conditions with probability 1/2 (drawn over ``STATION_ENVELOPE``); 0:
+    #: never. Training then learns the conditions as covariates, steps within a unit's life
+    #: included, as an operator sets them
+    condition_blocks: int = 0
 
+
+#: the test station's conditions a design's healthy blocks are drawn over (log-uniformly for
+#: the scales): inside the ranges the station accepts (server.schemas), and out to the
+#: bounds an operator is promised quiet at (ambient -30/+30 K, load x0.5/x2, command x2)
+STATION_ENVELOPE: dict[str, tuple[float, float]] = {
+    "ambient_offset_k": (-30.0, 30.0), "load_scale": (0.5, 2.0), "command_scale": (0.5, 2.0)}
 
 #: the design campaign's sensor study: per sensor, this many of its healthy patterns flown
 #: again with that sensor's noise multiplied by SENSOR_STUDY_NOISE on every actuator (the same
@@ -141,6 +157,21 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
         "verification": ScaleConfig(duration_s=120.0, healthy_patterns=25,
                                     healthy_flights=(150, 400),
                                     patterns_per_mode=25, render_every=1, apriori_flights=8,
+                                    apriori_onset=2),
+    },
+    # The shipped model's design (server/data/demo_model.json): the quick design's fault runs,
+    # with the protocol design's long healthy cycles (300-400 flights: every season at each
+    # base), flown as a fleet in service and on the test station flies them: recordings of
+    # 60 s (the demo's), 120 s (the protocol's) and 300 s, the station's conditions in
+    # blocks of 40 flights. Its verification: 10 unseen aircraft, 300 healthy flights each.
+    "shipped": {
+        "design": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=(300, 400),
+                              patterns_per_mode=6, render_every=21, apriori_flights=6,
+                              apriori_onset=2, span_flights=ENVELOPE_FLIGHTS, span_draw="log",
+                              recordings_s=(60.0, 60.0, 60.0, 120.0, 300.0),
+                              condition_blocks=40),
+        "verification": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=300,
+                                    patterns_per_mode=3, render_every=21, apriori_flights=6,
                                     apriori_onset=2),
     },
     # The same protocol reduced for CI: every flight, a few patterns per mode, short
@@ -423,15 +454,48 @@ class ParquetSink:
         return None
 
 
+def recording_s(cfg: ScaleConfig, spec: PatternSpec, index: int) -> float:
+    """The recording length of a rendered flight [s]: drawn from ``cfg.recordings_s`` with
+    the flight's own seed (a sensor-study twin draws its twin's), else ``cfg.duration_s``."""
+    if not cfg.recordings_s:
+        return cfg.duration_s
+    pick = _flight_rng(spec, index, 5).integers(len(cfg.recordings_s))
+    return float(cfg.recordings_s[int(pick)])
+
+
+def block_conditions(cfg: ScaleConfig, spec: PatternSpec, index: int) -> Conditions:
+    """The test-station conditions of a healthy pattern's flight: its block's draw (the first
+    block nominal: the unit learns its reference as installed; later blocks under conditions
+    with probability 1/2, each drawn log-uniformly over ``STATION_ENVELOPE``, the offset
+    uniformly)."""
+    if not cfg.condition_blocks or spec.mode != "healthy":
+        return NO_CONDITIONS
+    block = index // cfg.condition_blocks
+    rng = np.random.default_rng([spec.seed, block, 6])
+    if block == 0 or rng.random() < 0.5:
+        return NO_CONDITIONS
+    lo, hi = STATION_ENVELOPE["ambient_offset_k"]
+    ambient = round(float(rng.uniform(lo, hi)), 1)
+
+    def scale(name: str) -> float:
+        low, high = STATION_ENVELOPE[name]
+        return round(float(np.exp(rng.uniform(math.log(low), math.log(high)))), 3)
+
+    load = scale("load_scale")
+    return Conditions(ambient_offset_k=ambient, load_scale=load,
+                      command_scale=scale("command_scale"))
+
+
 def _render(out: CampaignStore, aircraft: Aircraft, spec: PatternSpec, fault: FaultState,
-            index: int, duration_s: float, sink: FlightSink,
+            index: int, cfg: ScaleConfig, sink: FlightSink,
             sensor_faults: tuple[SensorFault, ...] = ()
             ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
     flight_id = f"{spec.id}-{index:04d}"
     start = flight_start(index, day_offset=spec.day_offset)
     log, summary = simulate_flight(_at_flight(aircraft, sensor_faults, index), fault, index,
                                    _flight_rng(spec, index, 0), flight_id=flight_id,
-                                   started_at=start, duration_s=duration_s)
+                                   started_at=start, duration_s=recording_s(cfg, spec, index),
+                                   conditions=block_conditions(cfg, spec, index))
     rel, stored = sink(out, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
                        _ground_temp(summary))
     return flight_id, rel, summary, stored
@@ -487,8 +551,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
     faults = tuple(task.options.get("sensor_faults", ()))
 
     def render(fault: FaultState, index: int) -> Any:
-        fid, rel, summ, data = _render(out, aircraft, spec, fault, index, cfg.duration_s,
-                                       sink, faults)
+        fid, rel, summ, data = _render(out, aircraft, spec, fault, index, cfg, sink, faults)
         rendered.append((index, fid, rel, fault, summ))
         if data is not None:
             stored[fid] = data
@@ -500,6 +563,7 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
         threshold, failure = _fault_to_failure(aircraft, spec, cfg, render)
     flights = [_flight_entry(fid, rel, index, f, summ, failure,
                              flight_start(index, day_offset=spec.day_offset).isoformat())
+               | _envelope_entry(cfg, spec, index)
                for index, fid, rel, f, summ in rendered]
     return {
         "entry": {
@@ -515,6 +579,18 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
         },
         "stored": stored,
     }
+
+
+def _envelope_entry(cfg: ScaleConfig, spec: PatternSpec, index: int) -> dict[str, Any]:
+    """A flight's recording length and test-station conditions, for a scale that varies them
+    (ground truth; a scale that does not keeps its manifest as it was)."""
+    out: dict[str, Any] = {}
+    if cfg.recordings_s:
+        out["recording_s"] = recording_s(cfg, spec, index)
+    cond = block_conditions(cfg, spec, index)
+    if cond != NO_CONDITIONS:
+        out["conditions"] = {k: v for k, v in asdict(cond).items() if v is not None}
+    return out
 
 
 def _study_entry(spec: PatternSpec) -> dict[str, Any]:
@@ -608,6 +684,10 @@ def _config_settings(cfg: ScaleConfig) -> dict[str, Any]:
     out = asdict(cfg)
     if out["span_draw"] == "uniform":
         del out["span_draw"]
+    # likewise the envelope, when the scale does not vary it
+    for key in ("recordings_s", "condition_blocks"):
+        if not out[key]:
+            del out[key]
     return out
 
 
@@ -655,7 +735,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
                  span_draw: str | None = None,
                  sink: FlightSink | None = None,
                  executor: Executor | None = None,
-                 per_mode: int | None = None) -> dict[str, Any]:
+                 per_mode: int | None = None,
+                 recordings_s: Iterable[float] | None = None) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
@@ -684,6 +765,10 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
     ``per_mode`` flies every healthy pattern and only the first ``per_mode`` patterns of each
     fault mode (0: the healthy ones alone, for false alarms over long healthy lives), the
     same flights as in the whole campaign.
+    ``recordings_s`` overrides the scale's recording lengths: every rendered flight draws its
+    own from them (one value: every flight that long); a scale that varies them, and its
+    test-station condition blocks, records each flight's under ``"recording_s"`` and
+    ``"conditions"``.
     ``out_dir`` is a directory, ``s3://bucket/prefix`` (AWS S3) or a
     :class:`~server.campaign_store.CampaignStore` (another S3 server's); every file of the
     campaign goes there, the kept logs straight from the workers.
@@ -702,7 +787,7 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
                                  or per_mode < 0):
         raise ValueError(f"per_mode must be a count of patterns (>= 0), got {per_mode!r}")
     faults = _sensor_faults(sensor_faults)
-    cfg = _scale_config(scale, kind, render_every, span_flights, span_draw)
+    cfg = _scale_config(scale, kind, render_every, span_flights, span_draw, recordings_s)
     sink = sink if sink is not None else ParquetSink()
     from tqdm import tqdm
 
@@ -824,8 +909,14 @@ def _manifest(settings: dict[str, Any], cfg: ScaleConfig, fleet: list[Aircraft],
 
 def _scale_config(scale: str, kind: str, render_every: int | None,
                   span_flights: tuple[float, float] | None,
-                  span_draw: str | None = None) -> ScaleConfig:
+                  span_draw: str | None = None,
+                  recordings_s: Iterable[float] | None = None) -> ScaleConfig:
     cfg = SCALES[scale][kind]
+    if recordings_s is not None:
+        lengths = tuple(float(v) for v in recordings_s)
+        if not lengths or not all(math.isfinite(v) and 10.0 <= v <= 600.0 for v in lengths):
+            raise ValueError(f"recording lengths must lie in 10..600 s, got {lengths}")
+        cfg = replace(cfg, recordings_s=lengths)
     if span_draw is not None:
         if span_draw not in SPAN_DRAWS:
             raise ValueError(f"span_draw must be one of {SPAN_DRAWS}, got {span_draw!r}")

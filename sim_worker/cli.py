@@ -104,7 +104,9 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
     camp.add_argument("--scale", choices=tuple(SCALES), default="quick",
                       help="quick (CI figures), paper (sparse rendering, quick looks), "
                       "protocol (the paper's: every flight of 25 patterns per mode), "
-                      "ci (the protocol reduced for the test suite)")
+                      "ci (the protocol reduced for the test suite), shipped (the shipped "
+                      "model's design: long healthy cycles at mixed recording lengths and "
+                      "test-station conditions)")
     camp.add_argument("--workers", type=int, default=None,
                       help="local worker processes (default: all cores); results do not "
                       "depend on it")
@@ -128,6 +130,10 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
                       help="fly every healthy pattern but only the first N patterns of each "
                       "fault mode (0: the healthy ones alone), the same flights as in the "
                       "whole campaign")
+    camp.add_argument("--recordings", default=None, metavar="S[,S...]",
+                      help="recording lengths [s] every rendered flight draws its own from, "
+                      "e.g. 120 (every flight 120 s) or 60,90,120,180,240,300 (a fleet mixing "
+                      "them); default: the scale's")
     camp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     camp.add_argument("--bases", default=None, help="robustness: comma-separated bases to fly "
                       "from (Turin, Vancouver, Abu Dhabi) instead of the 4/3/3 mix")
@@ -207,7 +213,18 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None,
                             span_flights=parse_span_range(args.span_range),
                             span_draw=args.span_draw,
                             sink=sink, executor=executor,  # type: ignore[arg-type]
-                            per_mode=args.per_mode)
+                            per_mode=args.per_mode,
+                            recordings_s=parse_recordings(args.recordings))
+
+
+def parse_recordings(text: str | None) -> tuple[float, ...] | None:
+    if text is None:
+        return None
+    try:
+        return tuple(float(p) for p in text.split(","))
+    except ValueError:
+        raise ValueError(f"--recordings takes seconds separated by commas, got {text!r}") \
+            from None
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:

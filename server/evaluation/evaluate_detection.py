@@ -66,7 +66,8 @@ def run_pattern(model: DetectionModel, p: Pattern) -> PatternOutcome:
     feats: list[str] = []
     for r in p.flights:
         z = model.baseline.zscores(r.features)
-        for u, res in model.detector.update_units(states, z).items():
+        evidence = model.baseline.evidence_weights(r.features)
+        for u, res in model.detector.update_units(states, z, evidence=evidence).items():
             if not res.new_alarm:
                 continue
             pre_onset = onset is None or r.index < int(onset)

@@ -336,6 +336,31 @@ class FleetBaseline:
             out[name] = float(m.zscore(C, self._values([flight], name))[0])
         return out
 
+    def evidence_weights(self, flight: FlightFeatures) -> dict[str, float]:
+        """Per feature of a flight, the healthy design flights' median number of valid windows
+        over this flight's (at least one): how much more a noise-driven error weighs on it
+        (a 60 s recording against a design of 120 s ones: about 2; 1 where the design saw no
+        value of the feature)."""
+        out = {}
+        for name, s in flight.summaries.items():
+            typical = self._typical_valid(name)
+            out[name] = typical / max(s.n_valid, 1) if typical > 0 else 1.0
+        return out
+
+    def evidence_matrix(self, flights: Sequence[FlightFeatures]) -> np.ndarray:
+        """(n_flights, 20) :meth:`evidence_weights` in ``AIRCRAFT_FEATURES`` order."""
+        self._check()
+        typical = np.array([self._typical_valid(n) for n in AIRCRAFT_FEATURES])
+        n_valid = np.array([[f.summaries[n].n_valid for n in AIRCRAFT_FEATURES]
+                            for f in flights], dtype=np.float64).reshape(-1, typical.size)
+        return np.where(typical > 0, typical / np.maximum(n_valid, 1.0), 1.0)
+
+    def _typical_valid(self, name: str) -> float:
+        """The healthy design flights' median number of valid windows of a feature (0: not
+        known)."""
+        need = self.min_valid_.get(name, 0.0)
+        return need / self.min_evidence if self.min_evidence > 0 else 0.0
+
     def to_physical(self, z: Mapping[str, float]) -> dict[str, float]:
         """Standardised residuals (or offsets) back in each feature's physical unit,
         ``value - expected(conditions)`` (of the log value for ``log_features``): comparable

@@ -87,6 +87,22 @@ is observed first, then the alarms are decided, so that a winglet drive's fricti
 which its partner's drag moves too, is left to the drive of the pair that has moved further
 (:func:`partner_held`).
 
+Evidence: a flight's scatter follows its recording
+-------------------------------------------------
+A feature averages its flight's valid windows (steps, events, cruise time), so the part of its
+flight-to-flight scatter that is sampling noise falls as ``1 / n_valid``: a 60 s recording's
+residual scatters more than a 300 s one's. With ``w`` the flight's evidence weight (the design
+flights' median ``n_valid`` over this flight's, ``FleetBaseline.evidence_weights``) the flight
+noise is modelled as ``e ~ N(0, sigma^2 (1 - a) + sigma^2 a w)``, ``a`` the sampling share of
+the scatter at typical evidence, learned per generic feature on the healthy design flights
+(deviations from each history's median, their robust variance regressed on ``w`` over bins of
+``w``; the design flies recordings of several lengths). A flight then gets the extra variance
+``sigma^2 a (w - 1)`` (negative for a recording longer than typical: a tighter test),
+``evidence_variance_`` holding ``sigma^2 a`` per feature; the bands are learned on statistics
+standardised the same way, so one model serves 60, 120 and 300 s recordings and a fleet that
+mixes them. ``a`` is at most ``MAX_EVIDENCE_SHARE``; a design of one recording length (too
+narrow a spread of ``w`` to regress on) learns ``a = 0``, the constant scatter.
+
 The test is one-sided along each fault's physical direction (``DEFAULT_DIRECTIONS``: every
 feature grows with its fault), ``|S_w|`` being replaced by ``direction * S_w``, and one
 band serves a generic feature on every position (``pool_positions``: its scale is measured on
@@ -100,6 +116,7 @@ pickle.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -146,6 +163,13 @@ _STATE_FORMATS = (STATE_FORMAT, "ema-detection-state/1")  # /1 had no reference
 _MEDIAN_VARIANCE_FACTOR = math.pi / 2
 #: monitored units and the prefix of their feature names: the actuators
 UNITS: tuple[str, ...] = POSITIONS
+#: largest sampling share ``a`` of a feature's flight scatter: some scatter is never sampling
+#: noise (conditions the covariates miss), so a very long recording keeps a band of its own
+MAX_EVIDENCE_SHARE = 0.95
+#: the evidence weights of a design must spread by this factor (90th over 10th percentile)
+#: to regress the scatter on them; below it ``a = 0``
+MIN_EVIDENCE_SPREAD = 1.5
+_EVIDENCE_BINS = 8
 #: generic features a winglet drive's partner moves through the tab (:func:`partner_held`)
 PAIR_COUPLED_FEATURES: tuple[str, ...] = (OWN_FEATURE["MTEL"],)
 
@@ -291,12 +315,15 @@ def _reference_posterior(ref: np.ndarray, n: np.ndarray, sigma: np.ndarray,
 
 
 def self_referenced_sequence(z: np.ndarray, sigma: np.ndarray, tau: np.ndarray,
-                             reference_flights: int) -> np.ndarray:
+                             reference_flights: int,
+                             extra_variance: np.ndarray | None = None) -> np.ndarray:
     """Self-referenced residuals of a flight sequence (n_flights, n_features), each flight
-    against the median of the first ``reference_flights`` valid residuals *before* it. NaN
-    stays NaN."""
+    against the median of the first ``reference_flights`` valid residuals *before* it;
+    ``extra_variance`` (same shape) adds to each flight's scatter. NaN stays NaN."""
     z = np.asarray(z, dtype=np.float64)
     z = z[:, np.newaxis] if z.ndim == 1 else z
+    extra = np.zeros(z.shape) if extra_variance is None else np.asarray(
+        extra_variance, dtype=np.float64).reshape(z.shape)
     out = np.full(z.shape, np.nan)
     for j in range(z.shape[1]):
         col = z[:, j]
@@ -308,7 +335,7 @@ def self_referenced_sequence(z: np.ndarray, sigma: np.ndarray, tau: np.ndarray,
                             for k in range(min(reference_flights, first.size) + 1)])
         ref = medians[n_before]
         u_hat, sd = _reference_posterior(ref, n_before, sigma[j], tau[j])
-        out[:, j] = (col - u_hat) / sd
+        out[:, j] = (col - u_hat) / np.sqrt(sd**2 + extra[:, j])
     return out
 
 
@@ -344,6 +371,59 @@ def offset_components(healthy_sequences: Sequence[np.ndarray]) -> tuple[np.ndarr
             np.mean(1.0 / n))
         tau[j] = math.sqrt(max(t2, 0.0))
     return sigma, tau
+
+
+def evidence_shares(healthy_sequences: Sequence[np.ndarray],
+                    evidence: Sequence[np.ndarray], groups: Sequence[Sequence[int]]
+                    ) -> np.ndarray:
+    """The sampling share ``a`` of each column's flight scatter (module docstring), one per
+    group of columns (a generic feature's positions): the robust variance (1.4826 MAD,
+    squared) of the deviations from each history's median, in ``_EVIDENCE_BINS`` bins of the
+    evidence weight ``w``, fitted as ``c0 + c1 w``; ``a = c1 / (c0 + c1)`` in ``[0,
+    MAX_EVIDENCE_SHARE]``, 0 where ``w`` spreads too little to tell."""
+    n_feat = np.asarray(healthy_sequences[0]).shape[1]
+    share = np.zeros(n_feat)
+    for idx in groups:
+        dev, wts = [], []
+        for q, e in zip(healthy_sequences, evidence, strict=True):
+            for j in idx:
+                col, w = np.asarray(q)[:, j], np.asarray(e)[:, j]
+                ok = np.isfinite(col) & np.isfinite(w) & (w > 0)
+                if ok.sum() >= 2:
+                    dev.append(col[ok] - np.median(col[ok]))
+                    wts.append(w[ok])
+        if not dev:
+            continue
+        d, w = np.concatenate(dev), np.concatenate(wts)
+        lo, hi = np.quantile(w, [0.1, 0.9])
+        if d.size < 20 * _EVIDENCE_BINS or not hi >= MIN_EVIDENCE_SPREAD * lo:
+            continue
+        edges = np.quantile(w, np.linspace(0.0, 1.0, _EVIDENCE_BINS + 1))
+        which = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, _EVIDENCE_BINS - 1)
+        wb, vb, nb = [], [], []
+        for b in range(_EVIDENCE_BINS):
+            sel = which == b
+            if sel.sum() >= 10:
+                wb.append(float(np.mean(w[sel])))
+                vb.append((1.4826 * float(np.median(np.abs(d[sel])))) ** 2)
+                nb.append(float(sel.sum()))
+        if len(wb) < 3:
+            continue
+        c1, c0 = np.polyfit(np.array(wb), np.array(vb), 1, w=np.sqrt(np.array(nb)))
+        total = c0 + c1
+        if total > 0:
+            share[list(idx)] = min(max(c1 / total, 0.0), MAX_EVIDENCE_SHARE)
+    return share
+
+
+def _at_typical_evidence(q: np.ndarray, w: np.ndarray, share: np.ndarray) -> np.ndarray:
+    """A history's residuals with each flight's deviation from the history's median brought
+    to typical evidence: divided by ``sqrt(1 - a + a w)``, its scatter's ratio to ``sigma``."""
+    factor = np.sqrt(1.0 - share + share * np.where(np.isfinite(w), w, 1.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a column without a value stays NaN
+        med = np.nanmedian(q, axis=0, keepdims=True)
+    return med + (q - med) / factor
 
 
 @dataclass
@@ -567,35 +647,50 @@ class FaultDetector:
         return np.where(d == 0, np.abs(s), d * s)
 
     def fit(self, healthy_sequences: Sequence[np.ndarray],
-            feature_names: Sequence[str]) -> FaultDetector:
+            feature_names: Sequence[str],
+            evidence: Sequence[np.ndarray] | None = None) -> FaultDetector:
         """Learn the bands from healthy flight sequences of the design campaign.
 
         ``healthy_sequences``: one (n_flights_i, n_features) array of standardised residuals per
-        monitored actuator history (flights in order), columns in ``feature_names`` order.
-        First the offset components (``sigma``, ``tau``) per generic feature, then each
+        monitored actuator history (flights in order), columns in ``feature_names`` order;
+        ``evidence``: the flights' evidence weights, same shapes (None: every flight typical).
+        First the sampling share of the scatter (module docstring, Evidence), then the offset
+        components (``sigma``, ``tau``) per generic feature at typical evidence, then each
         (feature, window)'s healthy scale ``s_w`` on the self-referenced residuals of the same
         sequences, and its band for ``false_alarm_rate`` (module docstring).
         """
         names = list(feature_names)
         seqs = [np.asarray(q, dtype=np.float64).reshape(-1, len(names))
                 for q in healthy_sequences]
+        weights = (None if evidence is None else
+                   [np.asarray(e, dtype=np.float64).reshape(-1, len(names)) for e in evidence])
+        share = np.zeros(len(names))
+        if weights is not None and self.reference_flights > 0:
+            share = evidence_shares(seqs, weights, _generic_groups(names)
+                                    if self.pool_positions else [[i] for i in range(len(names))])
+        typical = (seqs if weights is None else
+                   [_at_typical_evidence(q, e, share) for q, e in zip(seqs, weights, strict=True)])
         if self.reference_flights == 0:  # the fleet test: z as it is
             sigma, tau = np.ones(len(names)), np.zeros(len(names))
         else:
-            sigma, tau = offset_components(seqs)
+            sigma, tau = offset_components(typical)
             if self.pool_positions:  # one actuator population per generic feature
                 for idx in _generic_groups(names):
                     sigma[idx] = np.sqrt(np.mean(sigma[idx] ** 2))
                     tau[idx] = np.sqrt(np.mean(tau[idx] ** 2))
+            self.evidence_variance_ = share * sigma**2
             fleet = np.array([generic_feature(n) in self.fleet_referenced for n in names],
                              dtype=bool)
             sigma[fleet] = np.sqrt(sigma[fleet] ** 2 + tau[fleet] ** 2)
             tau[fleet] = 0.0  # no offset to learn: the reference is the fleet's
+        if self.reference_flights == 0:
+            self.evidence_variance_ = np.zeros(len(names))
         self.within_std_, self.between_std_ = sigma, tau
         seen = np.zeros(len(names), dtype=np.int64)
         for seq in seqs:
             seen += np.isfinite(seq).sum(axis=0)
-        stats = self.healthy_statistics(seqs, names)
+        self.feature_names_ = names
+        stats = self.healthy_statistics(seqs, names, weights)
         groups = (_generic_groups(names) if self.pool_positions
                   else [[i] for i in range(len(names))])
         scale = np.full((len(names), len(self.windows)), np.nan)
@@ -604,11 +699,32 @@ class FaultDetector:
             for k in range(len(self.windows)):
                 scale[idx, k] = self._scale_of(np.concatenate([stats[k][i] for i in idx]),
                                                two_sided)
-        self.feature_names_ = names
         self.healthy_scale_ = scale
         self.band_ = self._bands_for(scale)
         self.n_healthy_flights_ = seen
         return self
+
+    def evidence_extra(self, weights: np.ndarray,
+                       feature_names: Sequence[str] | None = None) -> np.ndarray:
+        """The extra variance of flights with evidence weights ``weights`` (..., n_features in
+        ``feature_names`` order, default the fitted ones): ``sigma^2 a (w - 1)``, 0 where no
+        weight is known."""
+        names = self.feature_names_ if feature_names is None else list(feature_names)
+        idx = [self.feature_names_.index(n) for n in names]
+        w = np.asarray(weights, dtype=np.float64)
+        return np.where(np.isfinite(w), self.evidence_variance_[idx] * (w - 1.0), 0.0)
+
+    def flight_variance(self, evidence: Mapping[str, float] | None = None,
+                        extra_variance: Mapping[str, float] | None = None) -> dict[str, float]:
+        """Feature -> variance added to one flight's scatter: its evidence's
+        (:meth:`evidence_extra`) and a noisier sensor's (``extra_variance``)."""
+        out = dict(extra_variance or {})
+        for f, w in (evidence or {}).items():
+            if f in self.feature_names_ and math.isfinite(w):
+                i = self.feature_names_.index(f)
+                if self.evidence_variance_[i]:
+                    out[f] = out.get(f, 0.0) + float(self.evidence_variance_[i] * (w - 1.0))
+        return out
 
     def _scale_of(self, s: np.ndarray, two_sided: bool) -> float:
         """Normal scale of healthy judged statistics: their ``scale_quantile`` quantile (Weibull
@@ -621,18 +737,23 @@ class FaultDetector:
         return float(np.quantile(s, p, method="weibull")) / z_p
 
     def healthy_statistics(self, healthy_sequences: Sequence[np.ndarray],
-                           feature_names: Sequence[str]) -> list[list[np.ndarray]]:
+                           feature_names: Sequence[str],
+                           evidence: Sequence[np.ndarray] | None = None
+                           ) -> list[list[np.ndarray]]:
         """The judged statistics of healthy sequences, ``[window][feature]`` -> 1-D array of
         every flight's oriented ``S_w`` (``|S_w|`` for a two-sided feature) once the window
         is full, as :meth:`update` judges it (held through flights without a value).
         Windows shorter than a feature's ``min_windows`` count from ``w`` flights on. Needs
-        the fitted offsets (``within_std_``, ``between_std_``); :meth:`fit` calls it."""
+        the fitted offsets (``within_std_``, ``between_std_``); :meth:`fit` calls it.
+        ``evidence``: each flight's evidence weights (None: every flight typical)."""
         names = list(feature_names)
         dirs = self._dir(names)[np.newaxis, :]
         min_w = np.array([self._min_window(n) for n in names])
         out: list[list[list[np.ndarray]]] = [[[] for _ in names] for _ in self.windows]
-        for q in healthy_sequences:
-            q = self.self_referenced(np.asarray(q, dtype=np.float64).reshape(-1, len(names)))
+        for h, q in enumerate(healthy_sequences):
+            q = np.asarray(q, dtype=np.float64).reshape(-1, len(names))
+            extra = None if evidence is None else self.evidence_extra(evidence[h], names)
+            q = self.self_referenced(q, extra)
             n_seen = np.cumsum(np.isfinite(q), axis=0)
             for k, w in enumerate(self.windows):
                 s = self._oriented(running_statistics(self._clipped(q, w), w,
@@ -687,10 +808,12 @@ class FaultDetector:
     def _clipped(self, z: np.ndarray, window: int) -> np.ndarray:
         return z if window == 1 else np.clip(z, -self.window_clip, self.window_clip)
 
-    def self_referenced(self, z: np.ndarray) -> np.ndarray:
-        """Self-referenced residuals of one actuator history (n_flights, all features)."""
+    def self_referenced(self, z: np.ndarray, extra_variance: np.ndarray | None = None
+                        ) -> np.ndarray:
+        """Self-referenced residuals of one actuator history (n_flights, all features);
+        ``extra_variance`` (same shape) adds to each flight's scatter."""
         return self_referenced_sequence(z, self.within_std_, self.between_std_,
-                                        self.reference_flights)
+                                        self.reference_flights, extra_variance)
 
     def _self_one(self, state: DetectionState, f: str, i: int,
                   v: float, extra_variance: float = 0.0) -> tuple[float, float]:
@@ -711,14 +834,18 @@ class FaultDetector:
         self._check()
         return DetectionState.new(unit, unit_features(unit, self.feature_names_))
 
-    def confidence_sequence(self, z: np.ndarray, feature_names: Sequence[str]) -> np.ndarray:
+    def confidence_sequence(self, z: np.ndarray, feature_names: Sequence[str],
+                            evidence: np.ndarray | None = None) -> np.ndarray:
         """Confidence of every flight of one actuator history (n_flights, n_features) of
-        standardised residuals ``z`` (self-referenced here), vectorised over flights."""
+        standardised residuals ``z`` (self-referenced here), vectorised over flights;
+        ``evidence``: the flights' evidence weights, same shape (None: typical)."""
         self._check()
         idx = [self.feature_names_.index(n) for n in feature_names]
         z = np.asarray(z, dtype=np.float64).reshape(-1, len(idx))
+        extra = None if evidence is None else self.evidence_extra(
+            np.asarray(evidence, dtype=np.float64).reshape(z.shape), feature_names)
         z = self_referenced_sequence(z, self.within_std_[idx], self.between_std_[idx],
-                                     self.reference_flights)
+                                     self.reference_flights, extra)
         conf = np.zeros(z.shape)
         min_w = np.array([self._min_window(n) for n in feature_names])
         n_seen = np.cumsum(np.isfinite(z), axis=0)
@@ -733,22 +860,25 @@ class FaultDetector:
         return conf
 
     def update(self, state: DetectionState, z: Mapping[str, float],
-               extra_variance: Mapping[str, float] | None = None) -> DetectionResult:
+               extra_variance: Mapping[str, float] | None = None,
+               evidence: Mapping[str, float] | None = None) -> DetectionResult:
         """Add one flight's residuals to ``state`` (in place) and evaluate the alarm
         (:meth:`observe`, then :meth:`decide` with nothing held)."""
-        return self.decide(state, self.observe(state, z, extra_variance))
+        return self.decide(state, self.observe(state, z, extra_variance, evidence))
 
     def observe(self, state: DetectionState, z: Mapping[str, float],
-                extra_variance: Mapping[str, float] | None = None) -> Observation:
+                extra_variance: Mapping[str, float] | None = None,
+                evidence: Mapping[str, float] | None = None) -> Observation:
         """Add one flight's residuals to ``state`` (in place) and judge every feature, without
         deciding the alarm: the chain first sets a winglet drive's evidence beside its
         partner's (:func:`partner_held`).
 
         ``extra_variance`` (feature -> variance in residual units) widens a feature's flight
         scatter for this flight: the share a sensor measured noisier than in design adds
-        (:mod:`server.phm.sensor_health`)."""
-        extra = extra_variance or {}
+        (:mod:`server.phm.sensor_health`); ``evidence`` (feature -> evidence weight, module
+        docstring) adds the flight's sampling share."""
         self._check()
+        extra = self.flight_variance(evidence, extra_variance)
         keep = max(self.windows)
         margin: dict[str, float] = {}
         level: dict[str, float] = {}
@@ -797,11 +927,12 @@ class FaultDetector:
         return best
 
     def update_units(self, states: Mapping[str, DetectionState], z: Mapping[str, float],
-                     extra_variance: Mapping[str, float] | None = None
+                     extra_variance: Mapping[str, float] | None = None,
+                     evidence: Mapping[str, float] | None = None
                      ) -> dict[str, DetectionResult]:
         """One flight of every unit of an aircraft: each judged, then the alarms decided with
         the winglet pair's coupled evidence set beside each other (:func:`partner_held`)."""
-        seen = {u: self.observe(st, z, extra_variance) for u, st in states.items()}
+        seen = {u: self.observe(st, z, extra_variance, evidence) for u, st in states.items()}
         held = partner_held({u: o.level for u, o in seen.items()})
         return {u: self.decide(st, seen[u], held.get(u, ())) for u, st in states.items()}
 
@@ -835,6 +966,7 @@ class FaultDetector:
                 "fleet_referenced": list(self.fleet_referenced),
                 "within_std": self.within_std_.tolist(),
                 "between_std": self.between_std_.tolist(),
+                "evidence_variance": self.evidence_variance_.tolist(),
                 "feature_names": list(self.feature_names_),
                 "band": self.band_.tolist(),
                 "healthy_scale": [[v if math.isfinite(v) else None for v in row]
@@ -866,6 +998,9 @@ class FaultDetector:
         n = len(det.feature_names_)
         det.within_std_ = np.asarray(d.get("within_std", np.ones(n)), dtype=np.float64)
         det.between_std_ = np.asarray(d.get("between_std", np.zeros(n)), dtype=np.float64)
+        # a document without it kept one scatter whatever a flight's evidence
+        det.evidence_variance_ = np.asarray(d.get("evidence_variance", np.zeros(n)),
+                                            dtype=np.float64)
         det.band_ = np.asarray(d["band"], dtype=np.float64).reshape(len(det.feature_names_),
                                                                     len(det.windows))
         scale = d.get("healthy_scale")

@@ -60,6 +60,7 @@ def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
                           log_features=proto.log_features).fit(all_flights, tails_of)
     tails = sorted({a for a, _ in seqs})
     oof: list[np.ndarray] = []
+    evidence: list[np.ndarray] = []
     for tail in tails:
         train = [f for a, s in seqs if a != tail for f in s]
         if len(train) < 3:
@@ -69,24 +70,30 @@ def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
                           log_features=proto.log_features)
         b.fit(train, [a for a, s in seqs if a != tail for _ in s])
         oof += [b.zscore_matrix(s) for a, s in seqs if a == tail]
+        evidence += [b.evidence_matrix(s) for a, s in seqs if a == tail]
     det = detector or FaultDetector()
+    if not oof:
+        evidence = [final.evidence_matrix(s) for _, s in seqs]
     sequences = oof if oof else [final.zscore_matrix(s) for _, s in seqs]
-    det.fit(sequences, AIRCRAFT_FEATURES)
-    return DetectionModel(final, det, healthy_alarm_rate(det, sequences))
+    det.fit(sequences, AIRCRAFT_FEATURES, evidence)
+    return DetectionModel(final, det, healthy_alarm_rate(det, sequences, evidence=evidence))
 
 
 def healthy_alarm_rate(detector: FaultDetector, sequences: Sequence[np.ndarray],
-                       level: float = 0.90) -> dict[str, Any]:
+                       level: float = 0.90,
+                       evidence: Sequence[np.ndarray] | None = None) -> dict[str, Any]:
     """Alarm events per unit-flight on healthy sequences (n_flights, AIRCRAFT_FEATURES) of
     residuals, each unit at risk until its first alarm: the realised rate beside the stated
-    ``false_alarm_rate``, with its exact ``level`` interval."""
+    ``false_alarm_rate``, with its exact ``level`` interval. ``evidence``: the flights'
+    evidence weights, same shapes (None: typical)."""
     events = unit_flights = 0
-    for seq in sequences:
+    for h, seq in enumerate(sequences):
         for unit in UNITS:
             names = [n for n in AIRCRAFT_FEATURES if n.split(".", 1)[0] == unit
                      and n in detector.feature_names_]
             cols = [AIRCRAFT_FEATURES.index(n) for n in names]
-            conf = detector.confidence_sequence(seq[:, cols], names).max(axis=1)
+            ev = None if evidence is None else evidence[h][:, cols]
+            conf = detector.confidence_sequence(seq[:, cols], names, ev).max(axis=1)
             hits = np.flatnonzero(conf >= detector.alarm_confidence)
             events += int(hits.size > 0)
             unit_flights += int(hits[0]) + 1 if hits.size else seq.shape[0]

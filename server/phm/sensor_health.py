@@ -44,7 +44,7 @@ from .features import FEATURE_SENSORS, FlightFeatures
 from .signal_quality import FLOOR_CHANNELS
 
 __all__ = ["SENSOR_HEALTH_FORMAT", "SensorFinding", "SensorBands", "NoiseSensitivity",
-           "SensorJudgement", "SensorModel", "channel_sensor", "evidence_weights",
+           "SensorJudgement", "SensorModel", "channel_sensor",
            "fit_sensor_model"]
 
 SENSOR_HEALTH_FORMAT = "ema-sensor-bands/1"
@@ -207,17 +207,6 @@ def _floor_ratio(study: Mapping[str, Mapping[str, float]],
         return math.nan
 
 
-def evidence_weights(baseline: Any, features: FlightFeatures) -> dict[str, float]:
-    """Per feature of a flight, the healthy design flights' median number of valid windows
-    over this flight's (at least one): how much more a noise-driven error weighs on it."""
-    out = {}
-    for name, s in features.summaries.items():
-        need = baseline.min_valid_.get(name, 0.0)
-        typical = need / baseline.min_evidence if baseline.min_evidence > 0 else 0.0
-        out[name] = typical / max(s.n_valid, 1) if typical > 0 else 1.0
-    return out
-
-
 @dataclass
 class _Pair:
     """One feature on one study flight and its twin: residuals, excess noise variance ``e``
@@ -240,7 +229,8 @@ class NoiseSensitivity:
     the sensor's noise variance over the number of windows (the bias of a noisy magnitude such
     as F_SE's, the variance of a noisy slope such as F_TTS's): per unit of
     ``e w``, ``e = r^2 - 1`` the excess noise variance (``r``: the measured floor ratio of the
-    pair) and ``w`` the evidence weight (:func:`evidence_weights`), the residual moves by
+    pair) and ``w`` the evidence weight (``FleetBaseline.evidence_weights``), the residual
+    moves by
     ``bias_[g][s]`` and its flight scatter gains ``variance_[g][s]``.
 
     The bias is the mean paired difference per unit ``e w`` (none unless beyond three
@@ -265,7 +255,7 @@ class NoiseSensitivity:
         groups: dict[tuple[str, str, str], list[_Pair]] = {}
         for sensor, pattern, study, twin in pairs:
             z_s, z_t = baseline.zscores(study), baseline.zscores(twin)
-            weights = evidence_weights(baseline, twin)
+            weights = baseline.evidence_weights(twin)
             for name, zt in z_t.items():
                 _, positions = _feature_positions(name)
                 e = float(np.mean([_floor_ratio(study.quality, twin.quality, p, sensor) ** 2
@@ -392,7 +382,7 @@ class SensorModel:
         (feature -> value) judged with them: a feature reading an unusable channel (coarser
         step, stuck or clipped) is set aside; one reading a noisier sensor is compensated
         for its bias and gets the added scatter (without a learned sensitivity it is set
-        aside). ``evidence``: each feature's evidence weight (:func:`evidence_weights`;
+        aside). ``evidence``: each feature's evidence weight (``FleetBaseline.evidence_weights``;
         1 where not given). No finding, no change."""
         findings = self.bands.assess(quality)
         if not findings:

@@ -149,7 +149,8 @@ def _faulty_history(model: PhmModel, p: Pattern
     health = model.new_health(str(p.position))
     for r in p.flights:
         z = model.baseline.zscores(r.features)
-        det = model.detector.update(health.detection, z)
+        det = model.detector.update(health.detection, z,
+                                    evidence=model.baseline.evidence_weights(r.features))
         if p.onset_flight is not None and r.index < int(p.onset_flight):
             continue
         yield r, det, self_residuals(model.baseline, z, det), health

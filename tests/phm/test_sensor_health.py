@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from server.phm.baselines import FleetBaseline
 from server.phm.detection import FaultDetector
 from server.phm.features import AIRCRAFT_FEATURES, FEATURE_SENSORS, FeatureSummary, FlightFeatures
 from server.phm.sensor_health import (
@@ -15,7 +16,6 @@ from server.phm.sensor_health import (
     SensorBands,
     SensorModel,
     channel_sensor,
-    evidence_weights,
 )
 from server.vocabulary import POSITIONS, SIGNALS
 
@@ -187,6 +187,10 @@ class _Baseline:
     def zscores(self, flight: FlightFeatures) -> dict[str, float]:
         return {n: s.value for n, s in flight.summaries.items()}
 
+    # the baseline's own evidence weights, on these valid-window counts
+    evidence_weights = FleetBaseline.evidence_weights
+    _typical_valid = FleetBaseline._typical_valid
+
 
 def test_noise_sensitivity_recovers_a_known_bias_and_scatter() -> None:
     """Twin and study flights whose F_TTS residuals differ by (r - 1) n + bias e w, n the
@@ -218,5 +222,5 @@ def test_noise_sensitivity_recovers_a_known_bias_and_scatter() -> None:
 def test_evidence_weights_against_the_healthy_median() -> None:
     flight = FlightFeatures({"WT.F_SE": FeatureSummary(0.0, 0.0, 50),
                              "WT.F_TTS": FeatureSummary(0.0, 0.0, 0)}, {})
-    w = evidence_weights(_Baseline(["WT.F_SE", "WT.F_TTS"]), flight)
+    w = _Baseline(["WT.F_SE", "WT.F_TTS"]).evidence_weights(flight)
     assert w == {"WT.F_SE": 2.0, "WT.F_TTS": 100.0}

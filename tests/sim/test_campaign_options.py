@@ -4,6 +4,7 @@ tails and seeds fixed."""
 from __future__ import annotations
 
 import pickle
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -168,7 +169,8 @@ def _rendered_x(tmp_path, faults: tuple[SensorFault, ...], index: int) -> dict[s
     aircraft = fleet_for("design", 1)[0]
     spec = plan_campaign("design", 1, "ci")[0]
     sink = _Keep()
-    _render(tmp_path, aircraft, spec, healthy(), index, 4.0, sink, faults)
+    _render(tmp_path, aircraft, spec, healthy(), index,
+            replace(SCALES["ci"]["design"], duration_s=4.0), sink, faults)
     return {pos: sink.logs[index].channels[f"{pos}.x"].astype(float) for pos in POSITIONS}
 
 
@@ -290,7 +292,8 @@ def test_a_study_flight_is_its_twin_with_one_sensor_noisier(tmp_path) -> None:
     floors = {}
     for name, spec, ac in (("twin", twin, aircraft), ("study", study, noisier)):
         sink = _Keep()
-        _render(tmp_path, ac, spec, healthy(), 0, 10.0, sink)
+        _render(tmp_path, ac, spec, healthy(), 0,
+                replace(SCALES["ci"]["design"], duration_s=10.0), sink)
         ch = {k: np.asarray(v, dtype=float) for k, v in sink.logs[0].channels.items()}
         floors[name] = flight_quality(ch, screw_radius_m=mc.screw_radius_m,
                                       pole_pairs=mc.pole_pairs)

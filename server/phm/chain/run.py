@@ -16,7 +16,7 @@ from ..detection import DetectionResult
 from ..features import FlightFeatures
 from ..prognosis import RulDistribution
 from ..season import next_flights_per_day
-from ..sensor_health import SensorJudgement, evidence_weights
+from ..sensor_health import SensorJudgement
 from .config import CHAIN
 from .inputs import actuator_feature_names, classifier_vector, measurement_values, self_residuals
 from .model import PhmModel
@@ -86,7 +86,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     """
     timed = stage or _untimed
     z_all = model.baseline.zscores(features)
-    judged = _judge_sensors(model, features, z_all)
+    evidence = model.baseline.evidence_weights(features)
+    judged = _judge_sensors(model, features, z_all, evidence)
     if judged is not None:
         z_all = judged.z
     index_of: dict[str, int] = {}
@@ -95,7 +96,7 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         _track_calendar(h, index_of[position], started_at)
     detected = model.detector.update_units(
         {p: h.detection for p, h in health.items()}, z_all,
-        None if judged is None else judged.extra_variance)
+        None if judged is None else judged.extra_variance, evidence)
     out: dict[str, ActuatorOutcome] = {}
     for position, h in health.items():
         index, det = index_of[position], detected[position]
@@ -117,13 +118,13 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     return out
 
 
-def _judge_sensors(model: PhmModel, features: FlightFeatures,
-                   z: dict[str, float]) -> SensorJudgement | None:
+def _judge_sensors(model: PhmModel, features: FlightFeatures, z: dict[str, float],
+                   evidence: dict[str, float]) -> SensorJudgement | None:
     """The flight's residuals judged with its sensors' findings (None: no sensor model, or
     features stored without their signal-quality figures)."""
     if model.sensors is None or not features.quality:
         return None
-    return model.sensors.judge(features.quality, z, evidence_weights(model.baseline, features))
+    return model.sensors.judge(features.quality, z, evidence)
 
 
 def _note_sensors(out: ActuatorOutcome, judged: SensorJudgement, position: str) -> None:
