@@ -69,6 +69,12 @@ class BaselineConfig:
     winding_temp_features:
         Generic features that also get the estimated winding temperature [degC] as a
         covariate: their physics depends on the magnet/winding temperature itself.
+    drag_weight_features:
+        Generic features that also get ``mtel_drag_weight_per_nm`` [1/(N m)] as a covariate
+        (:func:`server.phm.features.drag_weight`): a winglet drive's friction ratio carries
+        its attached standby's drag over the hinge load, so it falls as the load grows (the
+        test station's load scale x0.5-x2 moved a winglet drive's ``F_MTEL`` by -1.8 flight
+        scatter units per e-fold of load on the shipped model's design; the wingtip's +0.2).
     ridge:
         L2 penalty on the standardised coefficients [flights' worth]: a light one, so that
         correlated or constant conditions still give a solvable fit (first-cut value).
@@ -93,6 +99,7 @@ class BaselineConfig:
     covariates: tuple[str, ...] = ("temp_ground_c", "temp_mean_c", "load_rms_n",
                                    "speed_rms_rad_s")
     winding_temp_features: tuple[str, ...] = ("F_DMD", "F_MTEL")
+    drag_weight_features: tuple[str, ...] = ("F_MTEL",)
     ridge: float = 1.0
     outlier_k: float = 6.0
     min_evidence: float = 0.25
@@ -245,8 +252,10 @@ def _group_means(X: np.ndarray, groups: np.ndarray) -> np.ndarray:
 
 def _covariates_for(name: str, base: Sequence[str]) -> tuple[str, ...]:
     feat = name.split(".", 1)[1]
-    extra = (("temp_winding_est_c",) if feat in BASELINE_DEFAULTS.winding_temp_features
-             else ())
+    extra = ((("temp_winding_est_c",) if feat in BASELINE_DEFAULTS.winding_temp_features
+              else ())
+             + (("mtel_drag_weight_per_nm",) if feat in BASELINE_DEFAULTS.drag_weight_features
+                else ()))
     return tuple(base) + tuple(c for c in extra if c not in base)
 
 

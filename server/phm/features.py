@@ -115,7 +115,7 @@ __all__ = [
 
 #: bumped whenever a feature formula or validity changes (invalidates cached campaign
 #: features); the history of the bumps is in docs/TUNING.md
-FEATURE_VERSION = "features/9"
+FEATURE_VERSION = "features/10"
 #: the sensors each generic feature reads: its own actuator's, both winglet drives' for
 #: F_REWEAR. Every feature's validity windows read the motor speed, hence the resolver
 FEATURE_SENSORS: dict[str, tuple[str, ...]] = {
@@ -130,7 +130,8 @@ AIRCRAFT_FEATURES: tuple[str, ...] = tuple(
     f"{p}.{f}" for p in POSITIONS for f in position_features(p))
 #: per-actuator operating conditions used by the baselines
 CONDITION_NAMES: tuple[str, ...] = (
-    "temp_ground_c", "temp_mean_c", "load_rms_n", "speed_rms_rad_s", "temp_winding_est_c")
+    "temp_ground_c", "temp_mean_c", "load_rms_n", "speed_rms_rad_s", "temp_winding_est_c",
+    "mtel_drag_weight_per_nm")
 
 
 @dataclass(frozen=True)
@@ -586,17 +587,30 @@ def _tts_combine(f: np.ndarray) -> np.ndarray:
     return _row_max((xy - x * y) / (xx - x * x))
 
 
-def _mtel_combine(f: np.ndarray, ref_torque_nm: float, min_load_nm: float) -> np.ndarray:
-    """Friction ratio ``W / (T_ref + |L|)`` from the regression of the motor torque on
-    ``[1, x, s, s x]`` (``s`` the direction of motion, ``x`` the rod position): at the local
-    mean position the load torque is ``L = a + b x`` and the up-down hysteresis ``W = 2 (c +
-    d x)``; NaN where ``|L| < min_load_nm``."""
+def _mtel_fit(f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Load torque ``L = a + b x`` and up-down hysteresis ``W = 2 (c + d x)`` at the local
+    mean position from the regression of the motor torque on ``[1, x, s, s x]`` (``s`` the
+    direction of motion, ``x`` the rod position), and where the regression is solvable."""
     coef, ok = _solve_normal(f, 4)
     x_mean = f[:, 1] / f[:, 0]  # accumulator of 1 * x over that of 1 * 1
-    load = coef[:, 0] + coef[:, 1] * x_mean
-    width = 2.0 * (coef[:, 2] + coef[:, 3] * x_mean)
+    return coef[:, 0] + coef[:, 1] * x_mean, 2.0 * (coef[:, 2] + coef[:, 3] * x_mean), ok
+
+
+def _mtel_combine(f: np.ndarray, ref_torque_nm: float, min_load_nm: float) -> np.ndarray:
+    """Friction ratio ``W / (T_ref + |L|)`` (:func:`_mtel_fit`); NaN where ``|L| <
+    min_load_nm``."""
+    load, width, ok = _mtel_fit(f)
     return np.where(ok & (np.abs(load) >= min_load_nm),
                     width / (ref_torque_nm + np.abs(load)), np.nan)
+
+
+def _drag_weight_combine(f: np.ndarray, ref_torque_nm: float, min_load_nm: float
+                         ) -> np.ndarray:
+    """``1 / (T_ref + |L|)`` of the same regression: the weight a load-independent drag
+    carries in the friction ratio; NaN where the ratio has no value."""
+    load, _, ok = _mtel_fit(f)
+    return np.where(ok & (np.abs(load) >= min_load_nm), 1.0 / (ref_torque_nm + np.abs(load)),
+                    np.nan)
 
 
 def _event_track(n_steps: int, steps: np.ndarray, vals: np.ndarray, alpha: float,
@@ -917,11 +931,7 @@ def friction_ratio(torque: np.ndarray, x_rod: np.ndarray, speed: np.ndarray,
     ``mtel_min_steps`` valid steps in either direction (no hysteresis seen).
     """
     cfg = config or FeatureConfig()
-    n = torque.shape[0]
-    x_rel_mm = 1e3 * (x_rod - (x_rod[valid].mean() if valid.any() else 0.0))
-    s_dir = np.sign(speed)
-    acc = _normal_accumulators(np.column_stack([np.ones(n), x_rel_mm, s_dir, s_dir * x_rel_mm]),
-                               torque)
+    acc, s_dir = _mtel_accumulators(torque, x_rod, speed, valid)
     track = _track(
         acc, valid,
         partial(_mtel_combine, ref_torque_nm=cfg.mtel_ref_torque_nm,
@@ -931,6 +941,36 @@ def friction_ratio(torque: np.ndarray, x_rod: np.ndarray, speed: np.ndarray,
     if min(n_up, int(np.count_nonzero(valid)) - n_up) < cfg.mtel_min_steps:
         track.value = float("nan")  # one direction barely seen: no hysteresis
     return track
+
+
+def _mtel_accumulators(torque: np.ndarray, x_rod: np.ndarray, speed: np.ndarray,
+                       valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The per-step normal-equation accumulators of ``F_MTEL``'s regression, and the
+    direction of motion."""
+    n = torque.shape[0]
+    x_rel_mm = 1e3 * (x_rod - (x_rod[valid].mean() if valid.any() else 0.0))
+    s_dir = np.sign(speed)
+    return _normal_accumulators(np.column_stack([np.ones(n), x_rel_mm, s_dir,
+                                                 s_dir * x_rel_mm]), torque), s_dir
+
+
+def drag_weight(torque: np.ndarray, x_rod: np.ndarray, speed: np.ndarray, valid: np.ndarray,
+                *, config: FeatureConfig | None = None) -> float:
+    """``1 / (T_ref + |L|)`` [1/(N m)] over the flight's cruise moves, ``L`` the load torque
+    ``F_MTEL``'s regression identifies (the mean of the up and down torques: the friction
+    cancels to first order, so an aged grease barely moves it): how much a load-independent
+    drag weighs in the friction ratio. A winglet drive back-drives its attached standby, whose
+    drag is such a term, so its healthy ratio falls as the hinge load grows (a test station's
+    load scale); the baseline of ``F_MTEL`` takes this as a covariate. NaN where the ratio
+    has no value."""
+    cfg = config or FeatureConfig()
+    idx = np.flatnonzero(valid)
+    if idx.size < cfg.min_valid_steps:
+        return float("nan")
+    acc, _ = _mtel_accumulators(torque, x_rod, speed, valid)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(_drag_weight_combine(acc[idx].mean(axis=0, keepdims=True),
+                                          cfg.mtel_ref_torque_nm, cfg.mtel_min_load_nm)[0])
 
 
 def screw_gap(x_rod: np.ndarray, nut_position: np.ndarray, i_q: np.ndarray, *,
@@ -986,20 +1026,24 @@ def actuator_features(
     -------
     tracks : ``ACTUATOR_FEATURES`` -> :class:`FeatureTrack` (80 Hz).
     extras : per-flight helper quantities (``psi_hat_wb``, ``r_hat_ohm``, ``load_rms_n``,
-        ``speed_rms_rad_s``, ``temp_winding_est_c``).
+        ``speed_rms_rad_s``, ``temp_winding_est_c``, ``mtel_drag_weight_per_nm``).
     """
     cfg = config or FeatureConfig()
     steps = actuator_steps(sig, config=cfg, motor=motor)
-    tracks, r_hat, psi_hat = _driving_features(steps, t_amb_c, cfg, motor or MotorConstants())
+    tracks, r_hat, psi_hat, weight = _driving_features(steps, t_amb_c, cfg,
+                                                       motor or MotorConstants())
     extras = {"psi_hat_wb": psi_hat, "r_hat_ohm": r_hat,
-              **_step_conditions(steps, aero_gradient_n_per_m, aero_bias_n, r_hat, motor)}
+              **_step_conditions(steps, aero_gradient_n_per_m, aero_bias_n, r_hat, motor),
+              "mtel_drag_weight_per_nm": weight}
     return tracks, extras
 
 
 def _driving_features(steps: ActuatorSteps, t_amb_c: np.ndarray | None, cfg: FeatureConfig,
-                      mc: MotorConstants) -> tuple[dict[str, FeatureTrack], float, float]:
+                      mc: MotorConstants
+                      ) -> tuple[dict[str, FeatureTrack], float, float, float]:
     """The six features of a drive whose inverter switches, from its 80 Hz steps; with the
-    winding resistance and the flux they estimated."""
+    winding resistance, the flux and ``F_MTEL``'s drag weight (:func:`drag_weight`) they
+    estimated."""
     windows = validity_windows(steps, config=cfg, t_amb_c=t_amb_c)
     r_hat = winding_resistance(steps, windows.still, config=cfg)
     omega_e = mc.pole_pairs * steps.speed
@@ -1019,9 +1063,10 @@ def _driving_features(steps: ActuatorSteps, t_amb_c: np.ndarray | None, cfg: Fea
     torque = 1.5 * mc.pole_pairs * psi_hat * steps.i_q  # N m, motor torque
     tracks["F_MTEL"] = friction_ratio(torque, steps.x, steps.speed, windows.steady_cruise,
                                       config=cfg)
+    weight = drag_weight(torque, steps.x, steps.speed, windows.steady_cruise, config=cfg)
     tracks["F_MTWEAR"] = screw_gap(steps.x, mc.screw_radius_m * steps.theta, steps.i_q,
                                    config=cfg)
-    return tracks, r_hat, float(psi_hat)
+    return tracks, r_hat, float(psi_hat), weight
 
 
 def _step_conditions(steps: ActuatorSteps, aero_gradient_n_per_m: float, aero_bias_n: float,
@@ -1181,12 +1226,13 @@ def flight_features(
     for p in POSITIONS:
         steps[p] = actuator_steps({s: channels[f"{p}.{s}"] for s in SIGNALS}, config=cfg,
                                   motor=mc)
-        r_hat = float("nan")
+        r_hat = weight = float("nan")
         if p != standby:
-            own, r_hat, _ = _driving_features(steps[p], channels.get("T_amb"), cfg, mc)
+            own, r_hat, _, weight = _driving_features(steps[p], channels.get("T_amb"), cfg, mc)
             tracks.update({f"{p}.{f}": tr for f, tr in own.items()})
         conditions[p] = {**flight_cond, **_step_conditions(
-            steps[p], float(cfg.aero_gradient_n_per_m[p]), float(cfg.aero_bias_n[p]), r_hat, mc)}
+            steps[p], float(cfg.aero_gradient_n_per_m[p]), float(cfg.aero_bias_n[p]), r_hat, mc),
+            "mtel_drag_weight_per_nm": weight}
     tracks.update(_rod_end_tracks(channels, steps, standby, cfg, mc))
     summaries = {n: tracks[n].summary() if n in tracks else _NO_VALUE for n in AIRCRAFT_FEATURES}
     quality = flight_quality(channels, screw_radius_m=mc.screw_radius_m,
