@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import time
+from collections.abc import Callable
 
 from fastapi import FastAPI
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -137,8 +139,10 @@ class SecurityHeadersMiddleware:
         await self.app(scope, receive, send_with_headers)
 
 
-def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastAPI:
-    """Build the HMSM app. The embedded SQLite default migrates itself; others must be current."""
+def create_app(settings: Settings, *, auto_upgrade: bool | None = None,
+               clock: Callable[[], float] = time.monotonic) -> FastAPI:
+    """Build the HMSM app. The embedded SQLite default migrates itself; others must be current.
+    ``clock``: the failed-authentication limit's time source [s] (a test drives it)."""
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     engine = make_engine(settings.effective_database_url)
     ensure_schema(engine, settings.effective_database_url,
@@ -185,7 +189,7 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
     app.add_middleware(BodyIdleTimeoutMiddleware, idle_s=settings.body_idle_timeout_s)
     app.add_middleware(AuthFailureLimitMiddleware, per_minute=settings.auth_failures_per_minute,
-                       max_clients=settings.auth_failure_clients)
+                       max_clients=settings.auth_failure_clients, clock=clock)
     app.add_middleware(SecurityHeadersMiddleware)
     # outermost: a request's latency from arrival, refusals by the middlewares above included
     app.add_middleware(RequestMetricsMiddleware, metrics=app.state.metrics,

@@ -65,9 +65,10 @@ class AuthFailureLimitMiddleware:
     """Counts failed authentications per client address and refuses a client past its budget
     (module docstring); ``per_minute`` 0 turns it off."""
 
-    def __init__(self, app: ASGIApp, per_minute: int, max_clients: int):
+    def __init__(self, app: ASGIApp, per_minute: int, max_clients: int,
+                 clock: Callable[[], float] = time.monotonic):
         self.app = app
-        self.budget = FailureBudget(per_minute, max_clients) if per_minute > 0 else None
+        self.budget = FailureBudget(per_minute, max_clients, clock) if per_minute > 0 else None
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http" or self.budget is None:
