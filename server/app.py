@@ -189,7 +189,8 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None,
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
     app.add_middleware(BodyIdleTimeoutMiddleware, idle_s=settings.body_idle_timeout_s)
     app.add_middleware(AuthFailureLimitMiddleware, per_minute=settings.auth_failures_per_minute,
-                       max_clients=settings.auth_failure_clients, clock=clock)
+                       max_clients=settings.auth_failure_clients,
+                       max_keys=settings.auth_failure_keys, clock=clock)
     app.add_middleware(SecurityHeadersMiddleware)
     # outermost: a request's latency from arrival, refusals by the middlewares above included
     app.add_middleware(RequestMetricsMiddleware, metrics=app.state.metrics,
