@@ -153,7 +153,10 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None,
     # /docs, /redoc and /openapi.json are server.api.docs's routes: local assets, a key needed
     app = FastAPI(title="EMA Health Management System (HMSM)", version="1",
                   description="Flight-log ingest, fault detection, classification and RUL "
-                  "prognosis for electromechanical flight-control actuators.",
+                  "prognosis for electromechanical flight-control actuators.\n\nNumbers in "
+                  "JSON bodies: an `integer` field takes a number without a fraction (`174` or "
+                  "`174.0`, one JSON number), a `number` field any finite number; neither takes "
+                  "`true` or a string such as `\"1.5\"` (422).",
                   docs_url=None, redoc_url=None, openapi_url=None)
     app.state.settings = settings
     app.state.engine = engine
