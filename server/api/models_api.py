@@ -49,6 +49,9 @@ def activate(model_id: IdPath, session: SessionDep, _: Admin) -> ModelRead:
 
 
 @router.post("/train", status_code=202, response_model=TrainAccepted, responses={
+                 "409": {"description": (
+                     "`training_pending`: a training job is queued or running; one at a time "
+                     "(details: job_id, model_id, status).")},
                  "507": {"description": (
                      "`insufficient_storage`: not enough free disk to generate the campaign "
                      "(details: needed_bytes, free_bytes).")}},
@@ -60,6 +63,9 @@ def train(body: TrainRequest, session: SessionDep, settings: SettingsDep, key: A
     if generated and body.generate is None:
         raise Unprocessable(f"Campaign '{body.campaign}' does not exist under the data "
                             "directory; give 'generate' to simulate it.", code="no_campaign")
+    pending = service.pending_training(session=session)
+    if pending is not None:  # before the disk is looked at: a second one would wait anyway
+        raise service.training_conflict(pending)
     if generated:
         service.check_generate_space(settings.data_dir, settings.train_disk_reserve_bytes)
     version = service.create_version(session=session, name=body.name or body.campaign,
