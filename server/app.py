@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import time
+from collections.abc import Callable
 
 from fastapi import FastAPI
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -137,8 +139,10 @@ class SecurityHeadersMiddleware:
         await self.app(scope, receive, send_with_headers)
 
 
-def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastAPI:
-    """Build the HMSM app. The embedded SQLite default migrates itself; others must be current."""
+def create_app(settings: Settings, *, auto_upgrade: bool | None = None,
+               clock: Callable[[], float] = time.monotonic) -> FastAPI:
+    """Build the HMSM app. The embedded SQLite default migrates itself; others must be current.
+    ``clock``: the failed-authentication limit's time source [s] (a test drives it)."""
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     engine = make_engine(settings.effective_database_url)
     ensure_schema(engine, settings.effective_database_url,
@@ -149,7 +153,10 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     # /docs, /redoc and /openapi.json are server.api.docs's routes: local assets, a key needed
     app = FastAPI(title="EMA Health Management System (HMSM)", version="1",
                   description="Flight-log ingest, fault detection, classification and RUL "
-                  "prognosis for electromechanical flight-control actuators.",
+                  "prognosis for electromechanical flight-control actuators.\n\nNumbers in "
+                  "JSON bodies: an `integer` field takes a number without a fraction (`174` or "
+                  "`174.0`, one JSON number), a `number` field any finite number; neither takes "
+                  "`true` or a string such as `\"1.5\"` (422).",
                   docs_url=None, redoc_url=None, openapi_url=None)
     app.state.settings = settings
     app.state.engine = engine
@@ -185,7 +192,8 @@ def create_app(settings: Settings, *, auto_upgrade: bool | None = None) -> FastA
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_upload_bytes)
     app.add_middleware(BodyIdleTimeoutMiddleware, idle_s=settings.body_idle_timeout_s)
     app.add_middleware(AuthFailureLimitMiddleware, per_minute=settings.auth_failures_per_minute,
-                       max_clients=settings.auth_failure_clients)
+                       max_clients=settings.auth_failure_clients,
+                       max_keys=settings.auth_failure_keys, clock=clock)
     app.add_middleware(SecurityHeadersMiddleware)
     # outermost: a request's latency from arrival, refusals by the middlewares above included
     app.add_middleware(RequestMetricsMiddleware, metrics=app.state.metrics,

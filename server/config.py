@@ -72,12 +72,16 @@ class Settings(BaseSettings):
     body_idle_timeout_s: float = Field(30.0, gt=0, le=3600, description=(
         "A request body that sends nothing for this long is cut with 408 [s]."))
     auth_failures_per_minute: int = Field(20, ge=0, description=(
-        "Failed authentications (wrong or revoked key, API or sign-in form) a client address "
-        "may make in a burst, and again each minute; past that 429 with Retry-After. 0: no "
-        "limit."))
+        "Failed authentications (wrong or revoked key: API, session cookie or sign-in form) "
+        "one presented key, and separately one client address, may make in a burst, and again "
+        "each minute. Past a key's budget that key is answered 429 with Retry-After; past an "
+        "address's, its wrong keys are (a right key is always served). 0: no limit."))
     auth_failure_clients: int = Field(10_000, ge=1, description=(
         "Most client addresses whose failed authentications are tracked; past that the one "
         "that failed least recently is forgotten."))
+    auth_failure_keys: int = Field(10_000, ge=1, description=(
+        "Most presented keys whose failed authentications are tracked (by their SHA-256); "
+        "past that the one that failed least recently is forgotten."))
     train_disk_reserve_bytes: int = Field(1024 ** 3, ge=0, description=(
         "Free disk a design campaign generated for training (`POST /api/v1/models/train` with "
         "`generate`) must leave besides its own size; less: 507 `insufficient_storage`."))
@@ -188,8 +192,8 @@ class Settings(BaseSettings):
         return self.data_dir / "tmp"
 
 
-#: the shortest metrics token accepted: 32 characters (128 bits as hex) cannot be guessed within
-#: the failed-authentication budget
+#: the shortest metrics token accepted: 32 characters (128 bits as hex) cannot be guessed at
+#: any request rate (the failed-authentication limit never refuses the right token)
 METRICS_TOKEN_MIN_CHARS = 32
 
 

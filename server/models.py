@@ -254,6 +254,12 @@ class JobKind(StrEnum):
     TRAIN_MODEL = "train_model"
 
 
+#: the jobs that hold the training slot: one ``train_model`` job queued or running at a time
+#: (``POST /models/train`` answers 409 past it; this index holds under concurrent requests)
+PENDING_TRAINING = text(f"kind = '{JobKind.TRAIN_MODEL.value}' AND status IN "
+                        f"('{JobStatus.QUEUED.value}', '{JobStatus.RUNNING.value}')")
+
+
 class Job(Base):
     """A durable unit of background work; ``lock_key`` serialises jobs of one aircraft."""
 
@@ -261,6 +267,8 @@ class Job(Base):
     __table_args__ = (
         UniqueConstraint("kind", "flight_id", name="uq_jobs_kind_flight"),
         Index("ix_jobs_claim", "status", "run_after"),
+        Index("uq_jobs_pending_training", "kind", unique=True, sqlite_where=PENDING_TRAINING,
+              postgresql_where=PENDING_TRAINING),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)

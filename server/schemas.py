@@ -1,7 +1,10 @@
 """Request and response schemas of the REST API (pydantic); never the ORM rows themselves.
 
-Integers in request bodies are strict (``true`` is no count), floats finite (``Infinity`` has
-no JSON to read back as); ids follow the flight-log contract's rule (``ID_PATTERN``).
+Numbers in request bodies are JSON numbers, never ``true`` or a string (``JsonInteger``,
+``Number``): an integer field takes a number without a fraction (``174`` or ``174.0``, one JSON
+number), a number field any finite number (``Infinity`` has no JSON to read back as). Row ids in
+paths and queries are bounded by their column (``IdPath``, ``IdQuery``); text ids follow the
+flight-log contract's rule (``ID_PATTERN``).
 """
 
 from __future__ import annotations
@@ -11,8 +14,18 @@ from datetime import datetime
 from enum import StrEnum
 from typing import Annotated, Any, Generic, Literal, TypeVar
 
-from fastapi import Query
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from fastapi import Path, Query
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    ValidatorFunctionWrapHandler,
+    WrapValidator,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
 
 from server.flightlog import ID_PATTERN, MAX_ID_LEN
 from server.models import ROLES
@@ -51,6 +64,10 @@ __all__ = [
     "KeyCreated",
     "Page",
     "Identifier",
+    "JsonInteger",
+    "Number",
+    "IdPath",
+    "IdQuery",
     "MAX_INT32",
     "FlightNumber",
     "Offset",
@@ -77,8 +94,34 @@ WorkOrder = Annotated[str, Field(pattern=WORK_ORDER_PATTERN, min_length=3, max_l
 #: PostgreSQL's INTEGER, the type of the id, flight-number and count columns: no request number
 #: beyond it reaches the database (SQLite would store it, PostgreSQL refuses it)
 MAX_INT32 = 2**31 - 1
+
+
+def _json_integer(value: Any, handler: ValidatorFunctionWrapHandler,
+                  info: ValidationInfo) -> Any:
+    # JSON has one number type and JSON Schema's "integer" holds 174.0 as well as 174, so
+    # both are taken; true and "174" (which lax parsing would take) are no integer. A
+    # dashboard form's fields are text, validated in pydantic's strings mode: parsed as such
+    if info.mode != "string":
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise PydanticCustomError("int_type", "Input should be a valid integer")
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)  # 1e300 then meets the field's bound, not a parsing error
+    return handler(value)  # a fraction, infinity or NaN: refused by int itself
+
+
+#: what makes an ``int`` of a request body take 174 or 174.0 and refuse true or "174": after
+#: the field's bounds, ``Annotated[int, Field(ge=0, le=9), JsonInteger]`` (bounds after a
+#: validator come out of pydantic's JSON schema as "ge"/"le", not minimum/maximum)
+JsonInteger = WrapValidator(_json_integer)
+#: a number of a request body (bounds on each field): any finite JSON number, an integer too;
+#: never true or "1.5" (pydantic's strict float, which takes ints)
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+#: a row id (aircraft's actuator, flight, job, key, model, alarm, test-station item) in a path
+#: or a query: within its INTEGER column, so that no larger one reaches the database driver
+IdPath = Annotated[int, Path(ge=1, le=MAX_INT32)]
+IdQuery = Annotated[int | None, Query(ge=1, le=MAX_INT32)]
 #: an aircraft's flight number (its n-th flight)
-FlightNumber = Annotated[int, Field(ge=0, le=MAX_INT32, strict=True)]
+FlightNumber = Annotated[int, Field(ge=0, le=MAX_INT32), JsonInteger]
 #: the offset of a listed page
 Offset = Annotated[int, Query(ge=0, le=MAX_INT32)]
 
@@ -168,7 +211,7 @@ class ActuatorDefer(BaseModel):
     model_config = ConfigDict(extra="forbid")
     work_order: WorkOrder
     reason: str = Field(min_length=3, max_length=2000)
-    flights: int | None = Field(None, ge=1, le=1000, strict=True)
+    flights: Annotated[int, Field(ge=1, le=1000), JsonInteger] | None = None
     until: datetime | None = Field(None, description="An aware date-time (with its zone).")
 
     @model_validator(mode="after")
@@ -263,13 +306,12 @@ class InjectionCreate(BaseModel):
     aircraft: Identifier
     position: Position
     fault_mode: FaultMode
-    onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
-                              description="Aircraft flight number at which the fault appears; "
-                              "0 = the next flight.")
-    time_to_failure_flights: int | None = Field(None, ge=10, le=5000, strict=True, description=(
-        "Progressive modes: flights from onset to failure (sets the progression rate); "
-        "default: drawn by the simulator's law."))
-    severity: float | None = Field(None, ge=0.01, le=1.0, allow_inf_nan=False, description=(
+    onset_flight: Annotated[int, Field(ge=0, le=100_000), JsonInteger] = Field(
+        0, description="Aircraft flight number at which the fault appears; 0 = the next flight.")
+    time_to_failure_flights: Annotated[int, Field(ge=10, le=5000), JsonInteger] | None = Field(
+        None, description="Progressive modes: flights from onset to failure (sets the "
+        "progression rate); default: drawn by the simulator's law.")
+    severity: Number | None = Field(None, ge=0.01, le=1.0, description=(
         "SE/BDO: imposed severity as a fraction of the failure threshold, 0.01-1 (default "
         "1.0)."))
 
@@ -313,16 +355,16 @@ class SensorInjectionCreate(BaseModel):
     kind: Literal[SENSOR_INJECTION_KINDS] = Field(  # type: ignore[valid-type]  # as Position
         description="noise: rms noise x value; drift (LVDT only): offset + value metres per "
         "flight; quantisation: readings rounded to a step of value (A, V, rad, m)")
-    value: float = Field(allow_inf_nan=False, description=(
+    value: Number = Field(description=(
         f"noise: factor, above 1 and at most {MAX_NOISE_FACTOR:g}; drift: metres per flight, "
         f"non-zero, |value| <= {MAX_DRIFT_M_PER_FLIGHT:g}; quantisation: step, above the "
         "sensor's own step, at most " + ", ".join(f"{v:g} ({k})" for k, v in MAX_STEP.items())
         + "; stuck (current, voltage): the reading, within the converter's range (64 A, "
         "512 V); stuck (resolver): the shaft angle, within +-pi rad; clipped (current, "
         "voltage): the level, above 0, within that range"))
-    onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
-                              description="Aircraft flight number it starts at; 0 = the next "
-                              "flight. It lasts until cancelled.")
+    onset_flight: Annotated[int, Field(ge=0, le=100_000), JsonInteger] = Field(
+        0, description="Aircraft flight number it starts at; 0 = the next flight. It lasts "
+        "until cancelled.")
 
     @model_validator(mode="after")
     def _value_in_bounds(self) -> SensorInjectionCreate:
@@ -410,12 +452,12 @@ class ConditionCreate(BaseModel):
         "load_scale: the hinge load's scale (eq. 1 sigma_F, multiplied); load_offset: N added "
         "to every actuator's hinge load (eq. 1 sigma_F0); command_scale: the commanded "
         "motion's scale (eq. 1 sigma_x, multiplied); base: fly from that base's climate")
-    value: float | None = Field(None, allow_inf_nan=False, description="; ".join(
+    value: Number | None = Field(None, description="; ".join(
         f"{kind} {condition_range(kind)}" for kind in CONDITION_BOUNDS) + "; none for a base")
     base: str | None = Field(None, description="kind base only: one of " + ", ".join(BASES))
-    onset_flight: int = Field(0, ge=0, le=100_000, strict=True,
-                              description="Aircraft flight number it starts at; 0 = the next "
-                              "flight. It lasts until cancelled.")
+    onset_flight: Annotated[int, Field(ge=0, le=100_000), JsonInteger] = Field(
+        0, description="Aircraft flight number it starts at; 0 = the next flight. It lasts "
+        "until cancelled.")
 
     @model_validator(mode="after")
     def _value_in_bounds(self) -> ConditionCreate:
@@ -481,8 +523,8 @@ class GroundTruthIn(BaseModel):
     flight_number: FlightNumber
     # the fault's size in its own unit (m, ohm, ...; every failure threshold is at most 1), and
     # as a fraction of the threshold: a fault is failed at 1, reported a little beyond at most
-    severity: float = Field(ge=0, le=MAX_SEVERITY, allow_inf_nan=False)
-    severity_norm: float = Field(ge=0, le=MAX_SEVERITY, allow_inf_nan=False)
+    severity: Number = Field(ge=0, le=MAX_SEVERITY)
+    severity_norm: Number = Field(ge=0, le=MAX_SEVERITY)
     true_rul_flights: FlightNumber | None = None
 
 
@@ -511,7 +553,7 @@ class SensorTruthIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
     flight: Identifier
     flight_number: FlightNumber
-    applied: float = Field(allow_inf_nan=False, ge=-1e6, le=1e6, description=(
+    applied: Number = Field(ge=-1e6, le=1e6, description=(
         "what was applied on the flight: the noise factor, the LVDT offset added [m] or the "
         "quantisation step"))
 
@@ -539,7 +581,7 @@ class ConditionTruthIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
     flight: Identifier
     flight_number: FlightNumber
-    applied: float = Field(allow_inf_nan=False, ge=-1e6, le=1e6, description=(
+    applied: Number = Field(ge=-1e6, le=1e6, description=(
         "what was flown: the value (K, factor, N), or for a base the flight's ground "
         "temperature drawn from its climate [degC]"))
 
@@ -810,7 +852,7 @@ class ModelSummary(BaseModel):
 
 class GenerateSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    seed: int = Field(ge=0, le=2**31 - 1, strict=True)
+    seed: Annotated[int, Field(ge=0, le=MAX_INT32), JsonInteger]
     # quick alone: about 920 flights in 3 minutes on 2 cores, streamed (docs/SECURITY.md);
     # paper (about 8 GB) and protocol (hours) campaigns are for `hmsm campaign` / `protocol`
     scale: Literal["quick"] = Field("quick", description=(
@@ -824,8 +866,8 @@ class TrainRequest(BaseModel):
     generate: GenerateSpec | None = Field(None, description=(
         "Simulate the design campaign first if it does not exist yet; it is removed once "
         "training has read it."))
-    seed: int = Field(0, ge=0, le=2**31 - 1, strict=True,
-                      description="Seed of the 70/30 split.")
+    seed: Annotated[int, Field(ge=0, le=MAX_INT32), JsonInteger] = Field(
+        0, description="Seed of the 70/30 split.")
     name: str | None = Field(None, pattern=_MODEL_NAME)
     activate: bool = True
 

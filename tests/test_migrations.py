@@ -258,3 +258,58 @@ def test_one_live_station_item_per_slot_from_0013(settings: Settings) -> None:
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
+
+
+def _training(conn, id_: int, status: str) -> None:  # type: ignore[no-untyped-def]
+    """A model version ``id_`` and its train_model job ``id_``, as the old endpoint queued."""
+    import sqlalchemy as sa
+
+    conn.execute(sa.text(
+        "INSERT INTO model_versions (id, name, status, active, payload, training, metrics, "
+        "created_at) VALUES (:id, 'm', 'training', false, '{}', '{}', '{}', CURRENT_TIMESTAMP)"),
+        {"id": id_})
+    conn.execute(sa.text(
+        "INSERT INTO jobs (id, kind, lock_key, status, attempts, max_attempts, run_after, "
+        "payload, created_at, updated_at) VALUES (:id, 'train_model', 'train_model', :status, "
+        "0, 1, CURRENT_TIMESTAMP, :payload, CURRENT_TIMESTAMP, CURRENT_TIMESTAMP)"),
+        {"id": id_, "status": status, "payload": f'{{"campaign": "c", "version_id": {id_}}}'})
+
+
+def test_one_pending_training_from_0014(settings: Settings) -> None:
+    """0014 keeps the slot for the running (else the earliest) pending training of a database
+    that holds several, which the old endpoint allowed, and makes the other queued ones dead
+    and their versions failed, saying why; then the database refuses a second pending one
+    (finished ones never count); 0013 again allows it."""
+    import pytest
+    import sqlalchemy as sa
+    from sqlalchemy.exc import IntegrityError
+
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0013")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        for id_, status in ((1, "done"), (2, "dead"), (3, "queued"), (4, "running"),
+                            (5, "queued")):
+            _training(conn, id_, status)
+    upgrade(url)
+    with engine.connect() as conn:
+        jobs = dict(conn.execute(sa.text("SELECT id, status FROM jobs")).all())
+        buried = conn.execute(sa.text("SELECT last_error FROM jobs WHERE id = 3")).scalar_one()
+        versions = dict(conn.execute(sa.text("SELECT id, status FROM model_versions")).all())
+        error = conn.execute(sa.text("SELECT error FROM model_versions WHERE id = 5")).scalar()
+    assert jobs == {1: "done", 2: "dead", 3: "dead", 4: "running", 5: "dead"}
+    assert "job 4 held the slot" in buried and error == buried
+    assert versions == {1: "training", 2: "training", 3: "failed", 4: "training", 5: "failed"}
+    with pytest.raises(IntegrityError, match="uq_jobs_pending_training|UNIQUE"), \
+            engine.begin() as conn:
+        _training(conn, 6, "queued")
+    with engine.begin() as conn:
+        _training(conn, 7, "done")  # a finished one never holds the slot
+
+    downgrade(url, "0013")
+    with engine.begin() as conn:  # several pending again, as before 0014
+        _training(conn, 8, "queued")
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

@@ -15,6 +15,7 @@ from server.schemas import (
     ActuatorInspect,
     ActuatorRead,
     ActuatorReplace,
+    IdPath,
     MaintenanceActionRead,
     Offset,
     Page,
@@ -38,7 +39,7 @@ def list_(session: SessionDep, _: Reader,
 
 
 @router.get("/{actuator_id}", response_model=ActuatorRead, summary="One actuator")
-def get(actuator_id: int, session: SessionDep, _: Reader) -> ActuatorRead:
+def get(actuator_id: IdPath, session: SessionDep, _: Reader) -> ActuatorRead:
     return actuator_read(fleet.get_actuator(session=session, actuator_id=actuator_id))
 
 
@@ -46,7 +47,7 @@ def get(actuator_id: int, session: SessionDep, _: Reader) -> ActuatorRead:
              responses=errors(409),
              summary="Maintenance: replace an installed actuator (maintainer/admin); the new "
                      "unit's history starts again, the old one's alarms close")
-def replace(actuator_id: int, body: ActuatorReplace, session: SessionDep, key: Maintainer
+def replace(actuator_id: IdPath, body: ActuatorReplace, session: SessionDep, key: Maintainer
             ) -> ActuatorRead:
     new, _ = maintenance.replace_actuator(session=session, actuator_id=actuator_id,
                                           new_serial=body.new_serial, by=key,
@@ -59,7 +60,7 @@ def replace(actuator_id: int, body: ActuatorReplace, session: SessionDep, key: M
              responses=errors(409),
              summary="Maintenance: inspected, no fault found (maintainer/admin); the alarms "
                      "close as false alarms, monitoring goes on")
-def inspect(actuator_id: int, body: ActuatorInspect, session: SessionDep, key: Maintainer
+def inspect(actuator_id: IdPath, body: ActuatorInspect, session: SessionDep, key: Maintainer
             ) -> MaintenanceActionRead:
     row = maintenance.inspect_actuator(session=session, actuator_id=actuator_id, by=key,
                                        work_order=body.work_order, note=body.note)
@@ -71,7 +72,7 @@ def inspect(actuator_id: int, body: ActuatorInspect, session: SessionDep, key: M
              responses=errors(409),
              summary="Maintenance: defer the open alarm for N flights or until a date "
                      "(maintainer/admin)")
-def defer(actuator_id: int, body: ActuatorDefer, session: SessionDep, key: Maintainer
+def defer(actuator_id: IdPath, body: ActuatorDefer, session: SessionDep, key: Maintainer
           ) -> MaintenanceActionRead:
     row = maintenance.defer_alarm(session=session, actuator_id=actuator_id, by=key,
                                   work_order=body.work_order, reason=body.reason,
@@ -83,6 +84,6 @@ def defer(actuator_id: int, body: ActuatorDefer, session: SessionDep, key: Maint
 @router.get("/{actuator_id}/maintenance", response_model=list[MaintenanceActionRead],
             summary="Audit trail: the maintenance actions on this unit (and the replacement "
                     "that installed it), oldest first")
-def trail(actuator_id: int, session: SessionDep, _: Reader) -> list[MaintenanceActionRead]:
+def trail(actuator_id: IdPath, session: SessionDep, _: Reader) -> list[MaintenanceActionRead]:
     return [MaintenanceActionRead.model_validate(r)
             for r in maintenance.audit_trail(session=session, actuator_id=actuator_id)]

@@ -35,6 +35,7 @@ from server.schemas import (
     FlightAccepted,
     FlightRead,
     FlightStatusFilter,
+    IdPath,
     Offset,
     Page,
     SignalsRead,
@@ -202,14 +203,14 @@ def _with_uploader(session: SessionDep, row: Flight) -> FlightRead:
 
 
 @router.get("/{flight_id}", response_model=FlightRead, summary="One flight: status and reasons")
-def get(flight_id: int, session: SessionDep, _: Reader) -> FlightRead:
+def get(flight_id: IdPath, session: SessionDep, _: Reader) -> FlightRead:
     row = service.get_flight(session=session, flight_id=flight_id)
     return _with_uploader(session, row)
 
 
 @router.get("/{flight_id}/signals", response_model=SignalsRead, responses=errors(410, 503),
             summary="Signals of a flight, decimated for plotting")
-async def signals(flight_id: int, request: Request, session: SessionDep, blobs: BlobsDep,
+async def signals(flight_id: IdPath, request: Request, session: SessionDep, blobs: BlobsDep,
                   settings: SettingsDep, _: Reader,
                   channels: Annotated[str | None, Query(description="Comma-separated channel "
                                                         "names; default all.",
@@ -232,7 +233,7 @@ async def signals(flight_id: int, request: Request, session: SessionDep, blobs: 
 
 @router.delete("/{flight_id}", status_code=204, responses=errors(409),
                summary="Delete a rejected flight and its file (admin)")
-def delete_rejected(flight_id: int, session: SessionDep, blobs: BlobsDep, _: Admin) -> Response:
+def delete_rejected(flight_id: IdPath, session: SessionDep, blobs: BlobsDep, _: Admin) -> Response:
     """Only a rejected flight (409 `not_rejected` otherwise): its row goes, and its file
     unless another kept flight shares it; its uploader's rejected-bytes quota is freed."""
     orphan = service.delete_rejected(session=session, flight_id=flight_id)
@@ -247,7 +248,7 @@ def delete_rejected(flight_id: int, session: SessionDep, blobs: BlobsDep, _: Adm
 
 @router.post("/{flight_id}/retry", status_code=202, response_model=FlightRead,
              responses=errors(409), summary="Analyse a failed flight again (admin)")
-def retry(flight_id: int, session: SessionDep, _: Admin) -> FlightRead:
+def retry(flight_id: IdPath, session: SessionDep, _: Admin) -> FlightRead:
     """Queue the analysis of a flight whose analysis was given up (status ``failed``) again,
     with a fresh count of attempts; 409 ``not_failed`` for a flight in any other state."""
     row = analysis_service.retry_failed(session=session, flight_id=flight_id)

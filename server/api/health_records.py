@@ -14,6 +14,7 @@ from server.schemas import (
     AlarmRead,
     GridCellRead,
     HealthRecordRead,
+    IdPath,
     Offset,
     Page,
     PrognosisRead,
@@ -46,7 +47,7 @@ def alarm_read(row: service.AlarmRow) -> AlarmRead:
 
 @router.get("/actuators/{actuator_id}/health", response_model=list[HealthRecordRead],
             summary="Feature values, detection confidence and class probabilities per flight")
-def health(actuator_id: int, session: SessionDep, _: Reader,
+def health(actuator_id: IdPath, session: SessionDep, _: Reader,
            limit: Annotated[int, Query(ge=1, le=5000)] = 500) -> list[HealthRecordRead]:
     return [HealthRecordRead.model_validate(r) for r in
             service.health_records(session=session, actuator_id=actuator_id, limit=limit)]
@@ -54,7 +55,7 @@ def health(actuator_id: int, session: SessionDep, _: Reader,
 
 @router.get("/actuators/{actuator_id}/prognoses", response_model=list[PrognosisRead],
             summary="RUL predictions after each flight (the RUL cone)")
-def prognoses(actuator_id: int, session: SessionDep, _: Reader,
+def prognoses(actuator_id: IdPath, session: SessionDep, _: Reader,
               limit: Annotated[int, Query(ge=1, le=5000)] = 500) -> list[PrognosisRead]:
     return [PrognosisRead.model_validate(r) for r in
             service.prognoses(session=session, actuator_id=actuator_id, limit=limit)]
@@ -62,7 +63,7 @@ def prognoses(actuator_id: int, session: SessionDep, _: Reader,
 
 @router.get("/actuators/{actuator_id}/sensor-findings", response_model=list[SensorFlightRead],
             summary="Sensor advisories: flights whose signal quality left its healthy band")
-def sensor_findings(actuator_id: int, session: SessionDep, _: Reader,
+def sensor_findings(actuator_id: IdPath, session: SessionDep, _: Reader,
                     limit: Annotated[int, Query(ge=1, le=5000)] = 500
                     ) -> list[SensorFlightRead]:
     return [SensorFlightRead(**f.__dict__) for f in
@@ -95,7 +96,7 @@ def _one(session: SessionDep, alarm_id: int) -> AlarmRead:
 @router.get("/alarms/{alarm_id}/events", response_model=list[AlarmEventRead],
             responses=errors(404),
             summary="What happened to an alarm after it was raised (leading-class changes)")
-def alarm_events(alarm_id: int, session: SessionDep, _: Reader) -> list[AlarmEventRead]:
+def alarm_events(alarm_id: IdPath, session: SessionDep, _: Reader) -> list[AlarmEventRead]:
     service.get_alarm(session=session, alarm_id=alarm_id)  # 404 for an unknown one
     return [AlarmEventRead.model_validate(e)
             for e in service.alarm_events(session=session, alarm_ids=[alarm_id])]
@@ -103,7 +104,7 @@ def alarm_events(alarm_id: int, session: SessionDep, _: Reader) -> list[AlarmEve
 
 @router.post("/alarms/{alarm_id}/acknowledge", response_model=AlarmRead, responses=errors(409),
              summary="Acknowledge an open alarm with a note (admin)")
-def acknowledge(alarm_id: int, body: AlarmAction, session: SessionDep, key: Admin) -> AlarmRead:
+def acknowledge(alarm_id: IdPath, body: AlarmAction, session: SessionDep, key: Admin) -> AlarmRead:
     service.acknowledge_alarm(session=session, alarm_id=alarm_id, by=key.name, note=body.note)
     session.commit()
     return _one(session, alarm_id)
@@ -111,7 +112,7 @@ def acknowledge(alarm_id: int, body: AlarmAction, session: SessionDep, key: Admi
 
 @router.post("/alarms/{alarm_id}/close", response_model=AlarmRead, responses=errors(409),
              summary="Close an alarm with a note (admin)")
-def close(alarm_id: int, body: AlarmAction, session: SessionDep, key: Admin) -> AlarmRead:
+def close(alarm_id: IdPath, body: AlarmAction, session: SessionDep, key: Admin) -> AlarmRead:
     service.close_alarm(session=session, alarm_id=alarm_id, by=key.name, note=body.note)
     session.commit()
     return _one(session, alarm_id)

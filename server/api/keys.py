@@ -8,7 +8,7 @@ from server.api.deps import Admin, SessionDep
 from server.api.openapi import errors
 from server.api.presenters import key_read
 from server.auth import create_key, list_keys, revoke_key
-from server.schemas import KeyCreate, KeyCreated, KeyRead
+from server.schemas import IdPath, KeyCreate, KeyCreated, KeyRead
 
 router = APIRouter(prefix="/keys", tags=["keys"])
 
@@ -28,7 +28,7 @@ def create(body: KeyCreate, session: SessionDep, _: Admin) -> KeyCreated:
 
 @router.post("/{key_id}/revoke", response_model=KeyRead, responses=errors(409),
              summary="Revoke a key (admin; never the last active admin key)")
-def revoke(key_id: int, session: SessionDep, _: Admin) -> KeyRead:
+def revoke(key_id: IdPath, session: SessionDep, _: Admin) -> KeyRead:
     row = revoke_key(session=session, key_id=key_id, keep_an_admin=True)
     session.commit()
     return key_read(row)

@@ -9,7 +9,7 @@ from fastapi import APIRouter
 from server.api.deps import Admin, Reader, SessionDep, SettingsDep
 from server.api.openapi import errors
 from server.errors import NotFound, Unprocessable
-from server.schemas import ModelRead, ModelSummary, TrainAccepted, TrainRequest
+from server.schemas import IdPath, ModelRead, ModelSummary, TrainAccepted, TrainRequest
 from server.services import models as service
 
 router = APIRouter(prefix="/models", tags=["models"])
@@ -26,12 +26,12 @@ def list_(session: SessionDep, _: Reader) -> list[ModelSummary]:
 
 
 @router.get("/{model_id:int}", response_model=ModelRead, summary="One model version")
-def get(model_id: int, session: SessionDep, _: Reader) -> ModelRead:
+def get(model_id: IdPath, session: SessionDep, _: Reader) -> ModelRead:
     return ModelRead.model_validate(service.get_version(session=session, version_id=model_id))
 
 
 @router.get("/{model_id:int}/confusion-matrix", summary="Confusion matrix on the held-out 30 %")
-def confusion(model_id: int, session: SessionDep, _: Reader) -> dict[str, Any]:
+def confusion(model_id: IdPath, session: SessionDep, _: Reader) -> dict[str, Any]:
     row = service.get_version(session=session, version_id=model_id)
     matrix = (row.metrics or {}).get("confusion")
     if not matrix:
@@ -42,13 +42,16 @@ def confusion(model_id: int, session: SessionDep, _: Reader) -> dict[str, Any]:
 
 @router.post("/{model_id:int}/activate", response_model=ModelRead, responses=errors(409),
              summary="Make this version the one the workers use (admin)")
-def activate(model_id: int, session: SessionDep, _: Admin) -> ModelRead:
+def activate(model_id: IdPath, session: SessionDep, _: Admin) -> ModelRead:
     row = service.activate(session=session, version_id=model_id)
     session.commit()
     return ModelRead.model_validate(row)
 
 
 @router.post("/train", status_code=202, response_model=TrainAccepted, responses={
+                 "409": {"description": (
+                     "`training_pending`: a training job is queued or running; one at a time "
+                     "(details: job_id, model_id, status).")},
                  "507": {"description": (
                      "`insufficient_storage`: not enough free disk to generate the campaign "
                      "(details: needed_bytes, free_bytes).")}},
@@ -60,6 +63,9 @@ def train(body: TrainRequest, session: SessionDep, settings: SettingsDep, key: A
     if generated and body.generate is None:
         raise Unprocessable(f"Campaign '{body.campaign}' does not exist under the data "
                             "directory; give 'generate' to simulate it.", code="no_campaign")
+    pending = service.pending_training(session=session)
+    if pending is not None:  # before the disk is looked at: a second one would wait anyway
+        raise service.training_conflict(pending)
     if generated:
         service.check_generate_space(settings.data_dir, settings.train_disk_reserve_bytes)
     version = service.create_version(session=session, name=body.name or body.campaign,

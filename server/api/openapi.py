@@ -30,8 +30,8 @@ DESCRIPTIONS = {
     410: "The flight's raw log was removed by the raw-log retention (its results are kept).",
     413: "The request body exceeds the size limit.",
     422: "The request is not valid.",
-    429: "Too many failed authentications from this client address; try again after "
-         "Retry-After seconds.",
+    429: "Too many failed authentications with this key, or (for a key that is not right) "
+         "from this client address; try again after Retry-After seconds.",
     503: "Too many of these requests at once (`busy`); try again after Retry-After seconds.",
 }
 WRITE_METHODS = {"post", "put", "patch", "delete"}

@@ -23,6 +23,7 @@ from server.schemas import (
     ConditionTruthRead,
     GroundTruthIn,
     GroundTruthRead,
+    IdPath,
     InjectionCreate,
     InjectionRead,
     InjectionStatus,
@@ -87,7 +88,7 @@ def list_(session: SessionDep, _: Reader, aircraft: str | None = None,
 
 @router.get("/injections/{injection_id}", response_model=InjectionRead,
             summary="One injection")
-def get(injection_id: int, session: SessionDep, _: Reader) -> InjectionRead:
+def get(injection_id: IdPath, session: SessionDep, _: Reader) -> InjectionRead:
     row = service.get_injection(session=session, injection_id=injection_id)
     return _read(row, _tail(session, row))
 
@@ -95,7 +96,7 @@ def get(injection_id: int, session: SessionDep, _: Reader) -> InjectionRead:
 @router.post("/injections/{injection_id}/cancel", response_model=InjectionRead,
              responses=errors(409),
              summary="Cancel a pending or active injection (operator)")
-def cancel(injection_id: int, session: SessionDep, _: Operator) -> InjectionRead:
+def cancel(injection_id: IdPath, session: SessionDep, _: Operator) -> InjectionRead:
     row = service.cancel_injection(session=session, injection_id=injection_id)
     session.commit()
     return _read(row, _tail(session, row))
@@ -104,7 +105,7 @@ def cancel(injection_id: int, session: SessionDep, _: Operator) -> InjectionRead
 @router.post("/injections/{injection_id}/status", response_model=InjectionRead,
              responses=errors(409),
              summary="Sim worker: the fault started or reached failure (operator)")
-def set_status(injection_id: int, body: InjectionStatus, session: SessionDep, _: Operator
+def set_status(injection_id: IdPath, body: InjectionStatus, session: SessionDep, _: Operator
                ) -> InjectionRead:
     row = service.update_injection_status(session=session, injection_id=injection_id,
                                           status=body.status, failure_flight=body.failure_flight,
@@ -115,7 +116,7 @@ def set_status(injection_id: int, body: InjectionStatus, session: SessionDep, _:
 
 @router.put("/injections/{injection_id}/ground-truth", response_model=GroundTruthRead,
             summary="Sim worker: true severity of one flight (operator; idempotent)")
-def report(injection_id: int, body: GroundTruthIn, session: SessionDep, _: Operator
+def report(injection_id: IdPath, body: GroundTruthIn, session: SessionDep, _: Operator
            ) -> GroundTruthRead:
     row = service.report_ground_truth(session=session, injection_id=injection_id,
                                       flight_code=body.flight, flight_number=body.flight_number,
@@ -127,7 +128,7 @@ def report(injection_id: int, body: GroundTruthIn, session: SessionDep, _: Opera
 
 @router.get("/injections/{injection_id}/ground-truth", response_model=list[GroundTruthRead],
             summary="Ground truth of an injection, flight by flight")
-def ground_truth(injection_id: int, session: SessionDep, _: Reader) -> list[GroundTruthRead]:
+def ground_truth(injection_id: IdPath, session: SessionDep, _: Reader) -> list[GroundTruthRead]:
     return [_truth_read(r) for r in service.list_ground_truth(session=session,
                                                               injection_id=injection_id)]
 
@@ -169,7 +170,7 @@ def list_sensor(session: SessionDep, _: Reader, aircraft: str | None = None,
 
 @router.get("/sensor-injections/{injection_id}", response_model=SensorInjectionRead,
             summary="One sensor injection")
-def get_sensor(injection_id: int, session: SessionDep, _: Reader) -> SensorInjectionRead:
+def get_sensor(injection_id: IdPath, session: SessionDep, _: Reader) -> SensorInjectionRead:
     row = sensors.get(session=session, injection_id=injection_id)
     return _sensor_read(row, _tail(session, row))
 
@@ -177,7 +178,7 @@ def get_sensor(injection_id: int, session: SessionDep, _: Reader) -> SensorInjec
 @router.post("/sensor-injections/{injection_id}/cancel", response_model=SensorInjectionRead,
              responses=errors(409), summary="Cancel a pending or active sensor injection "
              "(operator)")
-def cancel_sensor(injection_id: int, session: SessionDep, _: Operator) -> SensorInjectionRead:
+def cancel_sensor(injection_id: IdPath, session: SessionDep, _: Operator) -> SensorInjectionRead:
     row = sensors.cancel(session=session, injection_id=injection_id)
     session.commit()
     return _sensor_read(row, _tail(session, row))
@@ -186,7 +187,7 @@ def cancel_sensor(injection_id: int, session: SessionDep, _: Operator) -> Sensor
 @router.put("/sensor-injections/{injection_id}/ground-truth", response_model=SensorTruthRead,
             summary="Sim worker: what the sensor injection did to one flight (operator; "
             "idempotent; the first report makes it active)")
-def report_sensor(injection_id: int, body: SensorTruthIn, session: SessionDep, _: Operator
+def report_sensor(injection_id: IdPath, body: SensorTruthIn, session: SessionDep, _: Operator
                   ) -> SensorTruthRead:
     row = sensors.report_truth(session=session, injection_id=injection_id,
                                flight_code=body.flight, flight_number=body.flight_number,
@@ -198,7 +199,7 @@ def report_sensor(injection_id: int, body: SensorTruthIn, session: SessionDep, _
 @router.get("/sensor-injections/{injection_id}/ground-truth",
             response_model=list[SensorTruthRead],
             summary="Ground truth of a sensor injection, flight by flight")
-def sensor_truth(injection_id: int, session: SessionDep, _: Reader) -> list[SensorTruthRead]:
+def sensor_truth(injection_id: IdPath, session: SessionDep, _: Reader) -> list[SensorTruthRead]:
     return [_sensor_truth_read(r) for r in sensors.list_truth(session=session,
                                                               injection_id=injection_id)]
 
@@ -248,14 +249,14 @@ def list_conditions(session: SessionDep, _: Reader, aircraft: str | None = None,
 
 @router.get("/conditions/{condition_id}", response_model=ConditionRead,
             summary="One condition")
-def get_condition(condition_id: int, session: SessionDep, _: Reader) -> ConditionRead:
+def get_condition(condition_id: IdPath, session: SessionDep, _: Reader) -> ConditionRead:
     row = conditions.get(session=session, condition_id=condition_id)
     return _condition_read(row, _tail(session, row))
 
 
 @router.post("/conditions/{condition_id}/cancel", response_model=ConditionRead,
              responses=errors(409), summary="Cancel a pending or active condition (operator)")
-def cancel_condition(condition_id: int, session: SessionDep, _: Operator) -> ConditionRead:
+def cancel_condition(condition_id: IdPath, session: SessionDep, _: Operator) -> ConditionRead:
     row = conditions.cancel(session=session, condition_id=condition_id)
     session.commit()
     return _condition_read(row, _tail(session, row))
@@ -264,7 +265,7 @@ def cancel_condition(condition_id: int, session: SessionDep, _: Operator) -> Con
 @router.put("/conditions/{condition_id}/ground-truth", response_model=ConditionTruthRead,
             summary="Sim worker: what the condition did to one flight (operator; idempotent; "
             "the first report makes it active)")
-def report_condition(condition_id: int, body: ConditionTruthIn, session: SessionDep,
+def report_condition(condition_id: IdPath, body: ConditionTruthIn, session: SessionDep,
                      _: Operator) -> ConditionTruthRead:
     row = conditions.report_truth(session=session, condition_id=condition_id,
                                   flight_code=body.flight, flight_number=body.flight_number,
@@ -275,7 +276,7 @@ def report_condition(condition_id: int, body: ConditionTruthIn, session: Session
 
 @router.get("/conditions/{condition_id}/ground-truth", response_model=list[ConditionTruthRead],
             summary="Ground truth of a condition, flight by flight")
-def condition_truth(condition_id: int, session: SessionDep, _: Reader
+def condition_truth(condition_id: IdPath, session: SessionDep, _: Reader
                     ) -> list[ConditionTruthRead]:
     return [_condition_truth_read(r) for r in conditions.list_truth(
         session=session, condition_id=condition_id)]

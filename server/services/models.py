@@ -10,16 +10,19 @@ from pathlib import Path
 from typing import Any, NamedTuple, cast
 
 from sqlalchemy import Engine, select, update
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from server.errors import Conflict, NotFound, StorageUnavailable
 from server.models import Job, JobKind, ModelVersion, utcnow
 from server.phm.chain import PhmModel, is_model_document, read_model_document
 from server.phm.detection import FaultDetector
+from server.vocabulary import JobStatus
 
 __all__ = ["create_version", "finish_version", "fail_version", "activate", "get_version",
            "active_version", "list_versions", "metrics_of", "store_trained", "active_model",
            "decoded_model", "DetectorLevels", "detector_levels", "request_training",
+           "pending_training", "training_conflict", "add_training_job",
            "campaign_dir", "GENERATED_CAMPAIGN_BYTES", "check_generate_space"]
 
 #: what a design campaign generated for training (quick scale, 60 patterns) may take on disk:
@@ -148,12 +151,47 @@ def detector_levels(*, session: Session, version_id: int | None, features: Seque
     return DetectorLevels(band, band + detector.z_alarm, detector.alarm_confidence)
 
 
+def pending_training(*, session: Session) -> Job | None:
+    """The training job queued or running, if any (at most one: ``PENDING_TRAINING``)."""
+    return session.scalar(select(Job).where(Job.kind == JobKind.TRAIN_MODEL, Job.status.in_(
+        (JobStatus.QUEUED, JobStatus.RUNNING))).order_by(Job.id).limit(1))
+
+
+def training_conflict(job: Job | None) -> Conflict:
+    """409 ``training_pending`` naming the pending job and its model version."""
+    if job is None:  # it finished between the refused insert and this look: try again
+        return Conflict("Another training was requested at the same time; try again.",
+                        code="training_pending")
+    version_id = (job.payload or {}).get("version_id")
+    return Conflict(
+        f"Training job {job.id} (model version {version_id}) is {job.status}: one training is "
+        "pending at a time. Request another once it is done or has failed "
+        f"(GET /api/v1/jobs/{job.id}).", code="training_pending",
+        details={"job_id": job.id, "model_id": version_id, "status": str(job.status)})
+
+
 def request_training(*, session: Session, version_id: int, payload: dict[str, Any]) -> Job:
-    """Queue the training job of a model version (one at a time: the lock key)."""
+    """Queue the training job of a model version: only while no other is queued or running
+    (each may simulate a design campaign of about 920 flights), else 409 naming that one."""
+    pending = pending_training(session=session)
+    if pending is not None:
+        raise training_conflict(pending)
+    return add_training_job(session=session, version_id=version_id, payload=payload)
+
+
+def add_training_job(*, session: Session, version_id: int, payload: dict[str, Any]) -> Job:
+    """The training job added and flushed. A concurrent request whose check ran before this
+    one committed is refused by the partial unique index ``uq_jobs_pending_training``: its
+    whole transaction is rolled back (the version made for it too) and 409 names the job
+    that holds the slot. Jobs of one lock key run one at a time besides."""
     job = Job(kind=JobKind.TRAIN_MODEL, lock_key=JobKind.TRAIN_MODEL, max_attempts=1,
               payload={**payload, "version_id": version_id})
     session.add(job)
-    session.flush()
+    try:
+        session.flush()
+    except IntegrityError:
+        session.rollback()
+        raise training_conflict(pending_training(session=session)) from None
     return job
 
 

@@ -50,6 +50,8 @@ from server.schemas import (
     ActuatorInspect,
     ActuatorReplace,
     ConditionCreate,
+    IdPath,
+    IdQuery,
     InjectionCreate,
     SensorInjectionCreate,
 )
@@ -290,14 +292,14 @@ def _alarm_action(request: Request, session: SessionDep, alarm_id: int, note: st
 
 
 @router.post("/alarms/{alarm_id}/acknowledge")
-def acknowledge(request: Request, session: SessionDep, alarm_id: int, note: str = Form(""),
+def acknowledge(request: Request, session: SessionDep, alarm_id: IdPath, note: str = Form(""),
                 csrf: str = Form(""), back: str = Form("/alarms"), partner: str = Form("")
                 ) -> Response:
     return _alarm_action(request, session, alarm_id, note, csrf, back, "acknowledge", partner)
 
 
 @router.post("/alarms/{alarm_id}/close")
-def close(request: Request, session: SessionDep, alarm_id: int, note: str = Form(""),
+def close(request: Request, session: SessionDep, alarm_id: IdPath, note: str = Form(""),
           csrf: str = Form(""), back: str = Form("/alarms"), partner: str = Form("")
           ) -> Response:
     return _alarm_action(request, session, alarm_id, note, csrf, back, "close", partner)
@@ -305,7 +307,7 @@ def close(request: Request, session: SessionDep, alarm_id: int, note: str = Form
 
 @router.get("/actuators/{actuator_id}", response_class=HTMLResponse)
 def actuator_page(request: Request, key: SignedInKey, session: SessionDep,
-                  actuator_id: int) -> Response:
+                  actuator_id: IdPath) -> Response:
     try:
         view = data.actuator_view(dashboard.actuator_view(session=session,
                                                           actuator_id=actuator_id))
@@ -354,7 +356,7 @@ def _maintenance(request: Request, session: SessionDep, actuator_id: int, csrf: 
 
 
 @router.post("/actuators/{actuator_id}/replace")
-def replace(request: Request, session: SessionDep, actuator_id: int,
+def replace(request: Request, session: SessionDep, actuator_id: IdPath,
             new_serial: str = Form(""), work_order: str = Form(""), note: str = Form(""),
             csrf: str = Form("")) -> Response:
     def act(key: ApiKey, body: ActuatorReplace) -> int:
@@ -368,7 +370,7 @@ def replace(request: Request, session: SessionDep, actuator_id: int,
 
 
 @router.post("/actuators/{actuator_id}/inspect")
-def inspect(request: Request, session: SessionDep, actuator_id: int,
+def inspect(request: Request, session: SessionDep, actuator_id: IdPath,
             work_order: str = Form(""), note: str = Form(""), csrf: str = Form("")) -> Response:
     def act(key: ApiKey, body: ActuatorInspect) -> int:
         maintenance_service.inspect_actuator(session=session, actuator_id=actuator_id, by=key,
@@ -380,7 +382,7 @@ def inspect(request: Request, session: SessionDep, actuator_id: int,
 
 
 @router.post("/actuators/{actuator_id}/defer")
-def defer(request: Request, session: SessionDep, actuator_id: int,
+def defer(request: Request, session: SessionDep, actuator_id: IdPath,
           work_order: str = Form(""), reason: str = Form(""), flights: str = Form(""),
           until: str = Form(""), csrf: str = Form("")) -> Response:
     def act(key: ApiKey, body: ActuatorDefer) -> int:
@@ -398,14 +400,14 @@ def defer(request: Request, session: SessionDep, actuator_id: int,
 
 @router.get("/models", response_class=HTMLResponse)
 def models_page(request: Request, key: SignedInKey, session: SessionDep,
-                id: int | None = None) -> Response:
+                id: IdQuery = None) -> Response:
     view = dashboard.models_view(session=session, model_id=id)
     fig = figures.confusion_matrix(view["confusion"]) if view["confusion"] else None
     return _render(request, "models.html", key, fig=fig, **view)
 
 
 @router.post("/models/{model_id}/activate")
-def activate(request: Request, session: SessionDep, model_id: int, csrf: str = Form("")
+def activate(request: Request, session: SessionDep, model_id: IdPath, csrf: str = Form("")
              ) -> Response:
     key = _check_post(request, session, csrf, "admin")
     if not isinstance(key, ApiKey):
@@ -507,21 +509,21 @@ def set_condition(request: Request, session: SessionDep, csrf: str = Form(""),
 
 
 @router.post("/test-station/injections/{injection_id}/cancel")
-def cancel_injection(request: Request, session: SessionDep, injection_id: int,
+def cancel_injection(request: Request, session: SessionDep, injection_id: IdPath,
                      csrf: str = Form("")) -> Response:
     return _cancel_on_station(request, session, csrf, lambda: station_service.cancel_injection(
         session=session, injection_id=injection_id))
 
 
 @router.post("/test-station/sensor-injections/{injection_id}/cancel")
-def cancel_sensor_injection(request: Request, session: SessionDep, injection_id: int,
+def cancel_sensor_injection(request: Request, session: SessionDep, injection_id: IdPath,
                             csrf: str = Form("")) -> Response:
     return _cancel_on_station(request, session, csrf, lambda: sensor_service.cancel(
         session=session, injection_id=injection_id))
 
 
 @router.post("/test-station/conditions/{condition_id}/cancel")
-def cancel_condition(request: Request, session: SessionDep, condition_id: int,
+def cancel_condition(request: Request, session: SessionDep, condition_id: IdPath,
                      csrf: str = Form("")) -> Response:
     return _cancel_on_station(request, session, csrf, lambda: condition_service.cancel(
         session=session, condition_id=condition_id))

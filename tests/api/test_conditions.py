@@ -18,7 +18,7 @@ def _body(tail: str, /, **over: object) -> dict[str, object]:
 @pytest.mark.parametrize(("over", "says"), [
     ({"value": 30.5}, "ambient_offset must be at least -30 K and at most 30 K"),
     ({"value": -31}, "ambient_offset must be at least -30 K"),
-    ({"value": "nan"}, "finite number"),
+    ({"value": "nan"}, "Input should be a valid number"),  # a string is no number
     ({"value": None}, "a ambient_offset condition needs a value"),
     ({"kind": "load_scale", "value": 0}, "load_scale must be above 0 and at most 3"),
     ({"kind": "load_scale", "value": 3.01}, "load_scale must be above 0 and at most 3"),

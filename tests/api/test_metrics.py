@@ -67,7 +67,8 @@ def test_wrong_metrics_tokens_spend_the_failed_authentication_budget(settings: S
         codes = [client.get("/metrics", headers=auth(f"guess-{i:036d}")).status_code
                  for i in range(5)]
         assert codes == [401, 401, 401, 429, 429]
-        assert client.get("/metrics", headers=auth(TOKEN)).status_code == 429  # even the right one
+        assert client.get("/metrics", headers=auth(TOKEN)).status_code == 200  # a right one is
+        # never refused for the guesses (each a new key: only the address's budget is spent)
     app.state.engine.dispose()
 
 
