@@ -151,6 +151,17 @@ class BlobStore(ABC):
         (:func:`server.services.retention.sweep_orphans`) looks at."""
         raise NotImplementedError
 
+    @abstractmethod
+    def describe(self) -> str:
+        """What the store is, as the readiness probe names it."""
+        raise NotImplementedError
+
+    @abstractmethod
+    def ping(self) -> None:
+        """Return when the store can take and give blobs now, quickly (the readiness probe);
+        :class:`BlobStoreUnreachable` when it does not answer, OSError when it refuses."""
+        raise NotImplementedError
+
 
 class LocalBlobStore(BlobStore):
     """Blobs as files under ``root`` (``<data_dir>/blobs``), sharded by the digest's first
@@ -196,6 +207,14 @@ class LocalBlobStore(BlobStore):
     def stored(self) -> Iterator[StoredBlob]:
         for path, stat in files_under(self.root):
             yield StoredBlob(path.name, stat.st_size, stat.st_mtime)
+
+    def describe(self) -> str:
+        return "the data directory's blobs"
+
+    def ping(self) -> None:
+        for path in (self.root, self.tmp_dir):
+            if not os.access(path, os.W_OK | os.X_OK):
+                raise OSError(f"{path.name}: not a writable directory")
 
 
 def files_under(root: Path) -> Iterator[tuple[Path, os.stat_result]]:

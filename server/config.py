@@ -103,6 +103,23 @@ class Settings(BaseSettings):
     s3_endpoint_url: str | None = Field(None, description=(
         "The object store's URL (`http://seaweedfs:8333`) when it is not AWS S3 itself; "
         "path-style addressing is used then."))
+    # A store that accepts connections and never answers must cost an upload less than a
+    # client waits (60 s is common), or the client sees a dropped connection instead of a 503
+    # and the upload holds one of HMSM_MAX_CONNECTIONS all along
+    blob_store_connect_timeout_s: float = Field(2.0, gt=0, le=60, description=(
+        "One request to the object store (HMSM_BLOB_URL) may take this long to connect [s]."))
+    blob_store_read_timeout_s: float = Field(5.0, gt=0, le=300, description=(
+        "One request to the object store waits this long for the next bytes of its answer "
+        "before it fails and is tried again, deadline permitting [s]."))
+    blob_store_deadline_s: float = Field(15.0, gt=0, le=600, description=(
+        "Longest one operation on the object store may take, its tries included (an upload's "
+        "store, a log read, one listing page): no try starts that could not end within it "
+        "(connect and read timeouts, and the backoff before it), so an upload to a store that "
+        "does not answer gets 503 `storage_unreachable` with Retry-After within it, and a "
+        "worker defers the job. Keep it under the clients' timeout [s]."))
+    blob_store_probe_timeout_s: float = Field(1.0, gt=0, le=30, description=(
+        "The readiness probe's one request to the object store (GET /api/v1/health/ready): "
+        "its connect and its answer each within this; no answer: not ready [s]."))
     metrics_token: SecretStr | None = Field(None, description=(
         "Bearer token that may read GET /metrics (besides an admin key): at least 32 "
         "characters, no spaces. Unset: only admin keys may."))
@@ -123,6 +140,15 @@ class Settings(BaseSettings):
             self.metrics_token = SecretStr(text)
         if self.metrics_token is not None:
             _check_metrics_token(self.metrics_token.get_secret_value())
+        return self
+
+    @model_validator(mode="after")
+    def _store_deadline_fits_a_try(self) -> Settings:
+        try_s = self.blob_store_connect_timeout_s + self.blob_store_read_timeout_s
+        if self.blob_store_deadline_s < try_s:
+            raise ValueError(f"HMSM_BLOB_STORE_DEADLINE_S ({self.blob_store_deadline_s:g} s) "
+                             f"must leave time for one try: at least the connect and read "
+                             f"timeouts together ({try_s:g} s)")
         return self
 
     @field_validator("blob_url")

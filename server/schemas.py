@@ -733,8 +733,9 @@ class AlarmRead(BaseModel):
     flight_id: int
     status: str
     urgency: str | None = Field(description="replace_now | act_within | monitor | deferred; "
-                                "the inbox order (server/services/urgency.py); null once the "
-                                "alarm is closed (a closed alarm claims no live urgency)")
+                                "the inbox order (server/services/urgency.py; a 5 % RUL "
+                                "quantile under 1 flight is replace_now: due now); null once "
+                                "the alarm is closed (a closed alarm claims no live urgency)")
     urgency_label: str | None
     act_within_flights: int | None
     confidence: float

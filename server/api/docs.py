@@ -2,7 +2,10 @@
 ``/openapi.json``.
 
 Like every request but the health checks (docs/SECURITY.md), they need a key: a Bearer key or
-the dashboard's session cookie; a browser without one is sent to the sign-in page. Swagger UI
+the dashboard's session cookie. A browser without one is sent to the sign-in page and back,
+the schema's too (a page asked for by a browser's address bar); any other client asking for the
+schema without a key gets 401 with ``WWW-Authenticate: Bearer``, which tells a tool what is
+missing (a redirect to an HTML form would not). Swagger UI
 and ReDoc come from the installed ``fastapi-offline`` package (mounted at ``DOCS_ASSETS_URL`` by
 the app factory), never from a CDN, and the pages carry no inline script, so the dashboard's CSP
 holds on them: Swagger UI is started by ``/static/swagger-init.js``, which also sends the
@@ -13,7 +16,7 @@ from __future__ import annotations
 
 from html import escape
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 from urllib.parse import quote
 
 import fastapi_offline
@@ -21,8 +24,9 @@ from fastapi import APIRouter, Depends, Request
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
-from server.api.deps import CurrentKey, SessionDep, presented_key
+from server.api.deps import SessionDep, presented_key
 from server.auth import authenticate, csrf_token
+from server.errors import Unauthorized
 
 __all__ = ["router", "DOCS_ASSETS_DIR", "DOCS_ASSETS_URL", "OPENAPI_URL"]
 
@@ -94,5 +98,13 @@ def redoc(request: Request, session: SessionDep,
 
 
 @router.get(OPENAPI_URL)
-def openapi(request: Request, _: CurrentKey) -> Any:
-    return JSONResponse(request.app.openapi())
+def openapi(request: Request, session: SessionDep,
+            credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
+            ) -> Response:
+    token, _ = presented_key(request, credentials)
+    if token and authenticate(session=session, plaintext=token) is not None:
+        return JSONResponse(request.app.openapi())
+    if request.headers.get("sec-fetch-mode") == "navigate":  # a browser's address bar or link
+        return RedirectResponse(f"/signin?next={quote(OPENAPI_URL, safe='')}", status_code=303)
+    raise Unauthorized("An API key is required (Authorization: Bearer ...), or a signed-in "
+                       "dashboard session.", headers={"WWW-Authenticate": "Bearer"})

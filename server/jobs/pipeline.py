@@ -51,6 +51,12 @@ def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
             _reject(ctx, todo.flight_id, exc.reasons)
             return
         except BlobStoreUnreachable as exc:  # the store's outage is no fault of the flight's
+            with ctx.factory() as session:  # queued again, as its job: not analyzing
+                analysis.mark_waiting(session=session, flight_id=todo.flight_id,
+                                      code="storage_unreachable", message=(
+                                          "The flight-log store does not answer; the analysis "
+                                          "waits for it and is tried again."))
+                session.commit()
             raise Deferred(f"The flight-log store does not answer: {exc}.") from exc
     with clock.stage("features"):
         features = log_features(log)

@@ -40,7 +40,8 @@ from server.services.urgency import RUL_LOW_QUANTILE
 from server.timing import StageClock
 from server.vocabulary import FlightStatus, JobStatus
 
-__all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "reject", "mark_failed",
+__all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "mark_waiting", "reject",
+           "mark_failed",
            "retry_failed", "failed_flights", "store_analysis", "json_safe"]
 
 log = logging.getLogger("hmsm.analysis")
@@ -73,9 +74,21 @@ def flight_to_analyse(*, session: Session, flight_id: int) -> FlightToAnalyse | 
 
 
 def mark_analyzing(*, session: Session, flight_id: int) -> None:
+    """The analysis has started (a waiting flight's reason, :func:`mark_waiting`, is past)."""
     flight = session.get(Flight, flight_id)
     if flight is not None:
-        flight.status, flight.updated_at = FlightStatus.ANALYZING, utcnow()
+        flight.status, flight.reasons, flight.updated_at = FlightStatus.ANALYZING, [], utcnow()
+        session.flush()
+
+
+def mark_waiting(*, session: Session, flight_id: int, code: str, message: str) -> None:
+    """The analysis stopped for a cause outside the flight (its log's store does not answer)
+    and its job is queued again: the flight says ``queued`` too, with the cause as its reason,
+    not ``analyzing`` while nothing runs."""
+    flight = session.get(Flight, flight_id)
+    if flight is not None and flight.status == FlightStatus.ANALYZING:
+        flight.status, flight.updated_at = FlightStatus.QUEUED, utcnow()
+        flight.reasons = [{"code": code, "message": message}]
         session.flush()
 
 

@@ -3,9 +3,10 @@ say (the page and the API read it from here; ``docs/DASHBOARD.md`` states it).
 
 Buckets, most urgent first::
 
-    replace_now   the unit has failed (a state, until it is replaced), or an open alarm is of
-                  an abrupt mode (SE, BDO: no degradation to ride out)           -> red
-    act_within    the low RUL quantile (5 %) of the latest prognosis is at most
+    replace_now   the unit has failed (a state, until it is replaced), an open alarm is of
+                  an abrupt mode (SE, BDO: no degradation to ride out), or the
+                  low RUL quantile (5 %) is under one flight: due now            -> red
+    act_within    the low RUL quantile (5 %) of the latest prognosis is 1 to
                   ACT_WITHIN_MAX_FLIGHTS: act within that many flights          -> amber
     monitor       any other open alarm (no prognosis yet, or RUL 5 % beyond it)  -> yellow
     deferred      an open alarm deferred by maintenance, until its deferral ends -> grey
@@ -94,6 +95,9 @@ def urgency(*, failed_at_flight: int | None, alarm_open: bool, fault_mode: str |
         return Urgency(REPLACE_NOW, reason=f"{fault_mode} is an abrupt fault")
     if rul_low_flights is not None and rul_low_flights <= ACT_WITHIN_MAX_FLIGHTS:
         n = max(int(rul_low_flights), 0)
+        if n == 0:  # "act within 0 flights" is before the next flight: now
+            return Urgency(REPLACE_NOW, reason=f"RUL {RUL_LOW_QUANTILE:.0%} quantile under "
+                           "1 flight: due now")
         return Urgency(ACT_WITHIN, within_flights=n,
                        reason=f"RUL {RUL_LOW_QUANTILE:.0%} quantile {flights(n)}")
     return Urgency(MONITOR, reason="alarm open; RUL not short")

@@ -14,6 +14,7 @@ nothing is told by colour alone.
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -34,7 +35,15 @@ __all__ = [
 ]
 
 _TEMPLATE = "plotly_white"
-_MARGIN = {"l": 56, "r": 16, "t": 40, "b": 48}
+#: plotly pushes the margins further where the title, the tick labels, the axis titles or the
+#: legend need it (automargin): these are the least
+_MARGIN = {"l": 56, "r": 16, "t": 40, "b": 16}
+#: the strip at the top of a figure that plotly's mode bar (its toolbar, drawn over the
+#: figure's top right corner, 25 px tall) takes: titles start below it, never under the bar
+MODEBAR_PX = 28
+#: the longest line of a legend entry [characters]: a longer name is wrapped, so that an entry
+#: fits a phone's figure (390 px wide) whole instead of being cut at its edge
+LEGEND_LINE_CHARS = 34
 _PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
             "#7f7f7f")
 
@@ -64,11 +73,26 @@ def _has_data(fig: go.Figure) -> bool:
     return False
 
 
-def _layout(fig: go.Figure, title: str, x: str, y: str, **extra: Any) -> go.Figure:
-    settings: dict[str, Any] = {"hovermode": "x unified",
-                                "legend": {"orientation": "h", "y": -0.22}, **extra}
-    fig.update_layout(title={"text": title, "x": 0.01}, template=_TEMPLATE, margin=_MARGIN,
-                      xaxis_title=x, yaxis_title=y, **settings)
+def _layout(fig: go.Figure, title: str, x: str, y: str, *, subtitle: str | None = None,
+            **extra: Any) -> go.Figure:
+    """The house layout. The title (and its subtitle, the detail a narrow figure would cut
+    off) sits below the mode bar's strip, and pushes the plot down as far as it needs
+    (``automargin``). The legend is a row under the figure, placed from the figure's bottom edge
+    in pixels (``yref`` container), not at a fraction of the plot's height, which on a short
+    plot put it over the x axis title; its room is pushed into the bottom margin."""
+    settings: dict[str, Any] = {
+        "hovermode": "x unified",
+        "legend": {"orientation": "h", "xref": "container", "x": 0.01, "xanchor": "left",
+                   "yref": "container", "y": 0, "yanchor": "bottom"},
+        **extra}
+    heading: dict[str, Any] = {"text": title, "x": 0.01, "xanchor": "left",
+                               "yref": "container", "y": 1, "yanchor": "top",
+                               "pad": {"t": MODEBAR_PX}, "automargin": True}
+    if subtitle:
+        heading["subtitle"] = {"text": subtitle}
+    fig.update_layout(title=heading, template=_TEMPLATE, margin=_MARGIN,
+                      xaxis={"title": {"text": x}, "automargin": True},
+                      yaxis={"title": {"text": y}, "automargin": True}, **settings)
     if not _has_data(fig):
         # an empty plot says so, instead of bare default axes (-1 to 6: a negative probability)
         fig.update_layout(xaxis={"visible": False}, yaxis={"visible": False},
@@ -82,6 +106,12 @@ def feature_label(name: str) -> str:
     """``"WT.F_DMD"`` -> ``"WT.F_DMD magnet flux deficit"``: the code and what it measures."""
     label = FEATURE_LABELS.get(name.split(".", 1)[-1])
     return f"{name} {label}" if label else name
+
+
+def legend_name(text: str) -> str:
+    """``text`` in lines of at most :data:`LEGEND_LINE_CHARS` (plotly's ``<br>``): plotly
+    never wraps a legend entry itself."""
+    return "<br>".join(textwrap.wrap(text, LEGEND_LINE_CHARS)) or text
 
 
 def mark_station(fig: go.Figure, marks: Sequence[Mapping[str, Any]]) -> go.Figure:
@@ -118,8 +148,9 @@ def feature_trends(records: Sequence[Mapping[str, Any]], *, band: float, thresho
                                      showlegend=sign == 1, hoverinfo="skip"))
     for i, name in enumerate(names):
         ys = [_finite((r.get("scores") or {}).get("z", {}).get(name)) for r in records]
-        fig.add_trace(go.Scatter(x=xs, y=ys, mode="lines+markers", name=feature_label(name),
-                                 marker={"size": 4}, line={"color": _PALETTE[i % len(_PALETTE)]},
+        fig.add_trace(go.Scatter(x=xs, y=ys, mode="lines+markers",
+                                 name=legend_name(feature_label(name)), marker={"size": 4},
+                                 line={"color": _PALETTE[i % len(_PALETTE)]},
                                  connectgaps=False))
     return mark_station(_layout(fig, "Feature trends (standardised residual z)",
                                 "flight index", "z"), marks)
@@ -243,15 +274,15 @@ def rul_histogram(prognosis: Mapping[str, Any] | None, *, failed_at_flight: int 
             fig.add_trace(go.Scatter(x=[med, med], y=[0, top], mode="lines",
                                      name=f"median {med:.0f}",
                                      line={"color": "#d62728", "dash": "dash"}))
-    title = "Latest RUL distribution"
+    title, at = "Latest RUL distribution", None
     if prognosis and "flight_index" in prognosis:
-        title += f" (flight {int(prognosis['flight_index'])})"
+        at = int(prognosis["flight_index"])
+    detail = None if at is None else f"predicted at flight {at}"
     if failed_at_flight is not None:
         title = f"Failed at flight {failed_at_flight}: no life left"
-        if prognosis and "flight_index" in prognosis:
-            title += f" (last prediction, flight {int(prognosis['flight_index'])})"
-    return _layout(fig, title, "RUL [flights]", "probability", hovermode="closest",
-                   bargap=0)
+        detail = None if at is None else f"last prediction, flight {at}"
+    return _layout(fig, title, "RUL [flights]", "probability", subtitle=detail,
+                   hovermode="closest", bargap=0)
 
 
 def confusion_matrix(confusion: Mapping[str, Any]) -> go.Figure:
@@ -270,7 +301,8 @@ def confusion_matrix(confusion: Mapping[str, Any]) -> go.Figure:
                                hovertemplate="true %{y}, predicted %{x}: %{text}<extra></extra>"))
     fig.update_yaxes(autorange="reversed")
     acc = confusion.get("accuracy")
-    title = "Confusion matrix (held-out 30 %)"
+    detail = "held-out 30 %"
     if acc is not None:
-        title += f", accuracy {100 * float(acc):.1f} %"
-    return _layout(fig, title, "predicted class", "true class", hovermode="closest")
+        detail += f", accuracy {100 * float(acc):.1f} %"
+    return _layout(fig, "Confusion matrix", "predicted class", "true class", subtitle=detail,
+                   hovermode="closest")

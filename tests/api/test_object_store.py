@@ -1,29 +1,34 @@
 """Flight logs in an S3-compatible object store (moto's server over HTTP), through the API and
-the worker: an outage answers 503 and loses nothing, and an API process and a worker that
+the worker: an outage answers 503 and loses nothing (a flight whose log cannot be read waits
+as queued), a store that takes connections and never answers costs an upload at most the
+configured deadline and makes the service not ready, and an API process and a worker that
 share only the database and the store (separate data directories) work together, raw-log
 retention included. On SQLite and, when HMSM_TEST_POSTGRES_URL is set, PostgreSQL."""
 
 from __future__ import annotations
 
+import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import select
+from sqlalchemy import select, update
 
 from server.app import create_app
 from server.auth import create_key
 from server.config import Settings
 from server.db import session_scope
 from server.jobs.worker import Worker
-from server.models import Flight, Job
+from server.models import Flight, Job, utcnow
 from server.services import models as model_service
 from server.services import retention
 from tests.api.conftest import auth
 from tests.conftest import truncate_all
 from tests.flightlog_factory import make_parquet, serials_for
-from tests.s3_server import AWS_ENV, MotoS3
+from tests.s3_server import AWS_ENV, MotoS3, SilentServer
 
 PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
 
@@ -94,6 +99,10 @@ def test_store_outage_answers_503_loses_nothing_and_recovers(
         job = s.scalar(select(Job).where(Job.flight_id == first_id))
         assert (job.status, job.attempts) == ("queued", 0), (job.status, job.attempts)
         assert "does not answer" in (job.last_error or "")
+    # and the flight says so: queued as its job, with the cause, not "analyzing"
+    waiting = client.get(f"/api/v1/flights/{first_id}", headers=auth(keys["viewer"])).json()
+    assert waiting["status"] == "queued", waiting
+    assert [r["code"] for r in waiting["reasons"]] == ["storage_unreachable"], waiting
 
     own_s3.start()
     again = _upload(client, keys["uploader"], aircraft, "F0002", seed=1)
@@ -102,6 +111,77 @@ def test_store_outage_answers_503_loses_nothing_and_recovers(
                       headers=auth(keys["viewer"]))
     assert back.status_code == 200 and back.json()["channels"]["WT.x"]
     assert len(own_s3.keys(_bucket(settings))) == 2
+    # its deferral over, the job runs: analysed, the waiting reason gone
+    with session_scope(app.state.session_factory) as s:
+        s.execute(update(Job).where(Job.flight_id == first_id).values(run_after=utcnow()))
+    worker = Worker(settings.model_copy(update={"data_dir": settings.data_dir.parent / "w"}))
+    try:
+        assert worker.run_once()
+    finally:
+        worker.engine.dispose()
+    done = client.get(f"/api/v1/flights/{first_id}", headers=auth(keys["viewer"])).json()
+    assert (done["status"], done["reasons"]) == ("analyzed", []), done
+
+
+def test_a_store_that_never_answers_costs_an_upload_at_most_the_deadline(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A store that takes connections and never answers: the upload is 503 with Retry-After
+    within HMSM_BLOB_STORE_DEADLINE_S (one retry made, the next refused by the deadline),
+    and /health/ready says the store does not answer, naming it, within the probe's timeout.
+    Bounded here as a client would: without the deadline the upload took 150 s."""
+    for name, value in AWS_ENV.items():
+        monkeypatch.setenv(name, value)
+    silent = SilentServer()
+    settings = Settings(data_dir=tmp_path / "api", blob_url="s3://hmsm-silent/flights",
+                        s3_endpoint_url=silent.endpoint,
+                        database_url=f"sqlite:///{tmp_path / 'db.sqlite3'}",
+                        blob_store_connect_timeout_s=0.5, blob_store_read_timeout_s=1.0,
+                        blob_store_deadline_s=4.0, blob_store_probe_timeout_s=0.5)
+    seen: dict[str, Any] = {}
+
+    def scenario() -> None:
+        try:
+            app = create_app(settings)
+            with TestClient(app, raise_server_exceptions=False) as client:
+                with session_scope(app.state.session_factory) as s:
+                    key = create_key(session=s, name="t-admin", role="admin")[1]
+                r = client.post("/api/v1/aircraft", headers=auth(key), json={
+                    "tail": "T001", "base": "Turin", "actuators": serials_for("T001")})
+                assert r.status_code == 201, r.text
+                before = silent.accepted
+                start = time.monotonic()
+                seen["upload"] = _upload(client, key, "T001", "F0001")
+                seen["upload_s"] = time.monotonic() - start
+                seen["tries"] = silent.accepted - before
+                start = time.monotonic()
+                seen["ready"] = client.get("/api/v1/health/ready")
+                seen["ready_s"] = time.monotonic() - start
+            app.state.engine.dispose()
+        except BaseException as exc:  # reported by the test's thread
+            seen["error"] = exc
+
+    runner = threading.Thread(target=scenario, daemon=True)
+    runner.start()
+    runner.join(timeout=30)
+    silent.close()  # unblocks a client still waiting on it
+    assert not runner.is_alive(), f"still waiting on the store after 30 s: {seen}"
+    if "error" in seen:
+        raise seen["error"]
+
+    up = seen["upload"]
+    assert up.status_code == 503, up.text
+    assert up.json()["error"]["code"] == "storage_unreachable"
+    assert int(up.headers["Retry-After"]) > 0
+    assert seen["upload_s"] <= settings.blob_store_deadline_s, seen
+    assert seen["tries"] == 2, seen  # the HEAD tried again once; a third could not end in time
+
+    ready = seen["ready"]
+    assert ready.status_code == 503, ready.text
+    error = ready.json()["error"]
+    assert error["code"] == "storage_unreachable", error
+    assert "s3://hmsm-silent/flights" in error["message"], error
+    assert error["details"]["blob_store"] == "s3://hmsm-silent/flights", error
+    assert seen["ready_s"] <= 2 * settings.blob_store_probe_timeout_s + 0.5, seen
 
 
 def test_a_blob_whose_delete_failed_is_swept_once_old(

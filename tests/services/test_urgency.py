@@ -45,6 +45,18 @@ def test_low_quantile_sets_act_within_else_monitor() -> None:
         assert u.bucket == MONITOR and u.colour == "yellow"
 
 
+def test_under_one_flight_is_due_now_not_act_within_0() -> None:
+    """Issue 57: "act within 0 flights" (amber) stood for the last flight before a failure."""
+    for low in (0.0, 0.6, 0.999, -2.0):
+        u = urgency(failed_at_flight=None, alarm_open=True, fault_mode="DMD",
+                    rul_low_flights=low)
+        assert (u.bucket, u.within_flights, u.colour, u.label) == (
+            REPLACE_NOW, None, "red", "replace now"), low
+        assert "due now" in u.reason
+    one = urgency(failed_at_flight=None, alarm_open=True, fault_mode="DMD", rul_low_flights=1.0)
+    assert (one.bucket, one.within_flights) == (ACT_WITHIN, 1)
+
+
 def test_no_alarm_is_healthy_and_deferral_downgrades() -> None:
     assert urgency(failed_at_flight=None, alarm_open=False, fault_mode=None,
                    rul_low_flights=None).bucket == HEALTHY

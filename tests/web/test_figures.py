@@ -95,7 +95,7 @@ def test_confusion_matrix_heatmap_of_rates_with_counts() -> None:
     assert heat.type == "heatmap"
     assert list(heat.x) == CONFUSION["classes"] and list(heat.y) == CONFUSION["classes"]
     assert heat.z[0][0] == 0.9 and heat.text[0][0].startswith("9<br>90")
-    assert "accuracy" in fig.layout.title.text
+    assert "accuracy" in fig.layout.title.subtitle.text
 
 
 def test_figure_json_is_safe_inside_a_script_element() -> None:
