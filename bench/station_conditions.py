@@ -48,10 +48,17 @@ def parse_sensor(text: str) -> SensorInjection:
     return SensorInjection(0, position, sensor, kind, float(value), started=0)
 
 
+def _model_document(path: str | None) -> dict[str, Any]:
+    """The model document at ``path`` (``hmsm train --out`` or demo-model shape), default the
+    shipped one."""
+    return load_demo_model() if path is None else json.loads(Path(path).read_text())
+
+
 def fly(index: int, conditions: Conditions, sensor: SensorInjection | None, seed: int,
-        lead: int, flights: int, duration_s: float) -> dict[str, Any]:
+        lead: int, flights: int, duration_s: float, model_path: str | None = None
+        ) -> dict[str, Any]:
     """One aircraft's lead and test flights, each analysed; what the chain said."""
-    model = read_model_document(load_demo_model()["payload"])
+    model = read_model_document(_model_document(model_path))
     aircraft = fleet_plan(10, seed)[index]
     health = {p: model.new_health(p) for p in POSITIONS}
     rows = []
@@ -132,14 +139,16 @@ def main() -> int:
     parser.add_argument("--duration", type=float, default=60.0, help="recording length [s]")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--model", default=None,
+                        help="model document (default: the shipped server/data/demo_model.json)")
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
     conditions = Conditions(ambient_offset_k=args.ambient, load_scale=args.load_scale,
                             load_offset_n=args.load_offset, command_scale=args.command_scale,
                             base=args.base)
     sensor = parse_sensor(args.sensor) if args.sensor else None
-    jobs = [(int(i), conditions, sensor, args.seed, args.lead, args.flights, args.duration)
-            for i in args.aircraft.split(",")]
+    jobs = [(int(i), conditions, sensor, args.seed, args.lead, args.flights, args.duration,
+             args.model) for i in args.aircraft.split(",")]
     start = time.monotonic()
     with ProcessPoolExecutor(args.workers) as pool:
         runs = list(pool.map(_job, jobs))
