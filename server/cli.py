@@ -312,7 +312,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo_model = sub.add_parser("demo-model", help="regenerate the model the demo ships with "
                                 "(server/data/demo_model.json): stream the shipped design "
-                                "campaign of seed 1 (about 36 minutes on 2 cores) and train on "
+                                "campaign of seed 1 (16 minutes on 2 idle cores) and train on "
                                 "it; hmsm calibrate then adds the RUL bands' layers")
     demo_model.add_argument("--out", required=True, help="JSON file to write")
     demo_model.add_argument("--campaign", default=None,

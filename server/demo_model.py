@@ -6,7 +6,7 @@ commands on a seeded design campaign -- the ``DESIGN_SCALE`` design campaign of 
 ``DESIGN_SEED`` (long healthy cycles of 300-400 flights, recordings of 60, 120 and 300 s, the
 test station's conditions: what a fleet and the station fly, sim_worker/campaign.py), streamed,
 trained with seed ``TRAINING_SEED`` -- and ships the result. ``hmsm demo-model --out FILE``
-regenerates it (36 minutes on 2 cores); the RUL bands' calibration layers are then added by
+regenerates it (16 minutes on 2 idle cores); the RUL bands' calibration layers are then added by
 ``hmsm calibrate`` (docs/RESULTS.md). The suite cannot simulate that design in its budget: it
 checks the shipped document's provenance against today's code (``tests/test_demo.py``), and
 ``HMSM_SHIPPED_DESIGN=DIR`` makes it retrain from a streamed copy of the design and compare.

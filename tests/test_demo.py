@@ -70,7 +70,7 @@ def test_a_campaign_other_than_the_shipped_design_is_refused() -> None:
             check_design({**good, key: value}, "D")
 
 
-# The shipped design takes 36 minutes of both cores to stream, beyond the suite's budget: with
+# The shipped design takes 16 minutes of both cores to stream, beyond the suite's budget: with
 # HMSM_SHIPPED_DESIGN=DIR (a streamed copy, `hmsm campaign --kind design --scale shipped
 # --seed 1 --out DIR`) the model is trained again from its stored features (seconds) and
 # compared with the shipped one.
