@@ -81,7 +81,8 @@ def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
                               workers=args.workers, dask=args.dask, render_every=None,
                               span_range=span_range, span_draw=None,
                               no_progress=args.no_progress, bases=None,
-                              noise_scale=1.0, sensor_fault=None, per_mode=args.per_mode)
+                              noise_scale=1.0, sensor_fault=None, per_mode=args.per_mode,
+                              recordings=None)
 
 
 def _evaluate_args(args: argparse.Namespace, model: Path, campaign: Path, out: Path
