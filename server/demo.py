@@ -79,12 +79,12 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int, train: bool 
     if not usable and train:
         _train_demo_model(settings, factory, seed)
     elif not usable:
-        from server.demo_model import DESIGN_SEED, load_demo_model
+        from server.demo_model import DESIGN_SCALE, DESIGN_SEED, load_demo_model
 
         doc = load_demo_model()
         with session_scope(factory) as session:
             model_service.store_trained(
-                session=session, name=f"demo (shipped: quick design seed {DESIGN_SEED})",
+                session=session, name=f"demo (shipped: {DESIGN_SCALE} design seed {DESIGN_SEED})",
                 payload=doc["payload"], report=doc["training"], make_active=True)
     with session_scope(factory) as session:
         for aircraft in fleet_plan(n_aircraft, seed):
