@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 from sqlalchemy import create_engine, text
+from sqlalchemy.orm import Session, sessionmaker
 
 from server.config import Settings
 from server.models import Base
@@ -81,6 +82,19 @@ def settings(backend: str, tmp_path, request: pytest.FixtureRequest) -> Settings
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(request.getfixturevalue("sqlite_at_head"), settings.sqlite_file)
     return settings
+
+
+@pytest.fixture
+def factory(settings: Settings) -> Iterator[sessionmaker[Session]]:
+    """A session factory on the chosen backend's database, migrated to head."""
+    from server.db import make_engine, make_session_factory
+    from server.migrate import upgrade
+
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    upgrade(settings.effective_database_url)
+    engine = make_engine(settings.effective_database_url)
+    yield make_session_factory(engine)
+    engine.dispose()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import threading
-from collections.abc import Iterator
 
 import pytest
 from fastapi.testclient import TestClient
@@ -16,11 +15,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
 from server.config import Settings
-from server.db import make_engine, make_session_factory
 from server.errors import Conflict
 from server.jobs.queue import claim_next, complete
 from server.jobs.worker import Worker
-from server.migrate import ensure_schema
 from server.models import Job, JobKind, ModelVersion
 from server.services import models as service
 from tests.api.conftest import auth
@@ -96,16 +93,6 @@ def test_concurrent_requests_queue_one_training(settings: Settings, client: Test
         t.join(timeout=60)
     assert sorted(answers) == [202, 409, 409, 409]
     assert len(client.get("/api/v1/models", headers=admin).json()) == 1
-
-
-@pytest.fixture
-def factory(settings: Settings) -> Iterator[sessionmaker[Session]]:
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    url = settings.effective_database_url
-    engine = make_engine(url)
-    ensure_schema(engine, url, auto_upgrade=True)
-    yield make_session_factory(engine)
-    engine.dispose()
 
 
 def test_a_racing_second_training_is_a_409_not_a_second_job(

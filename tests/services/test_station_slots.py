@@ -4,16 +4,13 @@ services' check: a request whose check ran before a concurrent one committed sti
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import pytest
 from sqlalchemy.orm import Session, sessionmaker
 
-from server.config import Settings
-from server.db import make_engine, make_session_factory
 from server.errors import Conflict
-from server.migrate import ensure_schema
 from server.models import Injection, SensorInjection, SimCondition
 from server.services import conditions, fleet, sensor_injections, test_station
 from server.services.station_items import add_live
@@ -22,17 +19,12 @@ SERIALS = {"WL1": "S-1", "WL2": "S-2", "WT": "S-3"}
 
 
 @pytest.fixture
-def factory(settings: Settings) -> Iterator[sessionmaker[Session]]:
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    url = settings.effective_database_url
-    engine = make_engine(url)
-    ensure_schema(engine, url, auto_upgrade=True)
-    make = make_session_factory(engine)
-    with make() as s:
+def factory(factory: sessionmaker[Session]) -> sessionmaker[Session]:
+    """The suite's migrated session factory, with one aircraft to schedule on."""
+    with factory() as s:
         fleet.create_aircraft(session=s, tail="I-SLOT", base="Turin", serials=SERIALS)
         s.commit()
-    yield make
-    engine.dispose()
+    return factory
 
 
 def _injection(aircraft_id: int, **kw: Any) -> Injection:
