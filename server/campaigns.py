@@ -4,12 +4,12 @@ flight's features.
 
 Layout: ``DIR/manifest.json`` (the campaign's aircraft, patterns and every flight's ground
 truth), ``DIR/flights/<tail>/<flight>.parquet`` (flight logs, format ``ema-flightlog/1``) and
-``DIR/phm_features.json`` (every flight's features by flight id, valid for one feature version
-and configuration); DIR a local directory or an S3 prefix ``s3://bucket/prefix``
-(:class:`server.campaign_store.CampaignStore`, at ``HMSM_S3_ENDPOINT_URL`` when set). Every
-flight log is decoded and checked by :mod:`server.flightlog`, exactly
-as an upload is, then its features are computed by the service's own
-:func:`server.phm.recording.log_features`.
+``DIR/phm_features.json`` (every flight's features by flight id, valid while the feature code
+gives the same outputs on the canary flights, :mod:`server.feature_canary`); DIR a local
+directory or an S3 prefix ``s3://bucket/prefix`` (:class:`server.campaign_store.CampaignStore`,
+at ``HMSM_S3_ENDPOINT_URL`` when set). Every flight log is decoded and checked by
+:mod:`server.flightlog`, exactly as an upload is, then its features are computed by the
+service's own :func:`server.phm.recording.log_features`.
 
 A streamed campaign (:class:`FeatureSink`) does that in the worker that simulated the flight
 and keeps the features instead of the file; only every ``keep_raw_every``-th flight of a
@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from server.campaign_store import CampaignStore
+from server.feature_canary import canary_digest
 from server.flightlog import (
     FlightLog,
     FlightLogError,
@@ -44,7 +45,6 @@ from server.flightlog import (
 from server.phm.chain import PhmModel
 from server.phm.dataset import Campaign, FlightRecord, Pattern
 from server.phm.features import (
-    FEATURE_VERSION,
     FeatureConfig,
     FeatureSummary,
     FlightFeatures,
@@ -59,7 +59,11 @@ __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
 FEATURE_CACHE = "phm_features.json"
-_CACHE_FORMAT = "phm-features/2"  # keyed by flight id
+_CACHE_FORMAT = "phm-features/3"  # keyed by flight id, valid for a canary digest
+_LEGACY_FORMAT = "phm-features/2"  # keyed by a feature version string
+#: the canary digest of each feature version whose campaigns were cached under its name; a
+#: campaign of that version is read while today's features still give that digest
+LEGACY_DIGESTS = {"features/10": "258d58cc3e1f7992a02c561563cfa63d"}
 
 
 class CampaignError(ValueError):
@@ -114,9 +118,21 @@ def _checked(decode: Callable[[], FlightLog], name: str) -> FlightLog:
 
 
 def feature_config_key(cfg: FeatureConfig) -> str:
-    """What stored features are valid for: the feature code's version and its configuration,
-    and the signal-quality figures' configuration."""
-    return f"{FEATURE_VERSION} {cfg!r} {QualityConfig()!r}"
+    """What stored features are valid for: the feature code's outputs on the canary flights
+    (:func:`server.feature_canary.canary_digest`), so a refactor that moves no feature keeps
+    every stored campaign and a change that moves one invalidates them; and the configurations
+    themselves, since a threshold may move features on a campaign's flights and on no canary."""
+    return f"canary:{canary_digest(cfg)} {cfg!r} {QualityConfig()!r}"
+
+
+def _legacy_key(cfg: FeatureConfig) -> str | None:
+    """The version-string key a campaign cached before the canaries carries, when features
+    under ``cfg`` are still the ones that version computed (its canary digest pinned)."""
+    digest = canary_digest(cfg)
+    for version, pinned in LEGACY_DIGESTS.items():
+        if digest == pinned:
+            return f"{version} {cfg!r} {QualityConfig()!r}"
+    return None
 
 
 def _write_cache(root: CampaignStore, key: str, flights: Mapping[str, Any]) -> None:
@@ -124,12 +140,13 @@ def _write_cache(root: CampaignStore, key: str, flights: Mapping[str, Any]) -> N
     root.write(FEATURE_CACHE, json.dumps(doc).encode())
 
 
-def _read_cache(root: CampaignStore, key: str) -> dict[str, Any]:
+def _read_cache(root: CampaignStore, cfg: FeatureConfig) -> dict[str, Any]:
     text = root.read_text(FEATURE_CACHE)
     if text is None:
         return {}
     doc = json.loads(text)
-    if doc.get("format") != _CACHE_FORMAT or doc.get("config") != key:
+    valid = {(_CACHE_FORMAT, feature_config_key(cfg)), (_LEGACY_FORMAT, _legacy_key(cfg))}
+    if (doc.get("format"), doc.get("config")) not in valid:
         return {}
     return dict(doc["flights"])
 
@@ -197,7 +214,7 @@ def _cached_features(root: CampaignStore, manifest: Mapping[str, Any], cfg: Feat
     """Features of every flight by flight id: the stored ones, the missing ones computed from
     their files (a flight streamed without its file must have stored features)."""
     key = feature_config_key(cfg)
-    cached = _read_cache(root, key) if cache else {}
+    cached = _read_cache(root, cfg) if cache else {}
     flights = [fl for pat in manifest["patterns"] for fl in pat["flights"]]
     todo = [fl for fl in flights if fl["flight"] not in cached]
     if not todo:
@@ -206,7 +223,7 @@ def _cached_features(root: CampaignStore, manifest: Mapping[str, Any], cfg: Feat
     if lost:
         raise CampaignError(
             f"{root}: {len(lost)} flights (first {lost[0]}) were streamed without their logs "
-            f"and have no features for this feature version and configuration ({key}); "
+            f"and have no features valid for today's feature code ({key}); "
             "generate the campaign again")
     args = [(root, fl["file"], fl.get("ground_temp_c"), cfg) for fl in todo]
     if jobs > 1:

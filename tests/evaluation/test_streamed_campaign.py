@@ -5,6 +5,7 @@ Dask cluster, resumable after an interruption."""
 from __future__ import annotations
 
 import json
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -13,15 +14,18 @@ import pytest
 
 from server.campaigns import (
     FEATURE_CACHE,
+    LEGACY_DIGESTS,
     CampaignError,
     FeatureSink,
     checked_log,
     decode_log,
     load_campaign,
 )
+from server.feature_canary import canary_digest
 from server.flightlog import write_parquet
 from server.phm.features import FeatureConfig
 from server.phm.recording import log_features
+from server.phm.signal_quality import QualityConfig
 from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
 from sim_worker.faults import THRESHOLDS, FaultState, healthy
 from sim_worker.fleet import WingletMode, build_aircraft
@@ -121,6 +125,33 @@ def test_a_dropped_flight_is_analysed_as_its_written_log_would_be(
 def test_stale_features_without_logs_are_refused(reference: Path) -> None:
     with pytest.raises(CampaignError, match="streamed without their logs"):
         load_campaign(reference, config=FeatureConfig(min_events=4))
+
+
+def _as_legacy(reference: Path, out: Path, version: str) -> Path:
+    """The reference campaign with its features cached as a version string keyed them."""
+    shutil.copytree(reference, out)
+    doc = json.loads((out / FEATURE_CACHE).read_text())
+    doc["format"] = "phm-features/2"
+    doc["config"] = f"{version} {FeatureConfig()!r} {QualityConfig()!r}"
+    (out / FEATURE_CACHE).write_text(json.dumps(doc))
+    return out
+
+
+def test_a_campaign_cached_under_a_version_is_read_while_its_features_hold(
+        reference: Path, tmp_path: Path) -> None:
+    """A campaign cached before the canaries is read while today's features give the digest
+    pinned for its version, and refused (its dropped flights have no features) otherwise."""
+    flights = sum(len(p.flights) for p in load_campaign(reference).patterns)
+    for version, pinned in LEGACY_DIGESTS.items():
+        legacy = _as_legacy(reference, tmp_path / version.replace("/", "-"), version)
+        if canary_digest() == pinned:
+            assert sum(len(p.flights) for p in load_campaign(legacy).patterns) == flights
+        else:
+            with pytest.raises(CampaignError, match="streamed without their logs"):
+                load_campaign(legacy)
+    unknown = _as_legacy(reference, tmp_path / "unknown", "features/9")
+    with pytest.raises(CampaignError, match="streamed without their logs"):
+        load_campaign(unknown)
 
 
 @pytest.mark.slow
