@@ -5,7 +5,7 @@ and motor are back-driven: their drag is part of the hinge work the active drive
 ratio measures. This bench gives one winglet drive an MTEL fault at normalised severities 0 to
 1 and reads ``F_MTEL`` of both drives on the flights each is active (design-side aircraft, not
 the verification's). The share ``k = dF_partner / dF_faulty`` is what a partner-drive alarm
-rests on (docs/RESULTS.md, long healthy lives).
+rests on (docs/FEATURES.md, "Over a long life").
 
 Usage: ``python bench/partner_drag.py [--flights N]`` (about 1 s a flight on one core).
 """

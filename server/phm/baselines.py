@@ -19,7 +19,7 @@ docs/TUNING.md, Detection), and a pooled fit reads any chance correlation of tho
 with the bases' climates as a temperature slope: on the protocol's design campaign the pooled
 fit missed a winglet drive's ``F_MTWEAR`` temperature slope by about 0.045 z per K, so a
 unit whose reference was learned in January stood 4 flight-scatter units off by June
-(docs/RESULTS.md, "Long healthy lives"). A unit's own offset is the detector's business
+(docs/TUNING.md, Baselines). A unit's own offset is the detector's business
 (:mod:`server.phm.detection`).
 
 A flight value resting on fewer than ``min_evidence`` (25 %) of the median number of valid

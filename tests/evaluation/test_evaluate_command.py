@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow
 
 #: the paper's Table 2 (PH [-], RA [%]) is issue 6's minimum per mode
 _UNMET = pytest.mark.xfail(strict=True, reason="issue 6 target not reached on the quick "
-                           "verification campaign (docs/RESULTS.md, Prognosis)")
+                           "verification campaign")
 
 
 @pytest.fixture(scope="module")
