@@ -20,7 +20,7 @@ from _report import cpu_model, replace_block
 
 from server.flightlog import FlightLog
 from server.phm.baselines import FleetBaseline
-from server.phm.detection import UNITS, FaultDetector
+from server.phm.detection import UNITS, FaultDetector, new_states, update_units
 from server.phm.features import (
     AIRCRAFT_FEATURES,
     FeatureSummary,
@@ -68,7 +68,7 @@ def main() -> None:
             for _ in range(100)]
     base = FleetBaseline().fit(fake)
     det = FaultDetector().fit([base.zscore_matrix(fake)], AIRCRAFT_FEATURES)
-    states = {u: det.new_state(u) for u in UNITS}
+    states = new_states(det, UNITS)
     n_steps = ch["t"].size // 10
     flight_features(ch, active_channels=roles)  # warm-up
     times = []
@@ -76,8 +76,7 @@ def main() -> None:
         t0 = time.perf_counter()
         ff = flight_features(ch, active_channels=roles)
         z = base.zscores(ff)
-        for st in states.values():
-            det.update(st, z)
+        update_units(det, states, z)
         times.append(time.perf_counter() - t0)
     mc = MotorConstants()
     q_times = []

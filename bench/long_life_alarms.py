@@ -11,7 +11,7 @@ Two steps, so that detector variants are scored in seconds without simulating ag
 ``extract`` keeps, per flight: the standardised residuals ``z`` of the 20 aircraft features
 after the sensor judgement, its extra variance, its evidence weights, each position's
 operating conditions and the take-off time. ``score`` replays
-:meth:`FaultDetector.update_units` per pattern (the chain's own detection path, without
+:func:`server.phm.detection.update_units` per pattern (the chain's own detection path, without
 classification or prognosis, which an alarm does not need).
 """
 
@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from server.campaigns import load_campaign  # noqa: E402
 from server.phm.chain.model import PhmModel, read_model_document  # noqa: E402
-from server.phm.detection import DetectionState, FaultDetector  # noqa: E402
+from server.phm.detection import FaultDetector, new_states, update_units  # noqa: E402
 from server.phm.features import AIRCRAFT_FEATURES, CONDITION_NAMES  # noqa: E402
 from server.phm.metrics import event_rate  # noqa: E402
 from server.vocabulary import POSITIONS  # noqa: E402
@@ -88,15 +88,13 @@ def replay(detector: FaultDetector, meta: dict[str, Any], arr: dict[str, np.ndar
     z, extra, day = arr[f"{pid}/z"], arr[f"{pid}/extra"], arr[f"{pid}/day"]
     weights = arr.get(f"{pid}/evidence", np.ones_like(z))
     idx = arr[f"{pid}/index"]
-    feats = [n for n in AIRCRAFT_FEATURES if n in detector.feature_names_]
-    states = {pos: DetectionState.new(pos, [f for f in feats if f.split(".")[0] == pos])
-              for pos in POSITIONS}
+    states = new_states(detector, POSITIONS)
     alarms = []
     for i in range(z.shape[0]):
         zd = {n: float(z[i, k]) for k, n in enumerate(AIRCRAFT_FEATURES)}
         ev = {n: float(extra[i, k]) for k, n in enumerate(AIRCRAFT_FEATURES) if extra[i, k]}
         wd = {n: float(weights[i, k]) for k, n in enumerate(AIRCRAFT_FEATURES)}
-        for pos, res in detector.update_units(states, zd, ev, wd).items():
+        for pos, res in update_units(detector, states, zd, ev, wd).items():
             if res.new_alarm:
                 alarms.append({"pattern": pid, "aircraft": meta["aircraft"],
                                "base": meta["base"], "unit": pos, "flight": int(idx[i]),

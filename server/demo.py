@@ -44,7 +44,8 @@ DEMO_RAW_KEEP_FLIGHTS = 10
 # default 60 flights a minute (6 per aircraft) alarms come within minutes, RUL cones
 # right after, and failures -- which reveal the true RUL in hindsight -- in about half an hour.
 # Onsets come after the 6 reference flights from which detection learns each actuator's own
-# healthy offsets (server/phm/detection.py), as in the campaigns (8 healthy flights first).
+# healthy offsets (server/phm/detection/statistics.py), as in the campaigns (8 healthy flights
+# first).
 DEMO_INJECTIONS = [
     ("SIM01", "WL1", "MTWEAR", 9, 170),
     ("SIM02", "WT", "DMD", 9, 180),

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from server.phm.dataset import Campaign, Pattern, reads_rod_ends_as_pair
+from server.phm.detection import update_units
 from server.phm.detection_model import DetectionModel
 from server.vocabulary import alarming_positions
 
@@ -67,7 +68,7 @@ def run_pattern(model: DetectionModel, p: Pattern) -> PatternOutcome:
     for r in p.flights:
         z = model.baseline.zscores(r.features)
         evidence = model.baseline.evidence_weights(r.features)
-        for u, res in model.detector.update_units(states, z, evidence=evidence).items():
+        for u, res in update_units(model.detector, states, z, evidence=evidence).items():
             if not res.new_alarm:
                 continue
             pre_onset = onset is None or r.index < int(onset)

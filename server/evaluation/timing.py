@@ -59,12 +59,12 @@ class ChainTimer:
         """Patch the chain's timed calls in this process; restore them on exit."""
         from server.phm.baselines import FleetBaseline
         from server.phm.classification import FaultClassifier
-        from server.phm.detection import FaultDetector
+        from server.phm.detection import judge
         from server.phm.prognosis import filter as pf_module
 
         targets: list[tuple[Any, str, str]] = [
             (FleetBaseline, "zscores", "zscores"),
-            (FaultDetector, "observe", "detector"),  # a unit's judgement of one flight
+            (judge, "observe", "detector"),  # a unit's judgement of one flight
             (FaultClassifier, "predict_log_proba", "classifier"),
             (pf_module.ParticleFilterPrognoser, "update", "pf_update"),
             (pf_module.ParticleFilterPrognoser, "predict", "pf_predict"),

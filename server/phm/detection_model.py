@@ -17,7 +17,7 @@ import numpy as np
 
 from .baselines import FleetBaseline
 from .dataset import Campaign, healthy_flights
-from .detection import UNITS, DetectionState, FaultDetector
+from .detection import UNITS, DetectionState, FaultDetector, first_alarms, new_states
 from .features import AIRCRAFT_FEATURES
 from .metrics import event_rate
 
@@ -45,7 +45,7 @@ class DetectionModel:
         return cls(FleetBaseline.from_dict(d["baseline"]), FaultDetector.from_dict(d["detector"]))
 
     def new_states(self) -> dict[str, DetectionState]:
-        return {u: self.detector.new_state(u) for u in UNITS}
+        return new_states(self.detector, UNITS)
 
 
 def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
@@ -83,19 +83,21 @@ def healthy_alarm_rate(detector: FaultDetector, sequences: Sequence[np.ndarray],
                        level: float = 0.90,
                        evidence: Sequence[np.ndarray] | None = None) -> dict[str, Any]:
     """Alarm events per unit-flight on healthy sequences (n_flights, AIRCRAFT_FEATURES) of
-    residuals, each unit at risk until its first alarm: the realised rate beside the stated
-    ``false_alarm_rate``, with its exact ``level`` interval. ``evidence``: the flights'
-    evidence weights, same shapes (None: typical)."""
+    residuals, each aircraft's units judged together as the chain judges them
+    (:func:`~server.phm.detection.first_alarms`) and each unit at risk until its first alarm:
+    the realised rate beside the stated ``false_alarm_rate``, with its exact ``level``
+    interval. ``evidence``: the flights' evidence weights, same shapes (None: typical)."""
+    names = [n for n in AIRCRAFT_FEATURES if n in detector.feature_names_]
+    cols = [AIRCRAFT_FEATURES.index(n) for n in names]
     events = unit_flights = 0
     for h, seq in enumerate(sequences):
+        ev = None if evidence is None else evidence[h][:, cols]
+        first = first_alarms(detector, seq[:, cols], names, ev)
         for unit in UNITS:
-            names = [n for n in AIRCRAFT_FEATURES if n.split(".", 1)[0] == unit
-                     and n in detector.feature_names_]
-            cols = [AIRCRAFT_FEATURES.index(n) for n in names]
-            ev = None if evidence is None else evidence[h][:, cols]
-            conf = detector.confidence_sequence(seq[:, cols], names, ev).max(axis=1)
-            hits = np.flatnonzero(conf >= detector.alarm_confidence)
-            events += int(hits.size > 0)
-            unit_flights += int(hits[0]) + 1 if hits.size else seq.shape[0]
+            if unit not in first:
+                continue
+            hit = first[unit]
+            events += int(hit is not None)
+            unit_flights += seq.shape[0] if hit is None else hit + 1
     return {**event_rate(events, unit_flights, level), "level": level,
             "stated_rate": detector.false_alarm_rate}

@@ -43,7 +43,7 @@ from .chain import (
 )
 from .classification import train_classifier
 from .dataset import Campaign, FlightRecord, Pattern, healthy_flights
-from .detection import DetectionResult
+from .detection import UNITS, DetectionResult, update_units
 from .detection_model import fit_detection
 from .features import FlightFeatures
 from .prognosis import MeasurementModel, PrognoserConfig
@@ -143,17 +143,20 @@ TRAINING = TrainingConfig()
 def _faulty_history(model: PhmModel, p: Pattern
                     ) -> Iterator[tuple[FlightRecord, DetectionResult, dict[str, float],
                                         ActuatorHealth]]:
-    """The faulty actuator's detection, flight by flight from installation as in service, with
-    its physical residuals less its own offset and its state after the flight; only flights
-    from the onset are yielded."""
-    health = model.new_health(str(p.position))
+    """The faulty actuator's detection, flight by flight from installation as in service (the
+    aircraft's units judged together, :func:`~server.phm.detection.update_units`), with its
+    physical residuals less its own offset and its state after the flight; only flights from
+    the onset are yielded."""
+    position = str(p.position)
+    aircraft = {u: model.new_health(u) for u in UNITS}
+    states = {u: h.detection for u, h in aircraft.items()}
     for r in p.flights:
         z = model.baseline.zscores(r.features)
-        det = model.detector.update(health.detection, z,
-                                    evidence=model.baseline.evidence_weights(r.features))
+        det = update_units(model.detector, states, z,
+                           evidence=model.baseline.evidence_weights(r.features))[position]
         if p.onset_flight is not None and r.index < int(p.onset_flight):
             continue
-        yield r, det, self_residuals(model.baseline, z, det), health
+        yield r, det, self_residuals(model.baseline, z, det), aircraft[position]
 
 
 def training_rows(campaign: Campaign, model: PhmModel) -> dict[str, np.ndarray]:

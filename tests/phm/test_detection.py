@@ -15,12 +15,18 @@ from server.phm.detection import (
     DetectionConfig,
     DetectionState,
     FaultDetector,
+    confidence_sequence,
+    decide,
+    new_state,
+    observe,
     offset_components,
     partner_held,
     running_statistics,
+    update_units,
 )
 from server.phm.detection_model import DetectionModel
 from server.phm.features import AIRCRAFT_FEATURES, FeatureSummary, FlightFeatures
+from tests.phm.judging import judge_alone
 
 
 def test_linear_baseline_removes_temperature_and_load_trend() -> None:
@@ -83,7 +89,7 @@ def test_unfitted_models_refuse() -> None:
     with pytest.raises(RuntimeError):
         LinearBaseline().predict(np.zeros((1, 4)))
     with pytest.raises(RuntimeError):
-        FaultDetector().new_state("WT")
+        new_state(FaultDetector(), "WT")
 
 
 def _flight(rng: np.random.Generator, shift: dict[str, float] | None = None) -> FlightFeatures:
@@ -118,7 +124,7 @@ def test_detector_quiet_on_healthy_and_fast_on_steps() -> None:
     det = FaultDetector().fit(train, names)
     # fresh healthy sequences: no alarm
     for _ in range(10):
-        conf = det.confidence_sequence(rng.standard_normal((300, 2)), names)
+        conf = confidence_sequence(det, rng.standard_normal((300, 2)), names)
         assert conf.max() < det.alarm_confidence
     # a step of 12 standard deviations alarms on the first faulty flight
     st = DetectionState.new("WT", names)
@@ -126,7 +132,7 @@ def test_detector_quiet_on_healthy_and_fast_on_steps() -> None:
         z = {"WT.F_A": float(rng.standard_normal()), "WT.F_B": float(rng.standard_normal())}
         if k >= 10:
             z["WT.F_B"] += 12.0
-        res = det.update(st, z)
+        res = judge_alone(det, st, z)
         if k < 10:
             assert not res.alarm
     assert st.alarm and st.alarm_flight == 11 and st.alarm_features == ["WT.F_B"]
@@ -135,7 +141,7 @@ def test_detector_quiet_on_healthy_and_fast_on_steps() -> None:
     first = None
     for k in range(200):
         z = {"WT.F_A": float(rng.standard_normal() + 0.03 * k), "WT.F_B": 0.0}
-        if det.update(st2, z).new_alarm:
+        if judge_alone(det, st2, z).new_alarm:
             first = k
     assert first is not None and 40 < first < 200
 
@@ -167,12 +173,12 @@ def test_self_reference_sees_a_shift_smaller_than_the_production_scatter() -> No
     assert self_ref.within_std_[0] == pytest.approx(0.3, rel=0.2)
     healthy = _offset_population(rng, 40, 30)
     for det in (self_ref, fleet):
-        assert max(det.confidence_sequence(q, names).max() for q in healthy) < 0.98
+        assert max(confidence_sequence(det, q, names).max() for q in healthy) < 0.98
     caught = {"self": 0, "fleet": 0}
     for q in _offset_population(rng, 40, 30):
         q[10:] += 3.0 * 0.3  # 3 flight-scatter units from flight 10 on
-        caught["self"] += self_ref.confidence_sequence(q, names).max() >= 0.98
-        caught["fleet"] += fleet.confidence_sequence(q, names).max() >= 0.98
+        caught["self"] += confidence_sequence(self_ref, q, names).max() >= 0.98
+        caught["fleet"] += confidence_sequence(fleet, q, names).max() >= 0.98
     assert caught["self"] >= 36 and caught["fleet"] <= 8, caught
 
 
@@ -201,14 +207,14 @@ def test_a_fleet_referenced_feature_learns_no_offset_from_a_bimodal_start() -> N
     z_own = own.self_referenced(unlucky)[high, 0]
     assert np.all(z_own > 1.5 * z_fleet) and np.all(z_fleet < 2.0), (z_fleet, z_own)
     assert np.all(fleet.band_[0, 1:] < own.band_[0, 1:] - 1.0), (fleet.band_, own.band_)
-    assert fleet.confidence_sequence(unlucky, names).max() < 0.98
+    assert confidence_sequence(fleet, unlucky, names).max() < 0.98
     worn = unlucky.copy()
     worn[12:] += 8.0  # a worn rod end moves the feature far beyond the healthy modes
-    assert fleet.confidence_sequence(worn, names).max() >= 0.98
+    assert confidence_sequence(fleet, worn, names).max() >= 0.98
     st = DetectionState.new("WL1", names)
     for row in unlucky[:8]:
-        fleet.update(st, {"WL1.F_REWEAR": float(row[0])})
-    assert fleet.update(st, {"WL1.F_REWEAR": 0.9}).offset["WL1.F_REWEAR"] == 0.0
+        judge_alone(fleet, st, {"WL1.F_REWEAR": float(row[0])})
+    assert judge_alone(fleet, st, {"WL1.F_REWEAR": 0.9}).offset["WL1.F_REWEAR"] == 0.0
     again = FaultDetector.from_dict(json.loads(json.dumps(fleet.to_dict())))
     assert again.fleet_referenced == ("F_REWEAR",)
 
@@ -223,14 +229,14 @@ def test_a_few_odd_flights_do_not_make_an_eight_flight_alarm() -> None:
     plain = FaultDetector((1, 3, 8), reference_flights=0, median_from=0).fit(train, names)
     odd = np.zeros((20, 1))
     odd[[8, 11, 14]] = 5.0  # three odd flights, three apart
-    assert plain.confidence_sequence(odd, names).max() >= 0.98
-    assert robust.confidence_sequence(odd, names).max() < 0.98
+    assert confidence_sequence(plain, odd, names).max() >= 0.98
+    assert confidence_sequence(robust, odd, names).max() < 0.98
     drift = np.zeros((20, 1))
     drift[8:] = 3.0
-    assert robust.confidence_sequence(drift, names).max() >= 0.98
+    assert confidence_sequence(robust, drift, names).max() >= 0.98
 
 
-def test_update_matches_the_vectorised_sequence_and_reset_forgets_the_reference() -> None:
+def test_the_judge_matches_the_vectorised_sequence_and_reset_forgets_the_reference() -> None:
     rng = np.random.default_rng(12)
     names = ["WT.F_DMD", "WT.F_TTS"]
     det = FaultDetector().fit([np.c_[q, rng.normal(0, 1, (12, 1))]
@@ -238,9 +244,9 @@ def test_update_matches_the_vectorised_sequence_and_reset_forgets_the_reference(
     seq = np.c_[rng.normal(1.5, 0.3, 25), rng.normal(0, 1, 25)]
     seq[4, 1] = np.nan
     seq[18:, 0] += 1.0
-    want = det.confidence_sequence(seq, names)
+    want = confidence_sequence(det, seq, names)
     st = DetectionState.new("WT", names)
-    got = [det.update(st, dict(zip(names, row.tolist(), strict=True))) for row in seq]
+    got = [judge_alone(det, st, dict(zip(names, row.tolist(), strict=True))) for row in seq]
     assert np.allclose([[r.confidence[n] for n in names] for r in got], want)
     assert len(st.reference["WT.F_DMD"]) == det.reference_flights == 6
     assert len(st.reference["WT.F_TTS"]) == 6  # the NaN flight does not enter it
@@ -256,13 +262,13 @@ def test_state_and_detector_round_trip_through_json() -> None:
     names = list(AIRCRAFT_FEATURES)
     det = FaultDetector().fit([rng.standard_normal((50, len(names)))], names)
     det2 = FaultDetector.from_dict(json.loads(json.dumps(det.to_dict())))
-    st = det.new_state("WL1")
+    st = new_state(det, "WL1")
     for _ in range(12):
-        det.update(st, {n: float(rng.standard_normal()) for n in names})
+        judge_alone(det, st, {n: float(rng.standard_normal()) for n in names})
     st2 = DetectionState.from_dict(json.loads(json.dumps(st.to_dict())))
     assert st2 == st
     z = {n: 9.0 for n in names}
-    r1, r2 = det.update(st, z), det2.update(st2, z)
+    r1, r2 = judge_alone(det, st, z), judge_alone(det2, st2, z)
     assert r1 == r2 and st == st2
     st.reset()
     assert not st.alarm and st.n_flights == 0 and all(not h for h in st.history.values())
@@ -428,8 +434,8 @@ def _pair_run(det: FaultDetector, names: list[str], faulty: str, rng: np.random.
             if u != active:
                 z[f"{u}.F_MTEL"] = float("nan")
         z[f"{active}.F_MTEL"] += rise if active == faulty else share * rise
-        res = (det.update_units(states, z) if gate
-               else {u: det.update(st, z) for u, st in states.items()})
+        res = (update_units(det, states, z) if gate
+               else {u: judge_alone(det, st, z) for u, st in states.items()})
         for u, r in res.items():
             if r.new_alarm:
                 first[u] = k
@@ -459,7 +465,7 @@ def test_partner_held_leaves_each_drive_its_own_evidence() -> None:
     det = FaultDetector().fit([np.random.default_rng(0).standard_normal((200, 1))],
                               ["WL1.F_MTEL"])
     for _ in range(det.reference_flights):
-        det.update(st, {"WL1.F_MTEL": 0.0})
+        judge_alone(det, st, {"WL1.F_MTEL": 0.0})
     for _ in range(3):  # F_MTEL, a progressive fault's feature, alarms on 3 flights or more
-        res = det.decide(st, det.observe(st, {"WL1.F_MTEL": 40.0}), held=["WL1.F_MTEL"])
+        res = decide(det, st, observe(det, st, {"WL1.F_MTEL": 40.0}), held=["WL1.F_MTEL"])
     assert not res.alarm and res.held == ["WL1.F_MTEL"] and res.max_confidence > 0.98

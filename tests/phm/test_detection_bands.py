@@ -9,8 +9,15 @@ import numpy as np
 import pytest
 from scipy.special import ndtri
 
-from server.phm.detection import FaultDetector, running_statistics
+from server.phm.detection import (
+    FaultDetector,
+    confidence_sequence,
+    healthy_statistics,
+    new_state,
+    running_statistics,
+)
 from server.phm.features import AIRCRAFT_FEATURES
+from tests.phm.judging import judge_alone
 
 
 def _healthy(rng: np.random.Generator, n_seq: int, n_flights: int, n_feat: int = 1,
@@ -76,7 +83,7 @@ def test_band_does_not_grow_with_the_number_of_healthy_flights() -> None:
     def fit(n_seq: int) -> tuple[np.ndarray, np.ndarray]:
         seqs = _healthy(rng, n_seq, 20)
         det = FaultDetector(band_floor=0.0, min_windows={}, directions=UP).fit(seqs, names)
-        stats = det.healthy_statistics(seqs, names)
+        stats = healthy_statistics(det, seqs, names)
         largest = np.array([stats[k][0].max() for k in range(len(det.windows))])
         return _threshold(det)[0], largest
 
@@ -105,7 +112,7 @@ def test_realised_false_alarm_rate_is_the_stated_one_on_independent_tests() -> N
                         directions=UP)
     det.fit(_healthy(rng, 100, 300, n_feat=3), names)
     fresh = _healthy(rng, 100, 500, n_feat=3)
-    alarms = np.concatenate([det.confidence_sequence(q, names).max(axis=1) >= 0.98
+    alarms = np.concatenate([confidence_sequence(det, q, names).max(axis=1) >= 0.98
                              for q in fresh])
     # 50,000 flights: 500 expected, sd 22, plus the scale's estimation error
     assert alarms.mean() == pytest.approx(rate, rel=0.2)
@@ -121,7 +128,7 @@ def test_realised_false_alarm_rate_stays_below_the_stated_one_with_overlapping_w
     det = FaultDetector(band_floor=0.0, false_alarm_rate=rate, min_windows={}, directions=UP)
     det.fit(_healthy(rng, 200, 60, n_feat=2), names)
     fresh = _healthy(rng, 200, 100, n_feat=2)
-    alarms = np.concatenate([det.confidence_sequence(q, names).max(axis=1) >= 0.98
+    alarms = np.concatenate([confidence_sequence(det, q, names).max(axis=1) >= 0.98
                              for q in fresh])
     assert 0.4 * rate < alarms.mean() < 1.1 * rate, alarms.mean()
 
@@ -137,16 +144,16 @@ def test_heavier_tails_than_normal_widen_the_band() -> None:
     assert det.healthy_scale_[0, 0] == pytest.approx(4.54 / ndtri(0.99), rel=0.1)
 
 
-def test_the_scale_is_measured_on_what_update_judges() -> None:
+def test_the_scale_is_measured_on_what_the_judge_judges() -> None:
     """Healthy statistics are the oriented S_w of full windows only, held through flights
-    without a value, as :meth:`FaultDetector.update` judges them."""
+    without a value, as the online judge (`update_units`) judges them."""
     rng = np.random.default_rng(106)
     names = ["WT.F_A"]
     q = rng.standard_normal((12, 1))
     q[5] = np.nan
     det = FaultDetector((1, 3), reference_flights=0, median_from=0, directions=UP,
                         min_windows={"F_A": 3}).fit([q], names)
-    stats = det.healthy_statistics([q], names)
+    stats = healthy_statistics(det, [q], names)
     s3 = running_statistics(q, 3)[:, 0]
     # 3 valid values from flight 2 on; flight 5 (no value) holds flight 4's statistic
     assert stats[1][0] == pytest.approx(s3[2:])
@@ -172,8 +179,9 @@ def test_an_ema_detector_1_document_still_loads_with_its_bands() -> None:
     assert legacy.false_alarm_rate is None and legacy.config.false_alarm_rate is None
     assert np.isnan(legacy.healthy_scale_).all()
     z = {n: 5.0 for n in names}
-    st = legacy.new_state("WT")
-    assert legacy.update(st, z).max_confidence < det.update(det.new_state("WT"), z).max_confidence
+    st = new_state(legacy, "WT")
+    assert (judge_alone(legacy, st, z).max_confidence
+            < judge_alone(det, new_state(det, "WT"), z).max_confidence)
     # round trip of the new document
     again = FaultDetector.from_dict(doc)
     assert np.allclose(again.band_, det.band_) and again.config == det.config

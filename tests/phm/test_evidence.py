@@ -9,7 +9,13 @@ import json
 import numpy as np
 import pytest
 
-from server.phm.detection import DetectionState, FaultDetector, evidence_shares
+from server.phm.detection import (
+    DetectionState,
+    FaultDetector,
+    confidence_sequence,
+    evidence_shares,
+)
+from tests.phm.judging import judge_alone
 
 NAMES = ["WT.F_DMD", "WT.F_TTS"]
 SHARE = {"WT.F_DMD": 0.8, "WT.F_TTS": 0.0}  # DMD mostly sampling noise; TTS none
@@ -70,14 +76,14 @@ def test_online_judge_matches_the_vectorised_sequence_with_evidence() -> None:
     seq = np.c_[rng.normal(0.5, 1.0, 30), rng.normal(0, 1, 30)]
     seq[20:, 0] += 2.5
     weights = rng.choice(WEIGHTS + (2.0,), size=seq.shape)
-    want = det.confidence_sequence(seq, NAMES, weights)
+    want = confidence_sequence(det, seq, NAMES, weights)
     st = DetectionState.new("WT", NAMES)
-    got = [det.update(st, dict(zip(NAMES, row.tolist(), strict=True)),
+    got = [judge_alone(det, st, dict(zip(NAMES, row.tolist(), strict=True)),
                       evidence=dict(zip(NAMES, w.tolist(), strict=True)))
            for row, w in zip(seq, weights, strict=True)]
     assert np.allclose([[r.confidence[n] for n in NAMES] for r in got], want)
     # the evidence matters: judged as typical flights the confidences differ
-    assert not np.allclose(det.confidence_sequence(seq, NAMES), want)
+    assert not np.allclose(confidence_sequence(det, seq, NAMES), want)
 
 
 def test_the_share_survives_the_document_and_an_old_document_has_none() -> None:

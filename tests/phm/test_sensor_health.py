@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from server.phm.baselines import FleetBaseline
-from server.phm.detection import FaultDetector
+from server.phm.detection import FaultDetector, new_state
 from server.phm.features import AIRCRAFT_FEATURES, FEATURE_SENSORS, FeatureSummary, FlightFeatures
 from server.phm.sensor_health import (
     NoiseSensitivity,
@@ -18,6 +18,7 @@ from server.phm.sensor_health import (
     channel_sensor,
 )
 from server.vocabulary import POSITIONS, SIGNALS
+from tests.phm.judging import judge_alone
 
 FLOOR = {"ia": 0.057, "ib": 0.057, "ic": 0.057, "va": 1.4, "vb": 1.4, "vc": 1.4,
          "theta": 2.0e-4, "x": 2.1e-6, "i_sum": 0.041, "v_sum": 0.8}
@@ -160,9 +161,9 @@ def test_extra_variance_widens_the_detector_flight_scatter() -> None:
     det.within_std_ = np.array([1.0])
     det.between_std_ = np.array([0.0])
     det.band_ = np.array([[3.0]])
-    plain, widened = det.new_state("WT"), det.new_state("WT")
-    det.update(plain, {"WT.F_TTS": 6.0})
-    det.update(widened, {"WT.F_TTS": 6.0}, {"WT.F_TTS": 3.0})
+    plain, widened = new_state(det, "WT"), new_state(det, "WT")
+    judge_alone(det, plain, {"WT.F_TTS": 6.0})
+    judge_alone(det, widened, {"WT.F_TTS": 6.0}, {"WT.F_TTS": 3.0})
     assert plain.history["WT.F_TTS"][-1] == pytest.approx(6.0)
     assert widened.history["WT.F_TTS"][-1] == pytest.approx(3.0)  # 6 / sqrt(1 + 3)
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ..detection import DetectionResult
+from ..detection import DetectionResult, update_units
 from ..features import FlightFeatures
 from ..prognosis import RulDistribution
 from ..season import next_flights_per_day
@@ -94,8 +94,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     for position, h in health.items():
         index_of[position] = _advance(h, flight_index)
         _track_calendar(h, index_of[position], started_at)
-    detected = model.detector.update_units(
-        {p: h.detection for p, h in health.items()}, z_all,
+    detected = update_units(
+        model.detector, {p: h.detection for p, h in health.items()}, z_all,
         None if judged is None else judged.extra_variance, evidence)
     out: dict[str, ActuatorOutcome] = {}
     for position, h in health.items():
