@@ -63,7 +63,8 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int, train: bool 
     from server.errors import Conflict
     from server.migrate import ensure_schema
     from server.models import ROLES, Aircraft
-    from server.services import fleet, test_station
+    from server.schemas import InjectionCreate
+    from server.services import fleet, station
     from server.services import models as model_service
     from sim_worker.service import fleet_plan
 
@@ -97,10 +98,11 @@ def prepare_demo(settings: Settings, *, n_aircraft: int, seed: int, train: bool 
             continue
         with factory() as session:
             try:
-                test_station.create_injection(session=session, tail=tail, position=position,
-                                              fault_mode=mode, onset_flight=onset,
-                                              time_to_failure_flights=ttf, severity=None,
-                                              created_by="demo")
+                station.create(session=session, kind=station.FAULTS, created_by="demo",
+                               spec=InjectionCreate(aircraft=tail, position=position,
+                                                    fault_mode=mode, onset_flight=onset,
+                                                    time_to_failure_flights=ttf,
+                                                    severity=None))
                 session.commit()
             except Conflict as exc:  # already injected on an earlier run of the demo
                 if exc.code != "injection_exists":

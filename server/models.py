@@ -30,7 +30,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-from server.vocabulary import FAULT_MODES, STATION_LIVE, FlightStatus, JobStatus
+from server.vocabulary import FAULT_MODES, STATION_LIVE, FlightStatus, JobStatus, StationStatus
 
 __all__ = [
     "JobKind",
@@ -48,6 +48,8 @@ __all__ = [
     "ActuatorState",
     "Alarm",
     "Prognosis",
+    "StationItem",
+    "FlightTruth",
     "Injection",
     "GroundTruth",
     "ALARM_STATUSES",
@@ -464,46 +466,60 @@ class Prognosis(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 
-class Injection(Base):
+class StationItem:
+    """What every test-station item has (server/services/station.py): the aircraft it is
+    scheduled on from ``onset_flight``, its state, who made it and when it ended."""
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, sort_order=-2)
+    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True,
+                                             sort_order=-1)
+    onset_flight: Mapped[int] = mapped_column(Integer)
+    status: Mapped[StationStatus] = mapped_column(status_type(StationStatus),
+                                                  default=StationStatus.PENDING)
+    created_by: Mapped[str] = mapped_column(String(128))
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    cancelled_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class FlightTruth:
+    """What every test-station truth row has: the simulated flight it is of (never in the
+    flight log)."""
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, sort_order=-1)
+    flight_code: Mapped[str] = mapped_column(String(64))
+    flight_number: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class Injection(StationItem, Base):
     """A fault injected by a test-station operator into a simulated aircraft's actuator."""
 
     __tablename__ = "injections"
     __table_args__ = (_one_live("injections", "aircraft_id"),)  # one fault at a time
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)
     position: Mapped[str] = mapped_column(String(8))
     fault_mode: Mapped[str] = mapped_column(String(16))
-    onset_flight: Mapped[int] = mapped_column(Integer)
     time_to_failure_flights: Mapped[int | None] = mapped_column(Integer)
     severity: Mapped[float | None] = mapped_column(Float)
-    status: Mapped[str] = mapped_column(String(16), default="pending")
-    created_by: Mapped[str] = mapped_column(String(128))
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
-    cancelled_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     failure_flight: Mapped[int | None] = mapped_column(Integer)
     #: progressive faults: the flight the sim worker steers the fault to fail at
     planned_failure_flight: Mapped[int | None] = mapped_column(Integer)
 
 
-class GroundTruth(Base):
-    """True fault state of a simulated flight, reported by the sim worker (never in the log)."""
+class GroundTruth(FlightTruth, Base):
+    """True fault state of a simulated flight, reported by the sim worker."""
 
     __tablename__ = "ground_truth"
     __table_args__ = (UniqueConstraint("injection_id", "flight_code",
                                        name="uq_ground_truth_injection_flight"),)
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     injection_id: Mapped[int] = mapped_column(ForeignKey("injections.id"), index=True)
-    flight_code: Mapped[str] = mapped_column(String(64))
-    flight_number: Mapped[int] = mapped_column(Integer)
     severity: Mapped[float] = mapped_column(Float)
     severity_norm: Mapped[float] = mapped_column(Float)
     true_rul_flights: Mapped[int | None] = mapped_column(Integer)
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 
-class SensorInjection(Base):
+class SensorInjection(StationItem, Base):
     """A degraded sensor injected by a test-station operator into a simulated actuator: the
     simulator flies it in the loop (the controller sees the degraded reading). A separate table
     from :class:`Injection`: a sensor is not a fault mode, has no failure threshold or RUL, and
@@ -512,40 +528,29 @@ class SensorInjection(Base):
     __tablename__ = "sensor_injections"
     __table_args__ = (_one_live("sensor_injections", "aircraft_id", "position", "sensor"),)
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)
     position: Mapped[str] = mapped_column(String(8))
     sensor: Mapped[str] = mapped_column(String(16))
     kind: Mapped[str] = mapped_column(String(16))
     #: noise: factor; drift: metres per flight; quantisation: step in the sensor's unit
     value: Mapped[float] = mapped_column(Float)
-    onset_flight: Mapped[int] = mapped_column(Integer)
-    status: Mapped[str] = mapped_column(String(16), default="pending")
     #: the first flight the simulator flew it on (a drift counts its flights from there)
     started_flight: Mapped[int | None] = mapped_column(Integer)
-    created_by: Mapped[str] = mapped_column(String(128))
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
-    cancelled_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
 
 
-class SensorGroundTruth(Base):
-    """What a sensor injection did to one simulated flight (never in the flight log): the
-    noise factor, the LVDT offset added [m] or the quantisation step applied."""
+class SensorGroundTruth(FlightTruth, Base):
+    """What a sensor injection did to one simulated flight: the noise factor, the LVDT offset
+    added [m] or the quantisation step applied."""
 
     __tablename__ = "sensor_ground_truth"
     __table_args__ = (UniqueConstraint("sensor_injection_id", "flight_code",
                                        name="uq_sensor_ground_truth_injection_flight"),)
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     sensor_injection_id: Mapped[int] = mapped_column(ForeignKey("sensor_injections.id"),
                                                      index=True)
-    flight_code: Mapped[str] = mapped_column(String(64))
-    flight_number: Mapped[int] = mapped_column(Integer)
     applied: Mapped[float] = mapped_column(Float)
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 
-class SimCondition(Base):
+class SimCondition(StationItem, Base):
     """A simulation condition a test-station operator sets on an aircraft, from a flight on
     until cancelled: the air hotter or colder, the hinge loads or the commands larger, or the
     aircraft flying from another base (server.vocabulary.CONDITION_KINDS). Its own table: it
@@ -554,36 +559,25 @@ class SimCondition(Base):
     __tablename__ = "sim_conditions"
     __table_args__ = (_one_live("sim_conditions", "aircraft_id", "kind"),)
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id"), index=True)
     kind: Mapped[str] = mapped_column(String(16))
     #: ambient_offset: K; load_scale, command_scale: factor; load_offset: N per actuator;
     #: None for a base
     value: Mapped[float | None] = mapped_column(Float)
     #: the base flown from (kind base only)
     base: Mapped[str | None] = mapped_column(String(64))
-    onset_flight: Mapped[int] = mapped_column(Integer)
-    status: Mapped[str] = mapped_column(String(16), default="pending")
     started_flight: Mapped[int | None] = mapped_column(Integer)
-    created_by: Mapped[str] = mapped_column(String(128))
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
-    cancelled_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
 
 
-class ConditionGroundTruth(Base):
-    """What a condition did to one simulated flight (never in the flight log): the value
-    flown, or for a base the flight's ground temperature drawn from its climate [degC]."""
+class ConditionGroundTruth(FlightTruth, Base):
+    """What a condition did to one simulated flight: the value flown, or for a base the
+    flight's ground temperature drawn from its climate [degC]."""
 
     __tablename__ = "condition_ground_truth"
     __table_args__ = (UniqueConstraint("condition_id", "flight_code",
                                        name="uq_condition_ground_truth_condition_flight"),)
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     condition_id: Mapped[int] = mapped_column(ForeignKey("sim_conditions.id"), index=True)
-    flight_code: Mapped[str] = mapped_column(String(64))
-    flight_number: Mapped[int] = mapped_column(Integer)
     applied: Mapped[float] = mapped_column(Float)
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
 
 # ---------------------------------------------------------------------------------------------

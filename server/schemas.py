@@ -38,6 +38,7 @@ from server.vocabulary import (
     SENSORS,
     FlightStatus,
     JobStatus,
+    StationStatus,
 )
 
 __all__ = [
@@ -345,9 +346,31 @@ MAX_NOISE_FACTOR = 50.0
 MAX_DRIFT_M_PER_FLIGHT = 1e-3
 
 
-class SensorInjectionCreate(BaseModel):
+#: a sensor injection's or a condition's start: it lasts until cancelled
+UntilCancelledOnset = Annotated[int, Field(
+    ge=0, le=100_000, description="Aircraft flight number it starts at; 0 = the next flight. "
+    "It lasts until cancelled."), JsonInteger]
+
+
+class CheckedSpec(BaseModel):
+    """A station item's create body whose values its kind's rule checks together
+    (:meth:`problem`: why they are refused, None when they are fine)."""
+
     model_config = ConfigDict(extra="forbid")
     aircraft: Identifier
+
+    def problem(self) -> str | None:
+        return None
+
+    @model_validator(mode="after")
+    def _values_in_bounds(self) -> CheckedSpec:
+        problem = self.problem()
+        if problem:
+            raise ValueError(problem)
+        return self
+
+
+class SensorInjectionCreate(CheckedSpec):
     position: Position
     sensor: Literal[SENSORS] = Field(  # type: ignore[valid-type]  # as Position
         description="current (channels ia ib ic) | voltage (va vb vc) | resolver (theta) | "
@@ -362,16 +385,10 @@ class SensorInjectionCreate(BaseModel):
         + "; stuck (current, voltage): the reading, within the converter's range (64 A, "
         "512 V); stuck (resolver): the shaft angle, within +-pi rad; clipped (current, "
         "voltage): the level, above 0, within that range"))
-    onset_flight: Annotated[int, Field(ge=0, le=100_000), JsonInteger] = Field(
-        0, description="Aircraft flight number it starts at; 0 = the next flight. It lasts "
-        "until cancelled.")
+    onset_flight: UntilCancelledOnset = 0
 
-    @model_validator(mode="after")
-    def _value_in_bounds(self) -> SensorInjectionCreate:
-        problem = sensor_value_problem(self.sensor, self.kind, self.value)
-        if problem:
-            raise ValueError(problem)
-        return self
+    def problem(self) -> str | None:
+        return sensor_value_problem(self.sensor, self.kind, self.value)
 
 
 def sensor_value_problem(sensor: str, kind: str, value: float) -> str | None:
@@ -444,9 +461,7 @@ def condition_range(kind: str) -> str:
     return f"{side} {low:g}{unit} and at most {high:g}{unit}"
 
 
-class ConditionCreate(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    aircraft: Identifier
+class ConditionCreate(CheckedSpec):
     kind: Literal[CONDITION_KINDS] = Field(  # type: ignore[valid-type]
         description="ambient_offset: K added to the air temperature, ground to cruise; "
         "load_scale: the hinge load's scale (eq. 1 sigma_F, multiplied); load_offset: N added "
@@ -455,16 +470,10 @@ class ConditionCreate(BaseModel):
     value: Number | None = Field(None, description="; ".join(
         f"{kind} {condition_range(kind)}" for kind in CONDITION_BOUNDS) + "; none for a base")
     base: str | None = Field(None, description="kind base only: one of " + ", ".join(BASES))
-    onset_flight: Annotated[int, Field(ge=0, le=100_000), JsonInteger] = Field(
-        0, description="Aircraft flight number it starts at; 0 = the next flight. It lasts "
-        "until cancelled.")
+    onset_flight: UntilCancelledOnset = 0
 
-    @model_validator(mode="after")
-    def _value_in_bounds(self) -> ConditionCreate:
-        problem = condition_problem(self.kind, self.value, self.base)
-        if problem:
-            raise ValueError(problem)
-        return self
+    def problem(self) -> str | None:
+        return condition_problem(self.kind, self.value, self.base)
 
 
 def condition_problem(kind: str, value: float | None, base: str | None) -> str | None:
@@ -497,7 +506,7 @@ class InjectionRead(BaseModel):
     onset_flight: int
     time_to_failure_flights: int | None
     severity: float | None
-    status: str
+    status: StationStatus
     created_by: str
     created_at: datetime
     cancelled_at: datetime | None
@@ -517,10 +526,18 @@ class InjectionStatus(BaseModel):
     planned_failure_flight: FlightNumber | None = None
 
 
-class GroundTruthIn(BaseModel):
+class FlightRef(BaseModel):
+    """The simulated flight a ground truth is of."""
+
     model_config = ConfigDict(extra="forbid")
     flight: Identifier
     flight_number: FlightNumber
+
+
+class FaultTruth(BaseModel):
+    """A fault injection's true state on one flight."""
+
+    model_config = ConfigDict(extra="forbid")
     # the fault's size in its own unit (m, ohm, ...; every failure threshold is at most 1), and
     # as a fraction of the threshold: a fault is failed at 1, reported a little beyond at most
     severity: Number = Field(ge=0, le=MAX_SEVERITY)
@@ -528,9 +545,37 @@ class GroundTruthIn(BaseModel):
     true_rul_flights: FlightNumber | None = None
 
 
+class AppliedTruth(BaseModel):
+    """What a sensor injection or a condition did to one flight."""
+
+    model_config = ConfigDict(extra="forbid")
+    applied: Number = Field(ge=-1e6, le=1e6, description=(
+        "sensor injection: the noise factor, the LVDT offset added [m] or the quantisation "
+        "step; condition: the value flown (K, factor, N), or for a base the flight's ground "
+        "temperature drawn from its climate [degC]"))
+
+
+class GroundTruthIn(FaultTruth, FlightRef):
+    pass
+
+
 class GroundTruthRead(GroundTruthIn):
     model_config = ConfigDict(extra="ignore")
     injection_id: int
+
+
+class AppliedTruthIn(AppliedTruth, FlightRef):
+    pass
+
+
+class SensorTruthRead(AppliedTruthIn):
+    model_config = ConfigDict(extra="ignore")
+    sensor_injection_id: int
+
+
+class ConditionTruthRead(AppliedTruthIn):
+    model_config = ConfigDict(extra="ignore")
+    condition_id: int
 
 
 class SensorInjectionRead(BaseModel):
@@ -543,24 +588,10 @@ class SensorInjectionRead(BaseModel):
     value: float
     onset_flight: int
     started_flight: int | None
-    status: str
+    status: StationStatus
     created_by: str
     created_at: datetime
     cancelled_at: datetime | None
-
-
-class SensorTruthIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    flight: Identifier
-    flight_number: FlightNumber
-    applied: Number = Field(ge=-1e6, le=1e6, description=(
-        "what was applied on the flight: the noise factor, the LVDT offset added [m] or the "
-        "quantisation step"))
-
-
-class SensorTruthRead(SensorTruthIn):
-    model_config = ConfigDict(extra="ignore")
-    sensor_injection_id: int
 
 
 class ConditionRead(BaseModel):
@@ -571,25 +602,32 @@ class ConditionRead(BaseModel):
     base: str | None
     onset_flight: int
     started_flight: int | None
-    status: str
+    status: StationStatus
     created_by: str
     created_at: datetime
     cancelled_at: datetime | None
 
 
-class ConditionTruthIn(BaseModel):
+# what the simulator reports of one flight in one request (PUT /test-station/flights/{flight}):
+# per item of the flight plan, its id and its truth on the flight
+
+class FlownItem(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    flight: Identifier
-    flight_number: FlightNumber
-    applied: Number = Field(ge=-1e6, le=1e6, description=(
-        "what was flown: the value (K, factor, N), or for a base the flight's ground "
-        "temperature drawn from its climate [degC]"))
+    id: Annotated[int, Field(ge=1, le=MAX_INT32), JsonInteger]
 
 
-class ConditionTruthRead(ConditionTruthIn):
-    model_config = ConfigDict(extra="ignore")
-    condition_id: int
+class FaultFlown(FaultTruth, FlownItem):
+    planned_failure_flight: FlightNumber | None = Field(None, description=(
+        "Progressive faults: the flight the simulator steers the fault to fail at (recorded "
+        "while the injection is live)."))
+    failure_flight: FlightNumber | None = Field(None, description=(
+        "The flight from which the drive is failed, when this flight took the fault to its "
+        "threshold: the injection becomes failed, its actuator failed, and every flight it "
+        "was reported on gets its true RUL."))
 
+
+class AppliedFlown(AppliedTruth, FlownItem):
+    pass
 
 
 # ---------------------------------------------------------------------------------------------

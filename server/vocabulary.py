@@ -31,6 +31,8 @@ __all__ = [
     "alarming_positions",
     "FlightStatus",
     "JobStatus",
+    "StationStatus",
+    "STATION_LIVE",
     "BASES",
     "CONDITION_KINDS",
 ]
@@ -101,18 +103,12 @@ PAPER_TABLE2: dict[str, tuple[float, float]] = {
 #: climates, sim_worker/data the monthly temperatures)
 BASES: tuple[str, ...] = ("Turin", "Vancouver", "Abu Dhabi")
 
-#: the test station's simulation conditions on an aircraft (server/services/conditions.py, flown
+#: the test station's simulation conditions on an aircraft (server/services/station.py, flown
 #: by sim_worker/conditions.py): the ambient temperature offset [K], the scenario's eq. (1)
 #: load scale sigma_F and load offset sigma_F0 [N], its command scale sigma_x, and the base whose
 #: climate the flight's ground temperature is drawn from
 CONDITION_KINDS: tuple[str, ...] = ("ambient_offset", "load_scale", "load_offset",
                                     "command_scale", "base")
-
-
-#: the states in which a test-station item (fault injection, sensor injection, condition) is
-#: live: a pending one starts on its onset flight, an active one is being flown. The database
-#: holds one live item per slot by a partial unique index (server/models.py, migration 0013)
-STATION_LIVE: tuple[str, ...] = ("pending", "active")
 
 
 class FlightStatus(StrEnum):
@@ -138,6 +134,26 @@ class JobStatus(StrEnum):
     DONE = "done"
     #: failed its last attempt (or its worker vanished during it): never claimed again
     DEAD = "dead"
+
+
+class StationStatus(StrEnum):
+    """Where a test-station item (fault injection, sensor injection, condition) is; the API's
+    and the database's text, held by a CHECK constraint like the flight's."""
+
+    #: made by an operator, to start on its onset flight
+    PENDING = "pending"
+    #: being flown: the simulator has applied it to a flight
+    ACTIVE = "active"
+    #: ended by an operator, or by the replacement of the unit it sat on
+    CANCELLED = "cancelled"
+    #: a fault injection whose actuator reached the failure threshold
+    FAILED = "failed"
+
+
+#: the states in which a test-station item is live: a pending one starts on its onset flight,
+#: an active one is being flown. The database holds one live item per slot by a partial unique
+#: index (server/models.py, migration 0013)
+STATION_LIVE: tuple[str, ...] = (StationStatus.PENDING.value, StationStatus.ACTIVE.value)
 
 
 def is_winglet(position: str | None) -> bool:

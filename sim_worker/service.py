@@ -1,25 +1,27 @@
 """The sim worker as a service: fly the simulated fleet, honour test-station injections, upload
 every flight over REST and report ground truth (``sim-worker run``).
 
-Per aircraft and flight number ``n`` (flight id ``<tail>-F<n:05d>``), in this order:
+Per aircraft and flight number ``n`` (flight id ``<tail>-F<n:05d>``), three requests:
 
-1. pick up the aircraft's live injection (pending -> active at its onset flight; a cancelled
-   injection or a replaced actuator clears the fault);
-2. report the ground truth of flight ``n`` (true severity during the flight) -- idempotent;
-   likewise what each live sensor injection of the aircraft applies on it (:mod:`.sensors`);
-   each live condition's (:mod:`.conditions`) once the flight is flown, before its upload;
-3. simulate flight ``n`` (its sensor injections in the sensor models the loops close on, its
-   conditions in its scenario and thermal model) and
-   upload it -- idempotent: the same seed gives the same bytes, and
-   the service answers 200 for bytes it already has;
-4. advance the fault by its law from what the flight did, steered to fail at the planned
-   flight (:mod:`.steering`: the operator's time to failure, or one drawn by the campaigns'
-   law, counted from the flight the fault started on; the plan is reported to the service when
-   the injection goes active); at the failure threshold mark the injection failed and
-   back-fill the true RUL of every reported flight (the true RUL is only known in hindsight).
+1. ``GET /test-station/plan?aircraft=&flight=n``: the aircraft (its installed units) and what
+   the test station has on flight ``n``: the live fault injection (taken up at its onset; a
+   cancelled injection or a replaced actuator clears the fault), the sensor injections and
+   the conditions;
+2. simulate flight ``n`` (its sensor injections in the sensor models the loops close on, its
+   conditions in its scenario and thermal model), then advance the fault by its law from what
+   the flight did, steered to fail at the planned flight (:mod:`.steering`: the operator's
+   time to failure, or one drawn by the campaigns' law, counted from the flight the fault
+   started on); ``PUT /test-station/flights/<flight id>``: every item's truth on the flight
+   at once (the fault's severity as the flight began, its planned failure flight, and at the
+   threshold the flight it fails from: the service marks the injection and the unit failed
+   and back-fills the true RUL of every reported flight, only known in hindsight; each sensor
+   injection's and condition's applied value, :data:`APPLIED`) -- idempotent, skipped when
+   nothing is on the flight;
+3. upload it -- idempotent: the same seed gives the same bytes, and the service answers 200
+   for bytes it already has.
 
 **A failed drive grounds its aircraft.** A flight-control actuator at failure is a no-go item:
-from the flight after the failure the aircraft does not fly (``fly`` returns ``"grounded"``,
+from the flight the drive fails from the aircraft does not fly (``fly`` returns ``"grounded"``,
 nothing is uploaded or reported) until the failed unit is replaced (its serial changes on the
 service, which then holds a healthy unit and has ended the injection). The fault is never
 healed while the unit is installed: not when its injection is no longer live (a failed
@@ -47,7 +49,7 @@ import numpy as np
 from server.flightlog import write_parquet
 
 from .conditions import from_api as conditions_from_api
-from .faults import FaultState, advance_fault, healthy
+from .faults import FaultState, FlightSummary, advance_fault, healthy
 from .fleet import FLEET_BASES, Aircraft, build_aircraft
 from .flight import flight_start, reference_summary, simulate_flight
 from .sensors import SensorInjection, degrade
@@ -58,6 +60,20 @@ __all__ = ["Api", "ApiError", "SimFleetRunner", "fleet_plan"]
 log = logging.getLogger("sim_worker.service")
 
 _RETRYABLE = {429, 500, 502, 503, 504}
+
+
+def _condition_applied(doc: dict[str, Any], n: int, summary: FlightSummary) -> float:
+    """A condition's truth: its value, or for a base the ground temperature flown."""
+    return summary.ground_temp_c if doc["kind"] == "base" else float(doc["value"])
+
+
+#: the simulator's side of the test-station kinds it flies as given (the fault, whose state
+#: the runner steers, is its own): per kind of the flight plan, what an item did to flight
+#: ``n`` (its truth). Their effect on the flight is in ``fly``'s call to the simulation
+APPLIED: dict[str, Callable[[dict[str, Any], int, FlightSummary], float]] = {
+    "sensor_injections": lambda doc, n, summary: SensorInjection.from_api(doc, n).applied(n),
+    "conditions": _condition_applied,
+}
 
 
 class ApiError(RuntimeError):
@@ -191,30 +207,31 @@ class SimFleetRunner:
             offset += len(page["items"])
             if offset >= page["total"] or not page["items"]:
                 break
-        reported = 0  # the last flight whose ground truth was reported
-        live = self._live_injection(run)
-        if live is not None and live["status"] == "active":
-            truth = self.api.request("GET", f"/test-station/injections/{live['id']}/ground-truth"
-                                     ).json()
-            if truth:
-                latest = truth[-1]
-                reported = int(latest["flight_number"])
-                # the driver history is not stored: the plan restarts from its prior
-                self._start(run, live, int(truth[0]["flight_number"]))
-                run.fault = replace(run.fault, severity=float(latest["severity"]))
-                if run.plan is not None:
-                    run.plan = replace(run.plan, state=run.fault)
-                if live.get("failure_flight") is not None:
-                    run.failed_at = int(live["failure_flight"])
-        run.next_flight = max(1, last + 1, reported)
+        # a flight's truth is reported before its upload: the next flight may be one reported
+        # and not uploaded, flown again from the same state (harmless)
+        run.next_flight = last + 1
+        faults = self._plan(run)["injections"]
+        if not faults or faults[0]["status"] == "pending":
+            return
+        fault = faults[0]
+        truth = self.api.request("GET", f"/test-station/injections/{fault['id']}/ground-truth"
+                                 ).json()
+        if truth:
+            # the driver history is not stored: the plan restarts from its prior
+            self._start(run, fault, int(truth[0]["flight_number"]))
+            run.fault = replace(run.fault, severity=float(truth[-1]["severity"]))
+            if run.plan is not None:
+                run.plan = replace(run.plan, state=run.fault)
+            if fault.get("failure_flight") is not None:
+                run.failed_at = int(fault["failure_flight"])
+
+    def _plan(self, run: AircraftRun) -> dict[str, Any]:
+        """What the service has on the aircraft for its next flight: the aircraft (installed
+        units) and, per test-station kind, the items to fly."""
+        return self.api.request("GET", f"/test-station/plan?aircraft={run.aircraft.tail}"
+                                f"&flight={run.next_flight}").json()
 
     # -- injections ---------------------------------------------------------------------------
-
-    def _live_injection(self, run: AircraftRun) -> dict[str, Any] | None:
-        items = self.api.request("GET", f"/test-station/injections?aircraft="
-                                 f"{run.aircraft.tail}&limit=20").json()["items"]
-        live = [i for i in items if i["status"] in ("pending", "active")]
-        return live[0] if live else None
 
     def _start(self, run: AircraftRun, injection: dict[str, Any], start_flight: int) -> None:
         """Take up the injection's fault, started at ``start_flight``; the same on every
@@ -233,57 +250,23 @@ class SimFleetRunner:
         run.injection_id = int(injection["id"])
         run.failed_at = None
 
-    def _sensor_injections(self, run: AircraftRun, n: int) -> list[SensorInjection]:
-        """The aircraft's sensor injections live on flight ``n`` (the service holds their
-        state, so a restart or a cancel needs nothing kept here)."""
-        # by status: cancelled ones pile up on an aircraft and must not page live ones out
-        items = [i for status in ("active", "pending") for i in self.api.request(
-            "GET", f"/test-station/sensor-injections?aircraft={run.aircraft.tail}"
-            f"&status={status}&limit=500").json()["items"]]
-        return sorted((SensorInjection.from_api(i, n) for i in items
-                       if i["status"] == "active" or i["onset_flight"] <= n),
-                      key=lambda inj: inj.id)  # applied in the order they were made
-
-    def _live_conditions(self, run: AircraftRun, n: int) -> list[dict[str, Any]]:
-        """The aircraft's conditions live on flight ``n`` (API documents, oldest first)."""
-        items = [i for status in ("active", "pending") for i in self.api.request(
-            "GET", f"/test-station/conditions?aircraft={run.aircraft.tail}&status={status}"
-            "&limit=500").json()["items"]]
-        return sorted((i for i in items if i["status"] == "active" or i["onset_flight"] <= n),
-                      key=lambda i: int(i["id"]))
-
-    def _report_conditions(self, live: list[dict[str, Any]], flight_id: str, n: int,
-                           ground_temp_c: float) -> None:
-        """Each live condition's ground truth of the flight: its value, or for a base the
-        ground temperature flown (reported before the upload, so the analysis finds it)."""
-        for doc in live:
-            applied = ground_temp_c if doc["kind"] == "base" else float(doc["value"])
-            self.api.request("PUT", f"/test-station/conditions/{doc['id']}/ground-truth",
-                             operator=True, json={"flight": flight_id, "flight_number": n,
-                                                  "applied": applied})
-
     @staticmethod
     def _clear(run: AircraftRun) -> None:
         run.fault, run.injection_id, run.failed_at, run.plan = healthy(), None, None, None
 
-    def _sync_injection(self, run: AircraftRun, n: int) -> None:
+    def _sync_injection(self, run: AircraftRun, n: int, planned: list[dict[str, Any]]) -> None:
+        """Take up the fault the plan of flight ``n`` holds (a cancelled injection or a
+        replaced actuator has left it: the drive flies healthy)."""
         if run.failed_at is not None:
             return  # a failed drive keeps its fault until the unit is replaced
-        live = self._live_injection(run)
+        live = planned[0] if planned else None  # one fault at a time: the service holds it
         if run.injection_id is not None and (live is None or live["id"] != run.injection_id):
             log.info("%s: injection %s ended; flying healthy", run.aircraft.tail,
                      run.injection_id)
             self._clear(run)
         if live is None or live["id"] == run.injection_id:
             return
-        if live["status"] == "pending" and live["onset_flight"] > n:
-            return
         self._start(run, live, n)
-        if live["status"] == "pending":
-            planned = None if run.plan is None else run.plan.target_flight
-            self.api.request("POST", f"/test-station/injections/{live['id']}/status",
-                             operator=True, json={"status": "active",
-                                                  "planned_failure_flight": planned})
         log.info("%s: %s on %s from flight %d", run.aircraft.tail, run.fault.mode,
                  run.fault.position, n)
 
@@ -295,35 +278,39 @@ class SimFleetRunner:
         return {p: int(a["failed_at_flight"]) for p, a in aircraft_doc["actuators"].items()
                 if a.get("failed_at_flight") is not None}
 
-    def grounded(self, run: AircraftRun, aircraft_doc: dict[str, Any]) -> bool:
-        """The documented rule: an aircraft with a failed drive installed does not fly."""
-        return run.failed_at is not None or bool(self.failed_positions(aircraft_doc))
+    def grounded(self, run: AircraftRun, aircraft_doc: dict[str, Any], n: int) -> bool:
+        """The documented rule: an aircraft with a failed drive installed does not fly (a
+        drive failed from flight ``f`` still flew flight ``f - 1``)."""
+        failures = [*self.failed_positions(aircraft_doc).values(),
+                    *([run.failed_at] if run.failed_at is not None else [])]
+        return any(f <= n for f in failures)
 
     def fly(self, run: AircraftRun) -> str:
-        """Fly, report and upload the aircraft's next flight; return the upload outcome, or
-        ``"grounded"`` (nothing flown) while a failed drive is installed."""
+        """Fly, report and upload the aircraft's next flight (three requests: its plan, its
+        truth, the upload); return the upload outcome, or ``"grounded"`` (nothing flown)
+        while a failed drive is installed."""
         n = run.next_flight
         tail = run.aircraft.tail
-        doc = self.api.request("GET", f"/aircraft/{tail}").json()
-        self._adopt_serials(run, doc)
-        if self.grounded(run, doc):
+        plan = self._plan(run)
+        self._adopt_serials(run, plan["aircraft"])
+        if self.grounded(run, plan["aircraft"], n):
             return "grounded"
-        self._sync_injection(run, n)
+        self._sync_injection(run, n, plan["injections"])
         flight_id = f"{tail}-F{n:05d}"
-        if run.injection_id is not None:
-            self._report_truth(run, flight_id, n, None)
-        sensors = self._sensor_injections(run, n)
-        for inj in sensors:  # reported before the flight, as a fault's truth is
-            self.api.request("PUT", f"/test-station/sensor-injections/{inj.id}/ground-truth",
-                             operator=True, json={"flight": flight_id, "flight_number": n,
-                                                  "applied": inj.applied(n)})
-        live = self._live_conditions(run, n)
+        sensors = [SensorInjection.from_api(doc, n) for doc in plan["sensor_injections"]]
         rng = np.random.default_rng([self.seed, 13, run.index, n])
         flight_log, summary = simulate_flight(
             degrade(run.aircraft, sensors, n), run.fault, n, rng, flight_id=flight_id,
             started_at=flight_start(n), duration_s=self.duration_s,
-            conditions=conditions_from_api(live))
-        self._report_conditions(live, flight_id, n, summary.ground_temp_c)
+            conditions=conditions_from_api(plan["conditions"]))
+        flown = run.fault  # its truth on flight n is its state when the flight began
+        self._advance(run, summary, n)
+        truth = {"injections": self._fault_truth(run, flown, n), **{
+            key: [{"id": int(doc["id"]), "applied": applied(doc, n, summary)}
+                  for doc in plan[key]] for key, applied in APPLIED.items()}}
+        if any(truth.values()):  # before the upload: a restart flies it again, harmlessly
+            self.api.request("PUT", f"/test-station/flights/{flight_id}", operator=True,
+                             json={"aircraft": tail, "flight_number": n, **truth})
         response = self.api.request(
             "POST", "/flights", ok=(200, 202, 409, 422), content=write_parquet(flight_log),
             headers={"Content-Type": "application/vnd.apache.parquet"})
@@ -331,38 +318,37 @@ class SimFleetRunner:
             response.status_code]
         if outcome in ("conflict", "rejected"):
             log.error("%s: upload %s: %s", flight_id, outcome, _body(response))
-        if run.injection_id is not None and run.failed_at is None:
-            rng = np.random.default_rng([self.seed, 14, run.index, n])
-            if run.plan is not None:
-                run.plan = steer_and_advance(run.plan, summary, n, rng)
-                run.fault = run.plan.state
-            else:
-                run.fault = advance_fault(run.fault, summary, rng)
-            if run.fault.failed:
-                run.failed_at = n + 1
-                self._mark_failed(run, n + 1)
         run.next_flight = n + 1
         return outcome
 
-    def _report_truth(self, run: AircraftRun, flight_id: str, n: int, rul: int | None) -> None:
-        severity = float(run.fault.severity)
-        self.api.request(
-            "PUT", f"/test-station/injections/{run.injection_id}/ground-truth", operator=True,
-            json={"flight": flight_id, "flight_number": n, "severity": severity,
-                  "severity_norm": float(run.fault.severity_norm),
-                  "true_rul_flights": rul if rul is not None else (
-                      max(run.failed_at - n, 0) if run.failed_at is not None else None)})
+    def _advance(self, run: AircraftRun, summary: FlightSummary, n: int) -> None:
+        """The fault after flight ``n``, by its law from what the flight did; at the failure
+        threshold the drive is failed from the next flight."""
+        if run.injection_id is None or run.failed_at is not None:
+            return
+        rng = np.random.default_rng([self.seed, 14, run.index, n])
+        if run.plan is not None:
+            run.plan = steer_and_advance(run.plan, summary, n, rng)
+            run.fault = run.plan.state
+        else:
+            run.fault = advance_fault(run.fault, summary, rng)
+        if run.fault.failed:
+            run.failed_at = n + 1
+            log.info("%s: %s on %s reached failure at flight %d", run.aircraft.tail,
+                     run.fault.mode, run.fault.position, n + 1)
 
-    def _mark_failed(self, run: AircraftRun, failure_flight: int) -> None:
-        path = f"/test-station/injections/{run.injection_id}"
-        self.api.request("POST", path + "/status", operator=True,
-                         json={"status": "failed", "failure_flight": failure_flight})
-        for row in self.api.request("GET", path + "/ground-truth").json():
-            self.api.request("PUT", path + "/ground-truth", operator=True, json={
-                **{k: row[k] for k in ("flight", "flight_number", "severity", "severity_norm")},
-                "true_rul_flights": max(failure_flight - int(row["flight_number"]), 0)})
-        log.info("%s: %s on %s reached failure at flight %d", run.aircraft.tail, run.fault.mode,
-                 run.fault.position, failure_flight)
+    @staticmethod
+    def _fault_truth(run: AircraftRun, flown: FaultState, n: int) -> list[dict[str, Any]]:
+        """The fault's truth on flight ``n`` (none without one): its state as the flight
+        began, its plan, and the flight it fails from once known (the service then gives
+        every reported flight its true RUL)."""
+        if run.injection_id is None:
+            return []
+        return [{"id": run.injection_id, "severity": float(flown.severity),
+                 "severity_norm": float(flown.severity_norm),
+                 "true_rul_flights": None if run.failed_at is None else max(run.failed_at - n, 0),
+                 "planned_failure_flight": None if run.plan is None else run.plan.target_flight,
+                 "failure_flight": run.failed_at}]
 
     # -- the loop -----------------------------------------------------------------------------
 

@@ -214,6 +214,6 @@ def test_an_injection_the_service_refuses_is_not_taken_for_an_earlier_one(  # ty
         tmp_path, monkeypatch) -> None:
     """Only the service's conflict for an existing injection means "injected on an earlier
     run"; any other refusal stops the demo."""
-    monkeypatch.setattr("server.demo.DEMO_INJECTIONS", [("SIM01", "WT", "NOSUCH", 9, None)])
-    with pytest.raises(Unprocessable, match="Unknown fault mode"):
+    monkeypatch.setattr("server.demo.DEMO_INJECTIONS", [("SIM01", "WT", "REWEAR", 9, None)])
+    with pytest.raises(Unprocessable, match="winglet pair only"):
         prepare_demo(Settings(data_dir=tmp_path / "demo"), n_aircraft=2, seed=1)

@@ -313,3 +313,67 @@ def test_one_pending_training_from_0014(settings: Settings) -> None:
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
+
+
+def _station_item(conn, table: str, id_: int, status: str, slot: int = 9) -> None:  # type: ignore[no-untyped-def]
+    """A row of one test-station table with ``status`` in slot ``slot`` (of 1-9): the
+    aircraft of a fault injection, the sensor of a sensor injection, a condition's kind."""
+    import sqlalchemy as sa
+
+    columns = {"injections": (":slot", "position, fault_mode", "'WT', 'DMD'"),
+               "sensor_injections": ("1", "position, sensor, kind, value",
+                                     "'WT', :name, 'noise', 2"),
+               "sim_conditions": ("1", "kind, value", ":name, 1")}[table]
+    conn.execute(sa.text(
+        f"INSERT INTO {table} (id, aircraft_id, {columns[1]}, onset_flight, status, created_by, "
+        f"created_at) VALUES (:id, {columns[0]}, {columns[2]}, 0, :status, 't', "
+        "CURRENT_TIMESTAMP)"), {"id": id_, "status": status, "slot": slot, "name": f"s{slot}"})
+
+
+def test_station_items_hold_their_status_to_the_vocabulary_from_0015(
+        settings: Settings) -> None:
+    """0015 holds the three test-station tables' ``status`` to StationStatus: rows of every
+    status written before it pass, another is refused by the database, one live item per slot
+    still holds (the partial index survives SQLite's table rebuild) and a second ended one is
+    no slot; 0014 again allows any text."""
+    import pytest
+    import sqlalchemy as sa
+    from sqlalchemy.exc import IntegrityError
+
+    from server.vocabulary import StationStatus
+
+    tables = ("injections", "sensor_injections", "sim_conditions")
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0014")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        for i in range(1, 10):
+            conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                                 "VALUES (:id, :tail, 'Turin', CURRENT_TIMESTAMP)"),
+                         {"id": i, "tail": f"I-MIG{i}"})
+        for table in tables:
+            for i, status in enumerate(StationStatus, start=1):
+                _station_item(conn, table, i, status, slot=i)
+    upgrade(url)
+    for table in tables:
+        assert _status_values(engine, table) == set(StationStatus)
+        for status in ("done", "PENDING"):
+            with pytest.raises(IntegrityError, match=f"ck_{table}_status"), \
+                    engine.begin() as conn:
+                _station_item(conn, table, 99, status)
+        with pytest.raises(IntegrityError), engine.begin() as conn:  # 1 holds a live one
+            _station_item(conn, table, 99, StationStatus.ACTIVE, slot=1)
+        with engine.begin() as conn:  # an ended one takes no slot
+            _station_item(conn, table, 99, StationStatus.CANCELLED, slot=1)
+
+    downgrade(url, "0014")
+    assert not {c["name"] for t in tables for c in inspect(engine).get_check_constraints(t)}
+    with engine.begin() as conn:  # free text again, as before 0015; the slots still held
+        _station_item(conn, "injections", 100, "done")
+        with pytest.raises(IntegrityError):
+            with conn.begin_nested():
+                _station_item(conn, "injections", 101, "pending", slot=1)
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

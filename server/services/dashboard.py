@@ -14,14 +14,12 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from server.services import analysis as analysis_service
-from server.services import conditions as condition_service
 from server.services import fleet as fleet_service
 from server.services import flights as flight_service
 from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
-from server.services import sensor_injections as sensor_service
-from server.services import test_station as station_service
+from server.services import station, station_faults
 from server.services import urgency as urgency_rule
 from server.vocabulary import (
     FAULT_MODES,
@@ -159,26 +157,28 @@ def _under_by_code(session: Session, actuator: Any) -> dict[str, list[tuple[str,
     flights: fault and sensor injections at its position, conditions on its aircraft."""
     tail, position = actuator.aircraft.tail, actuator.position
     out: dict[str, list[tuple[str, str]]] = {}
-    faults, _ = station_service.list_injections(session=session, tail=tail, status=None,
-                                                limit=100, offset=0)
+    faults, _ = station.list_(session=session, kind=station.FAULTS, tail=tail, status=None,
+                              limit=100, offset=0)
     for inj, _t in reversed(faults):
         if inj.position == position:
-            for gt in station_service.list_ground_truth(session=session, injection_id=inj.id):
+            for gt in station.list_truth(session=session, kind=station.FAULTS,
+                                         item_id=inj.id):
                 out.setdefault(gt.flight_code, []).append(
                     (f"fault {inj.fault_mode}", f"{position}.{OWN_FEATURE[inj.fault_mode]}"))
-    sensors, _ = sensor_service.list_(session=session, tail=tail, status=None, limit=100,
-                                      offset=0)
+    sensors, _ = station.list_(session=session, kind=station.SENSORS, tail=tail, status=None,
+                               limit=100, offset=0)
     for sensed, _t in reversed(sensors):
         if sensed.position == position:
             channels = ", ".join(f"{position}.{s}" for s, of in SENSOR_OF_SIGNAL.items()
                                  if of == sensed.sensor)
-            for st in sensor_service.list_truth(session=session, injection_id=sensed.id):
+            for st in station.list_truth(session=session, kind=station.SENSORS,
+                                         item_id=sensed.id):
                 out.setdefault(st.flight_code, []).append(
                     (f"{sensed.sensor} {sensed.kind} {sensed.value:g}", channels))
-    for code, rows in condition_service.flights_under(
-            session=session, aircraft_id=actuator.aircraft_id).items():
+    for code, rows in station.flights_under(session=session, kind=station.CONDITIONS,
+                                            aircraft_id=actuator.aircraft_id).items():
         out.setdefault(code, []).extend(
-            (condition_service.describe(c), CONDITION_MOVES[c.kind]) for c in rows)
+            (station.describe_condition(c), CONDITION_MOVES[c.kind]) for c, _truth in rows)
     return out
 
 
@@ -239,8 +239,8 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
 
     # Ground truth from the test station: injections at this aircraft/position, aligned to the
     # prognoses through the flight codes of the flights those prognoses were made on.
-    injections, _ = station_service.list_injections(session=session, tail=tail, status=None,
-                                                    limit=100, offset=0)
+    injections, _ = station.list_(session=session, kind=station.FAULTS, tail=tail,
+                                  status=None, limit=100, offset=0)
     # While a steered injection is live its true RUL is the test station's plan (the flights
     # to its planned failure); at failure the sim worker back-fills the true one.
     truth_by_code: dict[str, float] = {}
@@ -249,7 +249,7 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
         if inj.position != actuator.position:
             continue
         live_plan = inj.planned_failure_flight if inj.status in STATION_LIVE else None
-        for gt in station_service.list_ground_truth(session=session, injection_id=inj.id):
+        for gt in station.list_truth(session=session, kind=station.FAULTS, item_id=inj.id):
             if gt.true_rul_flights is not None:
                 truth_by_code[gt.flight_code] = float(gt.true_rul_flights)
             elif live_plan is not None:
@@ -318,33 +318,34 @@ def _at(values: Any, i: int) -> Any:
 def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
     """The test station's latest fault injections, sensor injections and conditions, each
     with its last ground truth, and the aircraft the forms offer."""
-    rows, total = station_service.list_injections(session=session, tail=None, status=None,
-                                                  limit=limit, offset=0)
-    items = []
-    for inj, tail in rows:
-        truth = station_service.list_ground_truth(session=session, injection_id=inj.id)
-        warning = station_service.span_warning(
-            session=session, fault_mode=inj.fault_mode,
-            time_to_failure_flights=inj.time_to_failure_flights) \
-            if inj.status in STATION_LIVE else None
-        items.append({"injection": inj, "tail": tail, "truth_count": len(truth),
-                      "truth_latest": truth[-1] if truth else None, "warning": warning,
-                      "live": inj.status in STATION_LIVE})
+    faults, total = station.list_(session=session, kind=station.FAULTS, tail=None,
+                                  status=None, limit=limit, offset=0)
     aircraft, _ = fleet_service.list_aircraft(session=session, base=None, limit=1000, offset=0)
-    return {"items": items, "total": total, "tails": [a.tail for a in aircraft],
-            "positions": POSITIONS, "modes": FAULT_MODES,
-            "progressive": PROGRESSIVE, "sensor_items": _sensor_items(session, limit),
-            "condition_items": _condition_items(session, limit)}
+    return {"items": _with_truth(session, station.FAULTS, faults, "injection",
+                                 warning=lambda row: _live_span_warning(session, row)),
+            "total": total, "tails": [a.tail for a in aircraft],
+            "positions": POSITIONS, "modes": FAULT_MODES, "progressive": PROGRESSIVE,
+            "sensor_items": _latest_with_truth(session, station.SENSORS, limit, "injection"),
+            "condition_items": _latest_with_truth(session, station.CONDITIONS, limit,
+                                                  "condition",
+                                                  what=station.describe_condition)}
 
 
-def _with_truth(rows: list[tuple[Any, str]], truth_of: Any, name: str,
+def _live_span_warning(session: Session, row: Any) -> str | None:
+    """A live fault's time to failure outside the active model's training spans, in words."""
+    if row.status not in STATION_LIVE:
+        return None
+    return station_faults.span_warning(session=session, fault_mode=row.fault_mode,
+                                       time_to_failure_flights=row.time_to_failure_flights)
+
+
+def _with_truth(session: Session, kind: station.Kind, rows: list[tuple[Any, str]], name: str,
                 **extra: Any) -> list[dict[str, Any]]:
     """Station items (``name``: the row), each with its tail, whether it is live and its
-    ground truth's count and last entry (what it applied); ``extra`` maps more keys to
-    functions of the row."""
+    truth's count and last entry; ``extra`` maps more keys to functions of the row."""
     items = []
     for row, tail in rows:
-        truth = truth_of(row.id)
+        truth = station.list_truth(session=session, kind=kind, item_id=row.id)
         items.append({name: row, "tail": tail, "truth_count": len(truth),
                       "truth_latest": truth[-1] if truth else None,
                       "live": row.status in STATION_LIVE,
@@ -352,18 +353,9 @@ def _with_truth(rows: list[tuple[Any, str]], truth_of: Any, name: str,
     return items
 
 
-def _sensor_items(session: Session, limit: int) -> list[dict[str, Any]]:
-    """The latest sensor injections, each with its last ground truth."""
-    rows, _ = sensor_service.list_(session=session, tail=None, status=None, limit=limit,
-                                   offset=0)
-    return _with_truth(rows, lambda i: sensor_service.list_truth(session=session,
-                                                                 injection_id=i), "injection")
-
-
-def _condition_items(session: Session, limit: int) -> list[dict[str, Any]]:
-    """The latest conditions, each with its last ground truth and what it does in words."""
-    rows, _ = condition_service.list_(session=session, tail=None, status=None, limit=limit,
-                                      offset=0)
-    return _with_truth(rows, lambda i: condition_service.list_truth(session=session,
-                                                                    condition_id=i),
-                       "condition", what=condition_service.describe)
+def _latest_with_truth(session: Session, kind: station.Kind, limit: int, name: str,
+                       **extra: Any) -> list[dict[str, Any]]:
+    """The latest items of ``kind``, each with its last truth."""
+    rows, _ = station.list_(session=session, kind=kind, tail=None, status=None, limit=limit,
+                            offset=0)
+    return _with_truth(session, kind, rows, name, **extra)

@@ -28,8 +28,7 @@ from server.phm.chain import ActuatorHealth
 from server.services.analysis import json_safe
 from server.services.fleet import get_actuator
 from server.services.health import close_alarms_of
-from server.services.sensor_injections import end_at as end_sensor_injections_at
-from server.services.test_station import end_injections_at
+from server.services.station import end_at as end_station_items_at
 
 __all__ = ["replace_actuator", "inspect_actuator", "defer_alarm", "audit_trail",
            "position_trail"]
@@ -64,9 +63,7 @@ def replace_actuator(*, session: Session, actuator_id: int, new_serial: str, by:
     closed = close_alarms_of(session=session, actuator_id=old.id, by=by.name,
                              note=f"Replaced by {new_serial} ({work_order}).",
                              resolution="replaced")
-    end_injections_at(session=session, aircraft_id=old.aircraft_id, position=old.position)
-    end_sensor_injections_at(session=session, aircraft_id=old.aircraft_id,
-                             position=old.position)
+    end_station_items_at(session=session, aircraft_id=old.aircraft_id, position=old.position)
     session.flush()
     new = Actuator(aircraft_id=old.aircraft_id, position=old.position, serial=new_serial)
     session.add(new)

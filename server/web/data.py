@@ -21,9 +21,8 @@ from pydantic import BaseModel
 from server.schemas import (
     CONDITION_UNITS,
     SENSOR_INJECTION_KINDS,
-    ConditionCreate,
-    SensorInjectionCreate,
 )
+from server.services import station
 from server.services.evaluation_status import read_progress
 from server.services.health import SensorFlight
 from server.vocabulary import BASES, CONDITION_KINDS, PAPER_TABLE2, SENSORS
@@ -81,15 +80,14 @@ SENSOR_KIND_LABELS = {"noise": "noise × factor", "drift": "drift per flight [m]
 
 @cache  # the schemas' and the vocabulary's: fixed while the process runs
 def station_forms() -> dict[str, Any]:
-    """What the station page's sensor and condition forms offer: the API's vocabulary, and
-    hints and bounds from its schemas (the server validates with the same schemas)."""
+    """What the station page's forms offer: the API's vocabulary, and hints and bounds from
+    each kind's schema (the server validates with the same schemas), by the kind's form."""
     return {"sensors": SENSORS, "bases": BASES,
             "sensor_kinds": {k: SENSOR_KIND_LABELS.get(k, k) for k in SENSOR_INJECTION_KINDS},
             "condition_kinds": {k: _condition_label(k) for k in CONDITION_KINDS},
-            "hints": {"sensor": _hints(SensorInjectionCreate),
-                      "condition": _hints(ConditionCreate)},
-            "onset": {"sensor": _int_bounds(SensorInjectionCreate, "onset_flight"),
-                      "condition": _int_bounds(ConditionCreate, "onset_flight")}}
+            "hints": {kind.form: _hints(kind.spec) for kind in station.KINDS},
+            "onset": {kind.form: _int_bounds(kind.spec, "onset_flight")
+                      for kind in station.KINDS}}
 
 
 def _condition_label(kind: str) -> str:

@@ -49,19 +49,13 @@ from server.schemas import (
     ActuatorDefer,
     ActuatorInspect,
     ActuatorReplace,
-    ConditionCreate,
     IdPath,
     IdQuery,
-    InjectionCreate,
-    SensorInjectionCreate,
 )
-from server.services import conditions as condition_service
-from server.services import dashboard
+from server.services import dashboard, station
 from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
-from server.services import sensor_injections as sensor_service
-from server.services import test_station as station_service
 from server.vocabulary import FEATURE_LABELS, MODE_NAMES
 from server.web import data, figures
 
@@ -435,114 +429,73 @@ def _station(request: Request, session: SessionDep, key: ApiKey, status_code: in
                    **dashboard.station_view(session=session), **data.station_forms())
 
 
-def _create_on_station(request: Request, session: SessionDep, csrf: str, failed: str,
-                       form: dict[str, str], schema: type[Body],
-                       create: Callable[[ApiKey, Body], object]) -> Response:
-    """An operator's create from a station form: the API's schema, then its service; the page
-    again with the form and the schema's or the service's message, or back to it once
-    committed."""
-    key = _check_post(request, session, csrf, "operate")
+async def _form_fields(request: Request) -> dict[str, str]:
+    """A form post's text fields (a station form's fields are its kind's schema's)."""
+    form = await request.form()
+    return {name: value for name, value in form.items() if isinstance(value, str)}
+
+
+FormFields = Annotated[dict[str, str], Depends(_form_fields)]
+
+
+def _create_on_station(request: Request, session: SessionDep, kind: station.Kind,
+                       fields: dict[str, str]) -> Response:
+    """An operator's create from the station form of ``kind``: the API's schema, then the
+    service; the page again with the form and the schema's or the service's message, or back
+    to it once committed."""
+    key = _check_post(request, session, fields.get("csrf", ""), "operate")
     if not isinstance(key, ApiKey):
         return key
+    form = {name: fields.get(name, "") for name in kind.spec.model_fields if name in fields}
     try:
         # form fields are strings: parsed as such, while JSON bodies keep strict integers;
         # an empty field is an absent one (the schema's default)
-        body = schema.model_validate_strings({k: v.strip() for k, v in form.items()
-                                              if v.strip()})
-        create(key, body)
+        spec = kind.spec.model_validate_strings({k: v.strip() for k, v in form.items()
+                                                 if v.strip()})
+        station.create(session=session, kind=kind, spec=spec, created_by=key.name)
     except ValidationError as exc:
         session.rollback()
-        return _station(request, session, key, 422, _form_error(exc), failed, form)
+        return _station(request, session, key, 422, _form_error(exc), kind.form, form)
     except DomainError as exc:
         session.rollback()
-        return _station(request, session, key, exc.status_code, exc.message, failed, form)
+        return _station(request, session, key, exc.status_code, exc.message, kind.form, form)
     session.commit()
     return RedirectResponse("/test-station", status_code=303)
 
 
-@router.post("/test-station/injections")
-def inject(request: Request, session: SessionDep, csrf: str = Form(""),
-           aircraft: str = Form(""), position: str = Form(""), fault_mode: str = Form(""),
-           onset_flight: str = Form(""), time_to_failure_flights: str = Form("")
-           ) -> Response:
-    def create(key: ApiKey, body: InjectionCreate) -> object:
-        return station_service.create_injection(
-            session=session, tail=body.aircraft, position=body.position,
-            fault_mode=body.fault_mode, onset_flight=body.onset_flight,
-            time_to_failure_flights=body.time_to_failure_flights, severity=body.severity,
-            created_by=key.name)
-
-    return _create_on_station(request, session, csrf, "fault", {
-        "aircraft": aircraft, "position": position, "fault_mode": fault_mode,
-        "onset_flight": onset_flight, "time_to_failure_flights": time_to_failure_flights},
-        InjectionCreate, create)
-
-
-@router.post("/test-station/sensor-injections")
-def degrade_sensor(request: Request, session: SessionDep, csrf: str = Form(""),
-                   aircraft: str = Form(""), position: str = Form(""), sensor: str = Form(""),
-                   kind: str = Form(""), value: str = Form(""), onset_flight: str = Form("")
-                   ) -> Response:
-    def create(key: ApiKey, body: SensorInjectionCreate) -> object:
-        return sensor_service.create(
-            session=session, tail=body.aircraft, position=body.position, sensor=body.sensor,
-            kind=body.kind, value=body.value, onset_flight=body.onset_flight,
-            created_by=key.name)
-
-    return _create_on_station(request, session, csrf, "sensor", {
-        "aircraft": aircraft, "position": position, "sensor": sensor, "kind": kind,
-        "value": value, "onset_flight": onset_flight}, SensorInjectionCreate, create)
-
-
-@router.post("/test-station/conditions")
-def set_condition(request: Request, session: SessionDep, csrf: str = Form(""),
-                  aircraft: str = Form(""), kind: str = Form(""), value: str = Form(""),
-                  base: str = Form(""), onset_flight: str = Form("")) -> Response:
-    def create(key: ApiKey, body: ConditionCreate) -> object:
-        return condition_service.create(
-            session=session, tail=body.aircraft, kind=body.kind, value=body.value,
-            base=body.base, onset_flight=body.onset_flight, created_by=key.name)
-
-    return _create_on_station(request, session, csrf, "condition", {
-        "aircraft": aircraft, "kind": kind, "value": value, "base": base,
-        "onset_flight": onset_flight}, ConditionCreate, create)
-
-
-@router.post("/test-station/injections/{injection_id}/cancel")
-def cancel_injection(request: Request, session: SessionDep, injection_id: IdPath,
-                     csrf: str = Form("")) -> Response:
-    return _cancel_on_station(request, session, csrf, lambda: station_service.cancel_injection(
-        session=session, injection_id=injection_id))
-
-
-@router.post("/test-station/sensor-injections/{injection_id}/cancel")
-def cancel_sensor_injection(request: Request, session: SessionDep, injection_id: IdPath,
-                            csrf: str = Form("")) -> Response:
-    return _cancel_on_station(request, session, csrf, lambda: sensor_service.cancel(
-        session=session, injection_id=injection_id))
-
-
-@router.post("/test-station/conditions/{condition_id}/cancel")
-def cancel_condition(request: Request, session: SessionDep, condition_id: IdPath,
-                     csrf: str = Form("")) -> Response:
-    return _cancel_on_station(request, session, csrf, lambda: condition_service.cancel(
-        session=session, condition_id=condition_id))
-
-
-def _cancel_on_station(request: Request, session: SessionDep, csrf: str,
-                       cancel: Callable[[], object]) -> Response:
+def _cancel_on_station(request: Request, session: SessionDep, kind: station.Kind,
+                       item_id: int, csrf: str) -> Response:
     """An operator's cancel from the station page: the page again with the error, or back to
     it once the cancel is committed."""
     key = _check_post(request, session, csrf, "operate")
     if not isinstance(key, ApiKey):
         return key
     try:
-        cancel()
+        station.cancel(session=session, kind=kind, item_id=item_id)
     except DomainError as exc:
         session.rollback()
         return _station(request, session, key, exc.status_code, exc.message)
     session.commit()
     return RedirectResponse("/test-station", status_code=303)
+
+
+def _add_station_forms(kind: station.Kind) -> None:
+    """The station page's create and cancel posts of one kind (``/test-station/<kind>``)."""
+
+    def create(request: Request, session: SessionDep, fields: FormFields) -> Response:
+        return _create_on_station(request, session, kind, fields)
+
+    def cancel(request: Request, session: SessionDep, item_id: IdPath,
+               csrf: str = Form("")) -> Response:
+        return _cancel_on_station(request, session, kind, item_id, csrf)
+
+    router.post(f"/test-station/{kind.path}", name=f"create_{kind.key}")(create)
+    router.post(f"/test-station/{kind.path}/{{item_id}}/cancel",
+                name=f"cancel_{kind.key}")(cancel)
+
+
+for _kind in station.KINDS:
+    _add_station_forms(_kind)
 
 
 @router.get("/evaluation", response_class=HTMLResponse)

@@ -3,7 +3,7 @@ left, a closed alarm claims no live urgency, an alarm keeps the class it was rai
 changes are its events), a no-fault-found leaves no prognosis standing.
 
 Alarm rows are written as the analysis writes them (``server/services/analysis.py``), the
-failure as the test station reports it (``server/services/test_station.py``)."""
+failure as the test station reports it (``server/services/station_faults.py``)."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ from fastapi.testclient import TestClient
 from sqlalchemy import select
 
 from server.db import session_scope
-from server.models import Actuator, Alarm, Flight, HealthRecord, Prognosis
-from server.services import analysis
+from server.models import Actuator, Alarm, Flight, HealthRecord, Injection, Prognosis
+from server.schemas import InjectionCreate
+from server.services import analysis, station, station_faults
 from server.services import health as health_service
-from server.services import test_station as station_service
 from server.services.urgency import ACT_WITHIN, urgency
 from tests.api.conftest import auth
 from tests.web.seed import add_alarm, rul_document
@@ -42,11 +42,11 @@ def test_a_failed_unit_reports_no_remaining_life(app, client, keys, aircraft) ->
         s.get(Alarm, alarm_id).rul_low_flights = 9.0
     assert _alarm_item(client, keys, alarm_id)["rul_median_flights"] == 11.0
     with session_scope(factory) as s:
-        inj = station_service.create_injection(
-            session=s, tail=aircraft, position="WT", fault_mode="DMD", onset_flight=0,
-            time_to_failure_flights=60, severity=None, created_by="test")
-        s.flush()
-        station_service.update_injection_status(session=s, injection_id=inj.id,
+        inj = station.create(session=s, kind=station.FAULTS, created_by="test",
+                             spec=InjectionCreate(aircraft=aircraft, position="WT",
+                                                  fault_mode="DMD", onset_flight=0,
+                                                  time_to_failure_flights=60))
+        station_faults.set_status(session=s, row=s.get(Injection, inj.id),
                                                 status="failed", failure_flight=71)
 
     item = _alarm_item(client, keys, alarm_id)

@@ -16,7 +16,8 @@ from typing import Any
 
 import pytest
 
-from server.services import test_station as station_service
+from server.models import Injection
+from server.services import station_faults
 from tests.browser.test_dashboard import (  # noqa: F401  (fixtures of this module's own)
     Console,
     Live,
@@ -72,7 +73,7 @@ def units(live: Live) -> Units:  # noqa: F811  (the imported fixture)
     the third WL1 has flown 59 flights of a 60-flight life: its 5 % RUL quantile is 0.6."""
     failed = seed_results(live.factory, tail=live.tails[1])  # type: ignore[arg-type]
     with live.factory() as s:  # type: ignore[operator]
-        station_service.update_injection_status(session=s, injection_id=failed.injection_id,
+        station_faults.set_status(session=s, row=s.get(Injection, failed.injection_id),
                                                 status="failed", failure_flight=71)
         s.commit()
     due = seed_results(live.factory, tail=live.tails[2], n_flights=59)  # type: ignore[arg-type]

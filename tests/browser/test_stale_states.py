@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import re
 
-from server.services import test_station as station_service
+from server.models import Injection
+from server.services import station_faults
 from tests.browser.test_dashboard import (  # noqa: F401  (fixtures of this module's own)
     Console,
     Live,
@@ -30,7 +31,7 @@ def test_a_failed_unit_shows_no_life_and_the_pair_row_names_it(live: Live, brows
     seed = seed_results(live.factory, tail=tail, position="WL1")  # type: ignore[arg-type]
     add_alarm(live.factory, tail=tail, position="WL2", fault_mode="DMD", rul=40.0)  # type: ignore[arg-type]
     with live.factory() as s:  # type: ignore[operator]
-        station_service.update_injection_status(session=s, injection_id=seed.injection_id,
+        station_faults.set_status(session=s, row=s.get(Injection, seed.injection_id),
                                                 status="failed", failure_flight=71)
         s.commit()
     context = browser.new_context(viewport={"width": 1280, "height": 800})

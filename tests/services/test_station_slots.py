@@ -12,8 +12,8 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from server.errors import Conflict
 from server.models import Injection, SensorInjection, SimCondition
-from server.services import conditions, fleet, sensor_injections, test_station
-from server.services.station_items import add_live
+from server.schemas import ConditionCreate, InjectionCreate, SensorInjectionCreate
+from server.services import fleet, station
 
 SERIALS = {"WL1": "S-1", "WL2": "S-2", "WT": "S-3"}
 
@@ -44,16 +44,25 @@ def _condition(aircraft_id: int, **kw: Any) -> SimCondition:
                         value=5.0, onset_flight=0, created_by="t", status="pending")
 
 
+SPECS = {"injection": (station.FAULTS, InjectionCreate(
+    aircraft="I-SLOT", position="WT", fault_mode="DMD", onset_flight=0,
+    time_to_failure_flights=100)),
+         "sensor": (station.SENSORS, SensorInjectionCreate(
+             aircraft="I-SLOT", position="WT", sensor="lvdt", kind="noise", value=2.0,
+             onset_flight=0)),
+         "condition": (station.CONDITIONS, ConditionCreate(
+             aircraft="I-SLOT", kind="ambient_offset", value=5.0, onset_flight=0))}
+
+
 def _create(kind: str, s: Session) -> Any:
-    if kind == "injection":
-        return test_station.create_injection(
-            session=s, tail="I-SLOT", position="WT", fault_mode="DMD", onset_flight=0,
-            time_to_failure_flights=100, severity=None, created_by="t")
-    if kind == "sensor":
-        return sensor_injections.create(session=s, tail="I-SLOT", position="WT", sensor="lvdt",
-                                        kind="noise", value=2.0, onset_flight=0, created_by="t")
-    return conditions.create(session=s, tail="I-SLOT", kind="ambient_offset", value=5.0,
-                             base=None, onset_flight=0, created_by="t")
+    registered, spec = SPECS[kind]
+    return station.create(session=s, kind=registered, spec=spec, created_by="t")
+
+
+def _add_live(s: Session, row: Any) -> None:
+    """``row`` inserted as the service inserts a new item once its check has passed."""
+    s.add(row)
+    s.flush()
 
 
 ROWS: dict[str, Callable[..., Any]] = {"injection": _injection, "sensor": _sensor,
@@ -68,9 +77,10 @@ def test_a_racing_second_live_item_is_a_409_not_a_second_row(
         first.commit()
         aircraft_id = row.aircraft_id
     with factory() as racing:  # its check ran before the first committed: straight to insert
+        registered, spec = SPECS[kind]
         with pytest.raises(Conflict) as refused:
-            add_live(racing, ROWS[kind](aircraft_id), lambda: Conflict("taken", code="taken"))
-        assert refused.value.code == "taken"
+            station.add_live(racing, registered, ROWS[kind](aircraft_id), spec)
+        assert "concurrently" in refused.value.message
         racing.rollback()
         assert racing.query(type(row)).count() == 1
 
@@ -83,9 +93,9 @@ def test_a_cancelled_item_frees_its_slot_and_other_slots_stay_free(
         s.commit()
         aircraft_id = row.aircraft_id
         if kind == "sensor":  # another sensor of the same actuator is another slot
-            add_live(s, _sensor(aircraft_id, sensor="current"), lambda: Conflict("x"))
+            _add_live(s, _sensor(aircraft_id, sensor="current"))
         if kind == "condition":  # another kind of condition on the same aircraft too
-            add_live(s, _condition(aircraft_id, kind="load_scale"), lambda: Conflict("x"))
+            _add_live(s, _condition(aircraft_id, kind="load_scale"))
         with pytest.raises(Conflict):
             _create(kind, s)  # the service's own check: the friendly 409
         s.rollback()

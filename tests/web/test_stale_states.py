@@ -6,7 +6,8 @@ class at raising and its later change; the model's alarm level on the confidence
 from __future__ import annotations
 
 from server.db import session_scope
-from server.services import test_station as station_service
+from server.models import Injection
+from server.services import station_faults
 from server.web.routes import csrf_token
 from tests.web.seed import add_alarm, seed_class_change, seed_results
 from tests.web.test_honest_diagnosis import _figure
@@ -19,7 +20,7 @@ def test_a_failed_unit_shows_no_life_and_the_pair_row_names_it(app, client, keys
     seed = seed_results(factory, tail=aircraft, position="WL1")
     add_alarm(factory, tail=aircraft, position="WL2", fault_mode="DMD", rul=40.0)
     with session_scope(factory) as s:
-        station_service.update_injection_status(session=s, injection_id=seed.injection_id,
+        station_faults.set_status(session=s, row=s.get(Injection, seed.injection_id),
                                                 status="failed", failure_flight=71)
     sign_in(client, keys["admin"])
     page = client.get(f"/actuators/{seed.actuator_id}").text
