@@ -131,9 +131,9 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
 
 
 def scale_config(scale: str, kind: str, render_every: int | None,
-                  span_flights: tuple[float, float] | None,
-                  span_draw: str | None = None,
-                  recordings_s: Iterable[float] | None = None) -> ScaleConfig:
+                 span_flights: tuple[float, float] | None,
+                 span_draw: str | None = None,
+                 recordings_s: Iterable[float] | None = None) -> ScaleConfig:
     cfg = SCALES[scale][kind]
     if recordings_s is not None:
         lengths = tuple(float(v) for v in recordings_s)

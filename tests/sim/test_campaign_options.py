@@ -283,7 +283,7 @@ def test_a_study_flight_is_its_twin_with_one_sensor_noisier(tmp_path) -> None:
     twin = next(s for s in plan if s.id == study.twin)
     aircraft = fleet_for("design", 1)[study.aircraft_index]
     noisier = with_sensor_noise(aircraft, [SensorFault(p, "resolver", "noise",
-                                                        SENSOR_STUDY_NOISE) for p in POSITIONS])
+                                                       SENSOR_STUDY_NOISE) for p in POSITIONS])
     mc = MotorConstants()
     floors = {}
     for name, spec, ac in (("twin", twin, aircraft), ("study", study, noisier)):

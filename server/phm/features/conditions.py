@@ -42,7 +42,7 @@ def winding_temperature(r_hat: float, motor: MotorConstants | None = None) -> fl
 
 
 def step_conditions(steps: ActuatorSteps, aero_gradient_n_per_m: float, aero_bias_n: float,
-                     r_hat: float, motor: MotorConstants | None) -> dict[str, float]:
+                    r_hat: float, motor: MotorConstants | None) -> dict[str, float]:
     """An actuator's operating conditions over the flight: design aero load and shaft speed
     (RMS), winding temperature from the resistance estimate (NaN without one)."""
     load_exp = -(aero_gradient_n_per_m * steps.x + aero_bias_n)  # N, design aero load

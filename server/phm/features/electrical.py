@@ -72,8 +72,8 @@ def flux_deficit(emf: np.ndarray, omega_e: np.ndarray, valid: np.ndarray, *,
     cfg = config or FeatureConfig()
     mc = motor or MotorConstants()
     return filtered_track(np.column_stack([emf * omega_e, omega_e * omega_e]), valid,
-                  partial(_dmd_combine, psi_nom=mc.flux_wb), filter_alpha(cfg),
-                  cfg.min_valid_steps)
+                          partial(_dmd_combine, psi_nom=mc.flux_wb), filter_alpha(cfg),
+                          cfg.min_valid_steps)
 
 
 def estimated_flux(f_dmd: float, motor: MotorConstants | None = None) -> float:
@@ -124,4 +124,4 @@ def voltage_imbalance(phase_voltage_ms: np.ndarray, valid: np.ndarray, *,
     """
     cfg = config or FeatureConfig()
     return filtered_track(phase_voltage_ms, valid, _bdo_combine, filter_alpha(cfg),
-                  cfg.min_valid_steps)
+                          cfg.min_valid_steps)

@@ -80,7 +80,7 @@ def _mtel_accumulators(torque: np.ndarray, x_rod: np.ndarray, speed: np.ndarray,
     x_rel_mm = 1e3 * (x_rod - (x_rod[valid].mean() if valid.any() else 0.0))
     s_dir = np.sign(speed)
     return normal_accumulators(np.column_stack([np.ones(n), x_rel_mm, s_dir,
-                                                 s_dir * x_rel_mm]), torque), s_dir
+                                                s_dir * x_rel_mm]), torque), s_dir
 
 
 def drag_weight(torque: np.ndarray, x_rod: np.ndarray, speed: np.ndarray, valid: np.ndarray,

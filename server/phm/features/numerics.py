@@ -105,7 +105,7 @@ def filter_alpha(config: FeatureConfig | None = None) -> float:
 
 
 def filtered_track(acc: np.ndarray, valid: np.ndarray, combine: Callable[[np.ndarray], np.ndarray],
-           alpha: float, min_valid: int = 1) -> FeatureTrack:
+                   alpha: float, min_valid: int = 1) -> FeatureTrack:
     """Filter accumulators ``acc`` (n, m) over valid steps and combine them into a feature."""
     n = acc.shape[0]
     series = np.full(n, np.nan)
@@ -183,7 +183,7 @@ def solve_normal(f: np.ndarray, k: int = 3) -> tuple[np.ndarray, np.ndarray]:
 
 
 def event_track(n_steps: int, steps: np.ndarray, vals: np.ndarray, alpha: float,
-                 absolute: bool = False, min_events: int = 1) -> FeatureTrack:
+                absolute: bool = False, min_events: int = 1) -> FeatureTrack:
     acc = np.zeros((n_steps, 2))
     valid = np.zeros(n_steps, dtype=bool)
     v = np.abs(vals) if absolute else vals

@@ -128,7 +128,7 @@ def rewear_feature(
     vel = np.gradient(pos, cfg.step_s) if n > 1 else np.zeros(n)
     steps, vals = _lost_motion_events(xb1 - xb2, pos, vel, cfg)
     return event_track(n, steps, vals, filter_alpha(cfg), absolute=cfg.rewear_absolute,
-                        min_events=cfg.min_events)
+                       min_events=cfg.min_events)
 
 
 def standby_play_feature(
@@ -161,7 +161,7 @@ def standby_play_feature(
     steps, vals = _stroke_end_lost_motion(xa[:n] - xs[:n], vel_a, vel_s, np.sign(iq_active[:n]),
                                           cfg)
     return event_track(n, steps, vals, filter_alpha(cfg), absolute=True,
-                        min_events=cfg.min_events)
+                       min_events=cfg.min_events)
 
 
 def _stroke_end_lost_motion(e: np.ndarray, vel_a: np.ndarray, vel_s: np.ndarray,

@@ -149,7 +149,7 @@ def validity_windows(steps: ActuatorSteps, *, config: FeatureConfig | None = Non
     n = steps.n_steps
     electrical_ok = steps.electrical_hz_peak < cfg.max_electrical_hz
     still = run_length_ok(np.abs(w_mean) < cfg.still_speed_rad_s,
-                           max(1, int(round(cfg.still_min_s / cfg.step_s))))
+                          max(1, int(round(cfg.still_min_s / cfg.step_s))))
     accel = np.gradient(w_mean, cfg.step_s) if n > 1 else np.zeros(n)
     steady_cruise = (electrical_ok & (steps.electrical_hz_mean > cfg.mtel_min_electrical_hz)
                      & (np.abs(accel) < cfg.steady_accel_rad_s2))
