@@ -24,7 +24,7 @@ from server.api import (
     test_station,
 )
 from server.api.openapi import document_errors
-from server.blobstore import open_blob_store
+from server.blobstore_factory import open_blob_store
 from server.boundedpool import BoundedPool
 from server.config import Settings
 from server.db import make_engine, make_session_factory

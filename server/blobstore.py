@@ -7,7 +7,8 @@ goes; :meth:`BlobStore.commit` then puts it in place under a key derived from th
 the file is fsynced and renamed; in the object store it is one PUT (multipart past a part's
 size, aborted on failure), which S3 makes visible whole or not at all. A crash leaves only a
 temporary file (or an unfinished multipart upload), which :meth:`BlobStore.sweep_tmp` removes
-at the next start. :func:`open_blob_store` is the one place a store is built from settings.
+at the next start. :func:`server.blobstore_factory.open_blob_store` builds the store the settings
+name; this module imports neither it nor the object store.
 """
 
 from __future__ import annotations
@@ -20,13 +21,10 @@ from abc import ABC, abstractmethod
 from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple
-
-if TYPE_CHECKING:
-    from server.config import Settings
+from typing import NamedTuple
 
 __all__ = ["BlobStore", "LocalBlobStore", "SpooledUpload", "StoredBlob", "BlobTooLarge",
-           "BlobStoreUnreachable", "open_blob_store", "files_under", "TMP_MAX_AGE_S"]
+           "BlobStoreUnreachable", "files_under", "TMP_MAX_AGE_S"]
 
 _HEX = set("0123456789abcdef")
 #: temporary files (and unfinished multipart uploads) older than this at start-up belong to
@@ -234,20 +232,6 @@ def files_under(root: Path) -> Iterator[tuple[Path, os.stat_result]]:
                     yield Path(entry.path), entry.stat(follow_symlinks=False)
             except FileNotFoundError:
                 continue
-
-
-def open_blob_store(settings: Settings) -> BlobStore:
-    """The store the settings name: the object store of ``HMSM_BLOB_URL`` when set, else the
-    data directory's ``blobs``. Its directories exist on return; nothing is contacted."""
-    store: BlobStore
-    if settings.blob_url is not None:
-        from server.blobstore_s3 import S3BlobStore  # boto3 loads only when it is used
-
-        store = S3BlobStore.from_settings(settings)
-    else:
-        store = LocalBlobStore(settings.blob_dir, settings.tmp_dir)
-    store.ensure_dirs()
-    return store
 
 
 def _sha256_of(path: Path) -> str:

@@ -49,7 +49,8 @@ def cmd_store(args: argparse.Namespace, settings: Settings) -> int:
     beside us, as in docker-compose.yml)."""
     import time
 
-    from server.blobstore import BlobStoreUnreachable, open_blob_store
+    from server.blobstore import BlobStoreUnreachable
+    from server.blobstore_factory import open_blob_store
 
     store = open_blob_store(settings)
     if settings.blob_url is None:

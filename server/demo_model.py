@@ -4,7 +4,7 @@ Training a model on the demo's first run means simulating a design campaign firs
 two cores before the URL appears. The demo instead starts on a model trained by our own
 commands on a seeded design campaign -- the ``DESIGN_SCALE`` design campaign of seed
 ``DESIGN_SEED`` (long healthy cycles of 300-400 flights, recordings of 60, 120 and 300 s, the
-test station's conditions: what a fleet and the station fly, sim_worker/campaign.py), streamed,
+test station's conditions: what a fleet and the station fly, sim_worker/campaign/), streamed,
 trained with seed ``TRAINING_SEED`` -- and ships the result. ``hmsm demo-model --out FILE``
 regenerates it (16 minutes on 2 idle cores); the RUL bands' calibration layers are then added by
 ``hmsm calibrate`` (docs/RESULTS.md). The suite cannot simulate that design in its budget: it

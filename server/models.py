@@ -30,7 +30,15 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-from server.vocabulary import FAULT_MODES, STATION_LIVE, FlightStatus, JobStatus, StationStatus
+from server.vocabulary import (
+    FAULT_MODES,
+    STATION_LIVE,
+    AlarmStatus,
+    FlightStatus,
+    JobStatus,
+    ModelVersionStatus,
+    StationStatus,
+)
 
 __all__ = [
     "JobKind",
@@ -52,7 +60,6 @@ __all__ = [
     "FlightTruth",
     "Injection",
     "GroundTruth",
-    "ALARM_STATUSES",
     "ALARM_RESOLUTIONS",
     "MAINTENANCE_KINDS",
     "MaintenanceAction",
@@ -309,7 +316,6 @@ class ApiKey(Base):
 # PHM results and the test station
 # ---------------------------------------------------------------------------------------------
 
-ALARM_STATUSES = ("open", "acknowledged", "closed")
 #: how a closed alarm was resolved: by a replacement, an inspection that found no fault (a
 #: false alarm), or closed by hand
 ALARM_RESOLUTIONS = ("replaced", "no_fault_found", "closed")
@@ -323,7 +329,8 @@ class ModelVersion(Base):
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(128))
-    status: Mapped[str] = mapped_column(String(16), default="training")  # training|ready|failed
+    status: Mapped[ModelVersionStatus] = mapped_column(status_type(ModelVersionStatus),
+                                                       default=ModelVersionStatus.TRAINING)
     active: Mapped[bool] = mapped_column(default=False)
     payload: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
     training: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
@@ -378,7 +385,8 @@ class Alarm(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     actuator_id: Mapped[int] = mapped_column(ForeignKey("actuators.id"), index=True)
     flight_id: Mapped[int] = mapped_column(ForeignKey("flights.id"))
-    status: Mapped[str] = mapped_column(String(16), default="open", index=True)
+    status: Mapped[AlarmStatus] = mapped_column(status_type(AlarmStatus), default=AlarmStatus.OPEN,
+                                                index=True)
     confidence: Mapped[float] = mapped_column(Float)
     #: the leading class now (it follows the evidence while the alarm is not closed)
     fault_mode: Mapped[str | None] = mapped_column(String(16))

@@ -36,8 +36,10 @@ from server.vocabulary import (
     FAULT_MODES,
     POSITIONS,
     SENSORS,
+    AlarmStatus,
     FlightStatus,
     JobStatus,
+    ModelVersionStatus,
     StationStatus,
 )
 
@@ -74,6 +76,7 @@ __all__ = [
     "Offset",
     "FlightStatusFilter",
     "JobStatusFilter",
+    "AlarmStatusFilter",
 ]
 
 # Literal over the vocabulary's tuples: Pydantic reads them at run time, mypy wants the values
@@ -136,6 +139,8 @@ def one_of(states: type[StrEnum]) -> str:
 #: the ``status`` filters of the flight and job lists
 FlightStatusFilter = Annotated[str | None, Query(pattern=one_of(FlightStatus))]
 JobStatusFilter = Annotated[str | None, Query(pattern=one_of(JobStatus))]
+#: the ``status`` filter of the alarm inbox
+AlarmStatusFilter = Annotated[str | None, Query(pattern=one_of(AlarmStatus))]
 
 T = TypeVar("T")
 
@@ -769,7 +774,7 @@ class AlarmRead(BaseModel):
     position: str
     actuator_id: int
     flight_id: int
-    status: str
+    status: AlarmStatus
     urgency: str | None = Field(description="replace_now | act_within | monitor | deferred; "
                                 "the inbox order (server/services/urgency.py; a 5 % RUL "
                                 "quantile under 1 flight is replace_now: due now); null once "
@@ -871,7 +876,7 @@ class ModelRead(BaseModel):
     model_config = ConfigDict(from_attributes=True)
     id: int
     name: str
-    status: str
+    status: ModelVersionStatus
     active: bool
     metrics: dict[str, Any]
     training: dict[str, Any]
@@ -883,7 +888,7 @@ class ModelRead(BaseModel):
 class ModelSummary(BaseModel):
     id: int
     name: str
-    status: str
+    status: ModelVersionStatus
     active: bool
     accuracy: float | None
     created_at: datetime

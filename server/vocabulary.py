@@ -1,5 +1,6 @@
 """The project's shared vocabulary: actuator positions, fault modes, feature names, the
-winglet-pair rule, the paper's reference figures, and the states of a flight and of a job.
+winglet-pair rule, the paper's reference figures, and the states of a flight, a job, an alarm
+and a model version.
 
 One owner for each of these facts; every other module (the simulator, the PHM chain, the
 services, the dashboard) imports them from here. Pure Python, no dependencies, so that
@@ -33,6 +34,8 @@ __all__ = [
     "JobStatus",
     "StationStatus",
     "STATION_LIVE",
+    "AlarmStatus",
+    "ModelVersionStatus",
     "BASES",
     "CONDITION_KINDS",
 ]
@@ -154,6 +157,29 @@ class StationStatus(StrEnum):
 #: an active one is being flown. The database holds one live item per slot by a partial unique
 #: index (server/models.py, migration 0013)
 STATION_LIVE: tuple[str, ...] = (StationStatus.PENDING.value, StationStatus.ACTIVE.value)
+
+
+class AlarmStatus(StrEnum):
+    """Where an alarm is in its handling (server/services/health.py): raised open, then
+    acknowledged, then closed; the API's and the database's text, held by a CHECK constraint
+    like the flight's."""
+
+    OPEN = "open"
+    ACKNOWLEDGED = "acknowledged"
+    #: resolved (its resolution says how): it claims no urgency any more
+    CLOSED = "closed"
+
+
+class ModelVersionStatus(StrEnum):
+    """Where a PHM model version is (server/services/models.py); the API's and the database's
+    text, held by a CHECK constraint like the flight's."""
+
+    #: its training job is queued or running
+    TRAINING = "training"
+    #: trained and stored: the only status that may be activated
+    READY = "ready"
+    #: the training gave up (the row keeps the error)
+    FAILED = "failed"
 
 
 def is_winglet(position: str | None) -> bool:

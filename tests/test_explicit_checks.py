@@ -11,7 +11,8 @@ import server.migrate
 from server.evaluation import runner
 from server.jobs.pipeline import analyze_flight_job
 from server.jobs.queue import ClaimedJob
-from sim_worker.campaign import PatternSpec, _constant_run, _fault_to_failure
+from sim_worker.campaign import PatternSpec
+from sim_worker.campaign.pattern import _constant_run, _fault_to_failure
 
 
 def test_an_analysis_job_without_a_flight_is_an_error() -> None:

@@ -377,3 +377,76 @@ def test_station_items_hold_their_status_to_the_vocabulary_from_0015(
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
+
+
+def _alarm_and_version(conn, id_: int, alarm: str, version: str) -> None:  # type: ignore[no-untyped-def]
+    """An alarm ``id_`` on its own flight ``id_`` of actuator 1, and a model version ``id_``."""
+    import sqlalchemy as sa
+
+    _insert_statuses(conn, id_, "analyzed", "done")
+    conn.execute(sa.text(
+        "INSERT INTO alarms (id, actuator_id, flight_id, status, confidence, features, "
+        "created_at) VALUES (:id, 1, :id, :status, 0.9, '[]', CURRENT_TIMESTAMP)"),
+        {"id": id_, "status": alarm})
+    conn.execute(sa.text(
+        "INSERT INTO model_versions (id, name, status, active, payload, training, metrics, "
+        "created_at) VALUES (:id, 'm', :status, false, '{}', '{}', '{}', CURRENT_TIMESTAMP)"),
+        {"id": id_, "status": version})
+
+
+def test_alarm_and_model_statuses_held_to_the_vocabulary_from_0016(settings: Settings) -> None:
+    """0016 holds ``alarms.status`` and ``model_versions.status`` to AlarmStatus and
+    ModelVersionStatus: a database holding another value is not changed, the upgrade names
+    the rows (in both tables); corrected, it upgrades, every status the code writes passes,
+    any other is refused by the database; 0015 again allows it."""
+    import pytest
+    import sqlalchemy as sa
+    from sqlalchemy.exc import IntegrityError
+
+    from server.vocabulary import AlarmStatus, ModelVersionStatus
+
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0015")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
+        conn.execute(sa.text("INSERT INTO actuators (id, aircraft_id, position, serial, "
+                             "installed_at) VALUES (1, 1, 'WT', 'S-MIG', CURRENT_TIMESTAMP)"))
+        for i, (alarm, version) in enumerate(zip(AlarmStatus, ModelVersionStatus, strict=True),
+                                             start=1):
+            _alarm_and_version(conn, i, alarm, version)  # every status the code writes
+        _alarm_and_version(conn, 8, "Open", "ready")
+        _alarm_and_version(conn, 9, "closed", "archived")
+    with pytest.raises(RuntimeError) as refused:
+        upgrade(url)
+    assert "alarms: 1 rows" in str(refused.value) and "8: 'Open'" in str(refused.value)
+    assert "model_versions: 1 rows" in str(refused.value)
+    assert "9: 'archived'" in str(refused.value)
+    with engine.connect() as conn:  # nothing changed: still at 0015, without the constraints
+        assert MigrationContext.configure(conn).get_current_revision() == "0015"
+    assert not {c["name"] for t in ("alarms", "model_versions")
+                for c in inspect(engine).get_check_constraints(t)}
+
+    with engine.begin() as conn:
+        conn.execute(sa.text("UPDATE alarms SET status = 'open' WHERE id = 8"))
+        conn.execute(sa.text("UPDATE model_versions SET status = 'failed' WHERE id = 9"))
+    upgrade(url)
+    assert _status_values(engine, "alarms") == set(AlarmStatus)
+    assert _status_values(engine, "model_versions") == set(ModelVersionStatus)
+    for alarm, version in (("reopened", "ready"), ("OPEN", "ready"), ("open", "deleted"),
+                           ("open", "READY")):
+        with pytest.raises(IntegrityError, match="ck_"), engine.begin() as conn:
+            _alarm_and_version(conn, 99, alarm, version)
+    with pytest.raises(IntegrityError, match="ck_alarms_status"), engine.begin() as conn:
+        conn.execute(sa.text("UPDATE alarms SET status = 'snoozed' WHERE id = 1"))
+
+    downgrade(url, "0015")
+    assert not {c["name"] for t in ("alarms", "model_versions")
+                for c in inspect(engine).get_check_constraints(t)}
+    with engine.begin() as conn:  # free text again, as before 0016
+        _alarm_and_version(conn, 99, "snoozed", "archived")
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

@@ -12,6 +12,7 @@ from server.schemas import (
     AlarmAction,
     AlarmEventRead,
     AlarmRead,
+    AlarmStatusFilter,
     GridCellRead,
     HealthRecordRead,
     IdPath,
@@ -80,7 +81,7 @@ def fleet(session: SessionDep, _: Reader, base: str | None = None) -> list[GridC
             summary="Alarm inbox: not closed first, then by urgency bucket (replace now, act "
                     "within N flights, monitor, deferred)")
 def alarms(session: SessionDep, _: Reader,
-           status: Annotated[str | None, Query(pattern="^(open|acknowledged|closed)$")] = None,
+           status: AlarmStatusFilter = None,
            aircraft: str | None = None,
            limit: Annotated[int, Query(ge=1, le=500)] = 100,
            offset: Offset = 0) -> Page[AlarmRead]:

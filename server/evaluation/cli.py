@@ -108,6 +108,7 @@ def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, 
     from server.db import make_engine, make_session_factory
     from server.errors import NotFound
     from server.services import models as model_service
+    from server.vocabulary import ModelVersionStatus
 
     if settings.is_sqlite and not settings.sqlite_file.exists() \
             and not settings.database_url:
@@ -126,7 +127,7 @@ def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, 
                     row = model_service.get_version(session=session, version_id=model_id)
                 except NotFound:
                     raise ValueError(f"model version {model_id} does not exist") from None
-            if row.status != "ready":
+            if row.status != ModelVersionStatus.READY:
                 raise ValueError(f"model version {row.id} is {row.status}")
             return read_model_document(row.payload), {
                 "source": f"model version {row.id} ({row.name})", "model_id": row.id}

@@ -29,7 +29,7 @@ from datetime import timedelta
 
 from sqlalchemy.orm import Session
 
-from server.blobstore import open_blob_store
+from server.blobstore_factory import open_blob_store
 from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.jobs import queue

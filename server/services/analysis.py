@@ -38,7 +38,7 @@ from server.phm.features import FlightFeatures
 from server.phm.prognosis import RulDistribution
 from server.services.urgency import RUL_LOW_QUANTILE
 from server.timing import StageClock
-from server.vocabulary import FlightStatus, JobStatus
+from server.vocabulary import AlarmStatus, FlightStatus, JobStatus
 
 __all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "mark_waiting", "reject",
            "mark_failed",
@@ -262,13 +262,14 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
     median = None if rul is None or not math.isfinite(rul.median) else float(rul.median)
     low = None if rul is None else _finite(rul.quantiles.get(RUL_LOW_QUANTILE))
     if out.new_alarm:
-        session.add(Alarm(actuator_id=act.id, flight_id=flight.id, status="open",
+        session.add(Alarm(actuator_id=act.id, flight_id=flight.id, status=AlarmStatus.OPEN,
                           confidence=out.max_confidence, fault_mode=out.fault_mode,
                           class_probability=prob, features=out.alarm_features,
                           rul_median_flights=median, rul_low_flights=low))
     elif out.alarm:
         open_alarm = session.scalar(select(Alarm).where(
-            Alarm.actuator_id == act.id, Alarm.status != "closed").order_by(Alarm.id.desc()))
+            Alarm.actuator_id == act.id, Alarm.status != AlarmStatus.CLOSED)
+            .order_by(Alarm.id.desc()))
         if open_alarm is not None:
             if open_alarm.fault_mode != out.fault_mode:
                 session.add(AlarmEvent(alarm_id=open_alarm.id, flight_id=flight.id,

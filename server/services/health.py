@@ -26,7 +26,7 @@ from server.models import (
 )
 from server.schemas import GridCellRead
 from server.services.urgency import Urgency, deferral_active, sort_key, urgency
-from server.vocabulary import WINGLET_PAIR
+from server.vocabulary import WINGLET_PAIR, AlarmStatus
 
 __all__ = ["alarm_urgency", "list_alarms", "acknowledge_alarm", "close_alarm",
            "health_records", "prognoses", "fleet_grid", "close_alarms_of",
@@ -61,7 +61,7 @@ class AlarmRow:
 def alarm_urgency(alarm: Alarm, actuator: Actuator, flights_seen: int,
                   now: datetime | None = None) -> tuple[Urgency | None, bool]:
     """(the alarm's bucket, None once it is closed; whether a deferral it had has expired)."""
-    if alarm.status == "closed":
+    if alarm.status == AlarmStatus.CLOSED:
         return None, False
     return _open_alarm_urgency(alarm, actuator, flights_seen, now)
 
@@ -107,7 +107,8 @@ def list_alarms(*, session: Session, status: str | None, tail: str | None, limit
 
 def _pair_key(row: AlarmRow) -> tuple[str, str | None] | None:
     a = row.alarm
-    if a.status == "closed" or row.actuator.position not in WINGLET_PAIR or not a.fault_mode:
+    if (a.status == AlarmStatus.CLOSED or row.actuator.position not in WINGLET_PAIR
+            or not a.fault_mode):
         return None
     return row.tail, a.fault_mode
 
@@ -135,14 +136,14 @@ def winglet_partner_alarm(*, session: Session, alarm_id: int) -> tuple[Alarm, Ac
     """The not-closed alarm in the same mode on the other drive of the winglet pair, if any."""
     alarm = _alarm(session, alarm_id)
     actuator = session.get(Actuator, alarm.actuator_id)
-    if (actuator is None or actuator.position not in WINGLET_PAIR or alarm.status == "closed"
-            or not alarm.fault_mode):
+    if (actuator is None or actuator.position not in WINGLET_PAIR
+            or alarm.status == AlarmStatus.CLOSED or not alarm.fault_mode):
         return None
     other = next(p for p in WINGLET_PAIR if p != actuator.position)
     found = session.execute(
         select(Alarm, Actuator).join(Actuator, Alarm.actuator_id == Actuator.id)
         .where(Actuator.aircraft_id == actuator.aircraft_id, Actuator.position == other,
-               Actuator.removed_at.is_(None), Alarm.status != "closed",
+               Actuator.removed_at.is_(None), Alarm.status != AlarmStatus.CLOSED,
                Alarm.fault_mode == alarm.fault_mode)
         .order_by(Alarm.id.desc()).limit(1)).first()
     return None if found is None else (found[0], found[1])
@@ -170,10 +171,10 @@ def _alarm(session: Session, alarm_id: int) -> Alarm:
 
 def acknowledge_alarm(*, session: Session, alarm_id: int, by: str, note: str | None) -> Alarm:
     row = _alarm(session, alarm_id)
-    if row.status != "open":
+    if row.status != AlarmStatus.OPEN:
         raise Conflict(f"Alarm {alarm_id} is {row.status}; only open alarms can be "
                        "acknowledged.", code="alarm_not_open")
-    row.status, row.acknowledged_by, row.acknowledged_at = "acknowledged", by, utcnow()
+    row.status, row.acknowledged_by, row.acknowledged_at = AlarmStatus.ACKNOWLEDGED, by, utcnow()
     if note:
         row.note = note
     return row
@@ -181,9 +182,9 @@ def acknowledge_alarm(*, session: Session, alarm_id: int, by: str, note: str | N
 
 def close_alarm(*, session: Session, alarm_id: int, by: str, note: str | None) -> Alarm:
     row = _alarm(session, alarm_id)
-    if row.status == "closed":
+    if row.status == AlarmStatus.CLOSED:
         raise Conflict(f"Alarm {alarm_id} is already closed.", code="alarm_closed")
-    row.status, row.closed_by, row.closed_at = "closed", by, utcnow()
+    row.status, row.closed_by, row.closed_at = AlarmStatus.CLOSED, by, utcnow()
     row.resolution = "closed"
     if note:
         row.note = (row.note + "\n" if row.note else "") + note
@@ -194,10 +195,10 @@ def close_alarms_of(*, session: Session, actuator_id: int, by: str, note: str,
                     resolution: str = "closed") -> list[Alarm]:
     """Maintenance: close every open or acknowledged alarm of an actuator, with how."""
     rows = list(session.scalars(select(Alarm).where(Alarm.actuator_id == actuator_id,
-                                                    Alarm.status != "closed")
+                                                    Alarm.status != AlarmStatus.CLOSED)
                                 .order_by(Alarm.id)))
     for row in rows:
-        row.status, row.closed_by, row.closed_at = "closed", by, utcnow()
+        row.status, row.closed_by, row.closed_at = AlarmStatus.CLOSED, by, utcnow()
         row.resolution = resolution
         row.deferred_until_flight = row.deferred_until = None
         row.note = (row.note + "\n" if row.note else "") + note
@@ -279,7 +280,7 @@ def actuator_urgency(*, session: Session, actuator: Actuator) -> tuple[Urgency, 
     """One actuator's bucket, its latest not-closed alarm and whether a deferral expired."""
     state = session.get(ActuatorState, actuator.id)
     alarm = session.scalar(select(Alarm).where(Alarm.actuator_id == actuator.id,
-                                               Alarm.status != "closed")
+                                               Alarm.status != AlarmStatus.CLOSED)
                            .order_by(Alarm.id.desc()).limit(1))
     if alarm is None:
         return urgency(failed_at_flight=actuator.failed_at_flight, alarm_open=False,
@@ -300,7 +301,7 @@ def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCellRea
         query = query.where(Aircraft.base == base)
     rows = session.execute(query.order_by(Aircraft.tail, Actuator.position)).all()
     alarms = {a.actuator_id: a for a in session.scalars(
-        select(Alarm).where(Alarm.status != "closed").order_by(Alarm.id))}
+        select(Alarm).where(Alarm.status != AlarmStatus.CLOSED).order_by(Alarm.id))}
     now = utcnow()
     cells = []
     for tail, base_name, act, state in rows:

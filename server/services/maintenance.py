@@ -29,6 +29,7 @@ from server.services.analysis import json_safe
 from server.services.fleet import get_actuator
 from server.services.health import close_alarms_of
 from server.services.station import end_at as end_station_items_at
+from server.vocabulary import AlarmStatus
 
 __all__ = ["replace_actuator", "inspect_actuator", "defer_alarm", "audit_trail",
            "position_trail"]
@@ -127,7 +128,7 @@ def defer_alarm(*, session: Session, actuator_id: int, by: ApiKey, work_order: s
         raise Conflict(f"Actuator {actuator_id} failed at flight {act.failed_at_flight}; a "
                        "failed unit cannot be deferred.", code="actuator_failed")
     alarm = session.scalar(select(Alarm).where(Alarm.actuator_id == act.id,
-                                               Alarm.status != "closed")
+                                               Alarm.status != AlarmStatus.CLOSED)
                            .order_by(Alarm.id.desc()).limit(1))
     if alarm is None:
         raise Conflict(f"Actuator {actuator_id} has no open alarm to defer.",

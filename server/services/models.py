@@ -17,7 +17,7 @@ from server.errors import Conflict, NotFound, StorageUnavailable
 from server.models import Job, JobKind, ModelVersion, utcnow
 from server.phm.chain import PhmModel, is_model_document, read_model_document
 from server.phm.detection import FaultDetector
-from server.vocabulary import JobStatus
+from server.vocabulary import JobStatus, ModelVersionStatus
 
 __all__ = ["create_version", "finish_version", "fail_version", "activate", "get_version",
            "active_version", "list_versions", "metrics_of", "store_trained", "active_model",
@@ -39,7 +39,7 @@ _DECODED_MAX = 4
 
 
 def create_version(*, session: Session, name: str, training: dict[str, Any]) -> ModelVersion:
-    row = ModelVersion(name=name, status="training", active=False, payload={},
+    row = ModelVersion(name=name, status=ModelVersionStatus.TRAINING, active=False, payload={},
                        training=training, metrics={})
     session.add(row)
     session.flush()
@@ -51,7 +51,7 @@ def finish_version(*, session: Session, version_id: int, payload: dict[str, Any]
                    ) -> ModelVersion:
     row = get_version(session=session, version_id=version_id)
     row.payload, row.training, row.metrics = payload, training, metrics
-    row.status, row.finished_at = "ready", utcnow()
+    row.status, row.finished_at = ModelVersionStatus.READY, utcnow()
     session.flush()
     if make_active:
         activate(session=session, version_id=version_id)
@@ -60,12 +60,12 @@ def finish_version(*, session: Session, version_id: int, payload: dict[str, Any]
 
 def fail_version(*, session: Session, version_id: int, error: str) -> None:
     row = get_version(session=session, version_id=version_id)
-    row.status, row.error, row.finished_at = "failed", error[-4000:], utcnow()
+    row.status, row.error, row.finished_at = ModelVersionStatus.FAILED, error[-4000:], utcnow()
 
 
 def activate(*, session: Session, version_id: int) -> ModelVersion:
     row = get_version(session=session, version_id=version_id)
-    if row.status != "ready":
+    if row.status != ModelVersionStatus.READY:
         raise Conflict(f"Model {version_id} is {row.status}; only a ready model can be "
                        "activated.", code="model_not_ready")
     session.execute(update(ModelVersion).where(ModelVersion.id != version_id)

@@ -56,7 +56,7 @@ from server.services import dashboard, station
 from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
-from server.vocabulary import FEATURE_LABELS, MODE_NAMES
+from server.vocabulary import FEATURE_LABELS, MODE_NAMES, AlarmStatus
 from server.web import data, figures
 
 __all__ = ["router", "COOKIE", "STATIC_DIR", "TEMPLATE_DIR", "csrf_token"]
@@ -255,7 +255,7 @@ def fleet_page(request: Request, key: SignedInKey, session: SessionDep, sort: st
 @router.get("/alarms", response_class=HTMLResponse)
 def alarms_page(request: Request, key: SignedInKey, session: SessionDep,
                 status: str | None = None) -> Response:
-    status = status if status in ("open", "acknowledged", "closed") else None
+    status = status if status in set(AlarmStatus) else None
     return _render(request, "alarms.html", key, **dashboard.alarms_view(session=session,
                                                                         status=status))
 
@@ -274,7 +274,7 @@ def _alarm_action(request: Request, session: SessionDep, alarm_id: int, note: st
         if partner.strip():
             pair = health_service.winglet_partner_alarm(session=session, alarm_id=alarm_id)
             if pair is not None and str(pair[0].id) == partner.strip() and (
-                    action == "close" or pair[0].status == "open"):
+                    action == "close" or pair[0].status == AlarmStatus.OPEN):
                 ids.append(pair[0].id)
         for i in ids:
             fn(session=session, alarm_id=i, by=key.name, note=note.strip()[:2000] or None)

@@ -102,12 +102,11 @@ def _interrupted_verification(out: Path, patterns: int) -> list[str]:
     from sim_worker.campaign import (
         SCALES,
         PatternTask,
-        _Progress,
-        _settings,
         execution_order,
         plan_campaign,
         run_pattern,
     )
+    from sim_worker.campaign.run import _Progress, _settings
 
     cfg, sink = SCALES["ci"]["verification"], FeatureSink(keep_raw_every=KEEP)
     options = {"bases": None, "noise_scale": 1.0, "sensor_faults": ()}

@@ -15,8 +15,6 @@ from server.phm.features import (
     ACTUATOR_FEATURES,
     AIRCRAFT_FEATURES,
     FeatureConfig,
-    _row_max,
-    _row_min,
     actuator_features,
     actuator_steps,
     block_mean,
@@ -25,6 +23,8 @@ from server.phm.features import (
     rewear_feature,
     standby_play_feature,
 )
+from server.phm.features.numerics import row_max, row_min
+from server.phm.features.steps import _cruise
 from server.vocabulary import POSITIONS, SIGNALS
 
 from .conftest import RS, make_actuator
@@ -66,8 +66,8 @@ def test_block_means_and_row_extremes_are_numpys_to_the_bit() -> None:
     special = np.array([0.0, -0.0, 1.0, -1.0, np.nan, np.inf, -np.inf])
     rows = np.array(np.meshgrid(special, special, special)).reshape(3, -1).T
     with np.errstate(invalid="ignore"):
-        assert _row_max(rows).tobytes() == rows.max(axis=1).tobytes()
-        assert _row_min(rows).tobytes() == rows.min(axis=1).tobytes()
+        assert row_max(rows).tobytes() == rows.max(axis=1).tobytes()
+        assert row_min(rows).tobytes() == rows.min(axis=1).tobytes()
 
 
 def test_healthy_features_are_physical() -> None:
@@ -259,10 +259,10 @@ def test_cruise_is_the_flight_s_coldest_air_whatever_the_day(offset_k: float) ->
     alt = np.clip(np.minimum(t, 1.0 - t) / 0.2, 0.0, 1.0)  # climb, cruise, descent
     air = 15.0 + (-40.0 - 15.0) * alt  # ground to the design cruise air
     cfg = FeatureConfig()
-    nominal = features_module._cruise(air, cfg)
+    nominal = _cruise(air, cfg)
     assert nominal.sum() == np.count_nonzero(air <= -37.0) > 0
-    assert np.array_equal(features_module._cruise(air + offset_k, cfg), nominal)
-    assert not features_module._cruise(np.full(1000, 15.0 + offset_k), cfg).any()
+    assert np.array_equal(_cruise(air + offset_k, cfg), nominal)
+    assert not _cruise(np.full(1000, 15.0 + offset_k), cfg).any()
 
 
 def test_config_validation() -> None:

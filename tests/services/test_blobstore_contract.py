@@ -23,7 +23,7 @@ def store(request: pytest.FixtureRequest, tmp_path: Path) -> BlobStore:
     if request.param == "local":
         blobs: BlobStore = LocalBlobStore(tmp_path / "blobs", tmp_path / "tmp")
     else:
-        from server.blobstore import open_blob_store
+        from server.blobstore_factory import open_blob_store
 
         s3 = request.getfixturevalue("s3_server")
         blobs = open_blob_store(Settings(data_dir=tmp_path, blob_url=f"s3://{s3.new_bucket()}/logs",
@@ -138,7 +138,7 @@ def _multipart_uploads(blobs) -> list[str]:  # type: ignore[no-untyped-def]
 
 
 def test_sweep_aborts_the_multipart_upload_of_a_killed_process(tmp_path, s3_server) -> None:  # type: ignore[no-untyped-def]
-    from server.blobstore import open_blob_store
+    from server.blobstore_factory import open_blob_store
 
     bucket = s3_server.new_bucket()
     blobs = open_blob_store(Settings(data_dir=tmp_path, blob_url=f"s3://{bucket}/logs",
@@ -157,7 +157,8 @@ def test_sweep_aborts_the_multipart_upload_of_a_killed_process(tmp_path, s3_serv
 
 def test_a_store_down_is_unreachable_not_missing(tmp_path) -> None:  # type: ignore[no-untyped-def]
     """Nothing listening: BlobStoreUnreachable (the API's 503) after the retries, quickly."""
-    from server.blobstore import BlobStoreUnreachable, open_blob_store
+    from server.blobstore import BlobStoreUnreachable
+    from server.blobstore_factory import open_blob_store
     from tests.s3_server import AWS_ENV, MotoS3
 
     with pytest.MonkeyPatch.context() as mp:

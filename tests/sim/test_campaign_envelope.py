@@ -15,11 +15,11 @@ from server.phm.recording import log_features
 from sim_worker.campaign import (
     SCALES,
     STATION_ENVELOPE,
-    _config_settings,
     block_conditions,
     plan_campaign,
     recording_s,
 )
+from sim_worker.campaign.run import _config_settings
 from sim_worker.conditions import NO_CONDITIONS, Conditions
 from sim_worker.faults import healthy
 from sim_worker.flight import simulate_flight

@@ -17,17 +17,13 @@ from sim_worker.campaign import (
     SENSOR_STUDY_NOISE,
     ParquetSink,
     SensorFault,
-    _at_flight,
-    _manifest,
-    _Progress,
-    _render,
-    _sensor_faults,
-    _settings,
-    _with_sensor_noise,
     fleet_for,
     plan_campaign,
     run_campaign,
 )
+from sim_worker.campaign.pattern import _render
+from sim_worker.campaign.run import _manifest, _Progress, _settings
+from sim_worker.campaign.sensor_faults import at_flight, canonical_sensor_faults, with_sensor_noise
 from sim_worker.cli import build_parser
 from sim_worker.faults import MODES, healthy
 from sim_worker.flight import draw_conditions, run_scenario
@@ -135,7 +131,7 @@ def test_sensor_faults_are_campaign_settings(tmp_path) -> None:
     cfg = SCALES["ci"]["design"]
     opts = {"bases": None, "noise_scale": 1.0}
     plain = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": ()}, ParquetSink())
-    faults = _sensor_faults(["WT.lvdt:noise=2", "WL1.lvdt:drift=1e-06"])
+    faults = canonical_sensor_faults(["WT.lvdt:noise=2", "WL1.lvdt:drift=1e-06"])
     faulty = _settings("design", 1, "ci", cfg, {**opts, "sensor_faults": faults}, ParquetSink())
     assert "sensor_faults" not in plain  # campaigns made before the option stay recognised
     assert faulty["sensor_faults"] == ["WL1.lvdt:drift=1e-06", "WT.lvdt:noise=2"]  # canonical
@@ -197,7 +193,7 @@ def test_lvdt_drift_shifts_the_rendered_winglet_lvdts(tmp_path) -> None:
 def test_lvdt_drift_moves_the_wingtip_rod_under_its_own_loop() -> None:
     aircraft = fleet_for("design", 1)[0]
     drift, index = 2e-5, 5
-    flown = _at_flight(aircraft, (SensorFault.parse(f"WT.lvdt:drift={drift}"),), index)
+    flown = at_flight(aircraft, (SensorFault.parse(f"WT.lvdt:drift={drift}"),), index)
     assert flown.offsets["WT"][3] == pytest.approx(aircraft.offsets["WT"][3] + drift * index)
     assert flown.offsets["WL1"] == aircraft.offsets["WL1"]
     k = POSITIONS.index("WT")
@@ -286,8 +282,8 @@ def test_a_study_flight_is_its_twin_with_one_sensor_noisier(tmp_path) -> None:
     study = next(s for s in plan if s.sensor_study == "resolver")
     twin = next(s for s in plan if s.id == study.twin)
     aircraft = fleet_for("design", 1)[study.aircraft_index]
-    noisier = _with_sensor_noise(aircraft, [SensorFault(p, "resolver", "noise",
-                                                        SENSOR_STUDY_NOISE) for p in POSITIONS])
+    noisier = with_sensor_noise(aircraft, [SensorFault(p, "resolver", "noise",
+                                                       SENSOR_STUDY_NOISE) for p in POSITIONS])
     mc = MotorConstants()
     floors = {}
     for name, spec, ac in (("twin", twin, aircraft), ("study", study, noisier)):

@@ -1,0 +1,223 @@
+"""Running one pattern (a task of the pool, :func:`run_pattern`): its flights simulated,
+each rendered one given to the campaign's :class:`FlightSink`, and its manifest entry.
+
+Fault-to-failure runs start with ``lead_flights`` healthy flights (the actuator's service
+before the fault, every one rendered), then advance the progression law every flight from the
+onset; only every ``render_every``-th flight after the onset (and the failure flight) is
+simulated at 12 kHz and given to the sink; the others use the quasi-static
+:func:`~sim_worker.flight.estimate_summary` of the same flight conditions (which agrees with
+the rendered flights on the wear drivers of either role), so a run's expected life does not
+depend on ``render_every``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from server.campaign_store import CampaignStore
+from server.flightlog import FlightLog, write_parquet
+from server.vocabulary import POSITIONS
+
+from ..conditions import NO_CONDITIONS
+from ..faults import A_PRIORI, FaultState, advance_fault, healthy, new_fault
+from ..fleet import Aircraft
+from ..flight import estimate_summary, flight_start, reference_summary, simulate_flight
+from .planning import PatternSpec, block_conditions, fleet_for, flight_rng, recording_s
+from .scales import MAX_FLIGHTS, SENSOR_STUDY_NOISE, ScaleConfig
+from .sensor_faults import SensorFault, at_flight, with_sensor_noise
+
+__all__ = ["FlightSink", "ParquetSink", "PatternTask", "run_pattern"]
+
+
+class FlightSink(Protocol):
+    """What becomes of a rendered flight: called in the worker that simulated it.
+
+    Returns the flight's file (relative to the campaign's store ``out``, or None if no file
+    was kept) and the data stored for it in place of the file (None: nothing). ``describe`` is
+    part of the campaign's settings (a resumed campaign must use the same sink); ``finish``
+    writes what the sink keeps beside the manifest, once every pattern is done.
+    """
+
+    def __call__(self, out: CampaignStore, rel: str, index: int, log: FlightLog,
+                 ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]: ...
+
+    def describe(self) -> dict[str, Any]: ...
+
+    def finish(self, out: CampaignStore, stored: dict[str, dict[str, Any]]) -> None: ...
+
+
+@dataclass(frozen=True)
+class ParquetSink:
+    """Every rendered flight written as a flight-log file (``ema-flightlog/1`` Parquet)."""
+
+    def __call__(self, out: CampaignStore | Path, rel: str, index: int, log: FlightLog,
+                 ground_temp_c: float) -> tuple[str | None, dict[str, Any] | None]:
+        CampaignStore.at(out).write(rel, write_parquet(log))
+        return rel, None
+
+    def describe(self) -> dict[str, Any]:
+        return {"sink": "parquet"}
+
+    def finish(self, out: CampaignStore | Path, stored: dict[str, dict[str, Any]]) -> None:
+        return None
+
+
+def _render(out: CampaignStore, aircraft: Aircraft, spec: PatternSpec, fault: FaultState,
+            index: int, cfg: ScaleConfig, sink: FlightSink,
+            sensor_faults: tuple[SensorFault, ...] = ()
+            ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
+    flight_id = f"{spec.id}-{index:04d}"
+    start = flight_start(index, day_offset=spec.day_offset)
+    log, summary = simulate_flight(at_flight(aircraft, sensor_faults, index), fault, index,
+                                   flight_rng(spec, index, 0), flight_id=flight_id,
+                                   started_at=start, duration_s=recording_s(cfg, spec, index),
+                                   conditions=block_conditions(cfg, spec, index))
+    rel, stored = sink(out, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
+                       _ground_temp(summary))
+    return flight_id, rel, summary, stored
+
+
+def _ground_temp(summary: Any) -> float:
+    return round(float(summary.ground_temp_c), 3)
+
+
+def _flight_entry(flight_id: str, rel: str | None, index: int, fault: FaultState, summary: Any,
+                  failure: int | None, started_at: str) -> dict[str, Any]:
+    return {
+        "flight": flight_id,
+        "index": index,
+        "file": rel,
+        "started_at": started_at,
+        "severity": float(fault.severity) if fault.mode != "healthy" else 0.0,
+        "severity_norm": float(fault.severity_norm),
+        "true_rul_flights": None if failure is None else int(failure - index),
+        "block_hours": float(summary.block_hours),
+        "ground_temp_c": _ground_temp(summary),
+        "measured_summary": {p: {k: round(v, 6) for k, v in asdict(s).items()}
+                             for p, s in summary.actuators.items()},
+    }
+
+
+@dataclass(frozen=True)
+class PatternTask:
+    """Everything a worker needs to run one pattern (it rebuilds the aircraft itself)."""
+
+    out: CampaignStore | str  # a store, or a directory / s3:// URL (AWS S3)
+    kind: str
+    seed: int
+    cfg: ScaleConfig
+    spec: PatternSpec
+    options: dict[str, Any]
+    sink: FlightSink
+
+
+def run_pattern(task: PatternTask) -> dict[str, Any]:
+    """Run one pattern (a task of the pool): its manifest entry, and under ``"stored"`` what
+    the sink kept for each rendered flight, by flight id."""
+    cfg, spec, sink = task.cfg, task.spec, task.sink
+    out = CampaignStore.at(task.out)
+    aircraft = fleet_for(task.kind, task.seed, **task.options)[spec.aircraft_index]
+    if spec.sensor_study is not None:
+        aircraft = with_sensor_noise(aircraft, [
+            SensorFault(p, spec.sensor_study, "noise", SENSOR_STUDY_NOISE) for p in POSITIONS])
+    rendered: list[tuple[int, str, str | None, FaultState, Any]] = []
+    stored: dict[str, dict[str, Any]] = {}
+    failure: int | None = None
+
+    faults = tuple(task.options.get("sensor_faults", ()))
+
+    def render(fault: FaultState, index: int) -> Any:
+        fid, rel, summ, data = _render(out, aircraft, spec, fault, index, cfg, sink, faults)
+        rendered.append((index, fid, rel, fault, summ))
+        if data is not None:
+            stored[fid] = data
+        return summ
+
+    if spec.mode == "healthy" or spec.mode in A_PRIORI:
+        threshold = _constant_run(spec, render)
+    else:
+        threshold, failure = _fault_to_failure(aircraft, spec, cfg, render)
+    flights = [_flight_entry(fid, rel, index, f, summ, failure,
+                             flight_start(index, day_offset=spec.day_offset).isoformat())
+               | _envelope_entry(cfg, spec, index)
+               for index, fid, rel, f, summ in rendered]
+    return {
+        "entry": {
+            "id": spec.id,
+            "aircraft": aircraft.tail,
+            "mode": spec.mode,
+            "position": spec.position,
+            "threshold": threshold,
+            "onset_flight": spec.onset,
+            "failure_flight": failure,
+            **_study_entry(spec),
+            "flights": flights,
+        },
+        "stored": stored,
+    }
+
+
+def _envelope_entry(cfg: ScaleConfig, spec: PatternSpec, index: int) -> dict[str, Any]:
+    """A flight's recording length and test-station conditions, for a scale that varies them
+    (ground truth; a scale that does not keeps its manifest as it was)."""
+    out: dict[str, Any] = {}
+    if cfg.recordings_s:
+        out["recording_s"] = recording_s(cfg, spec, index)
+    cond = block_conditions(cfg, spec, index)
+    if cond != NO_CONDITIONS:
+        out["conditions"] = {k: v for k, v in asdict(cond).items() if v is not None}
+    return out
+
+
+def _study_entry(spec: PatternSpec) -> dict[str, Any]:
+    if spec.sensor_study is None:
+        return {}
+    return {"sensor_study": {"sensor": spec.sensor_study, "noise": SENSOR_STUDY_NOISE,
+                             "twin": spec.twin}}
+
+
+def _position(spec: PatternSpec) -> str:
+    """The faulty actuator of a fault pattern; a fault pattern without one is an error."""
+    if spec.position is None:
+        raise ValueError(f"pattern {spec.id}: a {spec.mode} pattern needs a position")
+    return spec.position
+
+
+def _constant_run(spec: PatternSpec, render: Callable[[FaultState, int], Any]) -> float | None:
+    """A healthy cycle, or an a priori fault imposed from ``onset`` on; its threshold."""
+    fault_on = healthy()
+    if spec.mode in A_PRIORI:
+        fault_on = new_fault(spec.mode, _position(spec), np.random.default_rng([spec.seed, 7]))
+    for index in range(spec.n_flights):
+        render(fault_on if index >= spec.onset else healthy(), index)
+    return fault_on.threshold
+
+
+def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
+                      render: Callable[[FaultState, int], Any]
+                      ) -> tuple[float | None, int | None]:
+    """The healthy lead, then the fault advanced flight by flight to failure (every
+    ``render_every``-th flight and the failure flight rendered); threshold and failure flight."""
+    position = _position(spec)
+    ref = reference_summary(aircraft, position, duration_s=cfg.duration_s, seed=spec.seed)
+    fault = new_fault(spec.mode, position, np.random.default_rng([spec.seed, 7]),
+                      reference=ref, span_range=cfg.span_flights, span_draw=cfg.span_draw)
+    for index in range(spec.onset):
+        render(healthy(), index)
+    for index in range(spec.onset, spec.onset + MAX_FLIGHTS):
+        if fault.failed:
+            render(fault, index)
+            return fault.threshold, index
+        if (index - spec.onset) % cfg.render_every == 0:
+            summ = render(fault, index)
+        else:
+            summ = estimate_summary(aircraft, index, flight_rng(spec, index, 0),
+                                    started_at=flight_start(index, day_offset=spec.day_offset),
+                                    duration_s=cfg.duration_s)
+        fault = advance_fault(fault, summ, flight_rng(spec, index, 1))
+    return fault.threshold, None
