@@ -119,11 +119,23 @@ def imposed_conditions(aircraft: Aircraft, flight_index: int, rng: np.random.Gen
                    warp=imposed.warp(cond.warp))
 
 
-def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
-                 rng: np.random.Generator, *, t0_winding_c: float | None = None,
-                 active: tuple[str, ...] = POSITIONS) -> SimResult:
-    """Simulate ``scenario`` at 12 kHz with ``fault`` on its position (kernel call); the
-    drives not in ``active`` are in standby (each surface needs an active one)."""
+@dataclass(frozen=True)
+class KernelInputs:
+    """One flight's kernel inputs: its parameter rows, its surfaces' and its sensor-noise seeds
+    (the scenario holds the commands, loads and ambient)."""
+
+    scenario: Scenario
+    params: np.ndarray  # (3, N_PAR) one row per position, see params.P
+    surfaces: np.ndarray  # (2, N_SURF_PAR)
+    seeds: np.ndarray  # (3,) uint64, non-zero
+
+
+def kernel_inputs(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
+                  rng: np.random.Generator, *, t0_winding_c: float | None = None,
+                  active: tuple[str, ...] = POSITIONS) -> KernelInputs:
+    """Pack ``scenario`` with ``fault`` on its position for the kernel, and draw the sensor-noise
+    seeds from ``rng``; the drives not in ``active`` are in standby (each surface needs an
+    active one)."""
     t0 = float(scenario.t_amb[0] + 3.0) if t0_winding_c is None else t0_winding_c
     for s in set(SURFACE_OF.values()):
         if not any(SURFACE_OF[p] == s for p in active):
@@ -136,14 +148,29 @@ def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
         for pos in POSITIONS
     ])
     spar = np.stack([pack_surface(s) for s in _SURFACES])
-    n = scenario.t.shape[0]
     seeds = rng.integers(1, 2**63 - 1, size=len(POSITIONS), dtype=np.uint64)
+    return KernelInputs(scenario=scenario, params=par, surfaces=spar, seeds=seeds)
+
+
+def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
+                 rng: np.random.Generator, *, t0_winding_c: float | None = None,
+                 active: tuple[str, ...] = POSITIONS) -> SimResult:
+    """Simulate ``scenario`` at 12 kHz with ``fault`` on its position (kernel call); the
+    drives not in ``active`` are in standby (each surface needs an active one)."""
+    return run_kernel(kernel_inputs(aircraft, fault, scenario, rng, t0_winding_c=t0_winding_c,
+                                    active=active))
+
+
+def run_kernel(inp: KernelInputs) -> SimResult:
+    """One kernel call on packed inputs."""
+    scenario, par = inp.scenario, inp.params
+    n = scenario.t.shape[0]
     out = np.zeros((n, len(POSITIONS), N_SIG))
     surf = np.zeros((n, len(_SURFACES)))
     dbg = np.zeros((n, len(POSITIONS), N_DBG))
     acc = np.zeros((len(POSITIONS), N_ACC))
-    simulate(par, spar, scenario.x_cmd, scenario.f_ext, np.ascontiguousarray(scenario.t_amb),
-             seeds, out, surf, dbg, acc)
+    simulate(par, inp.surfaces, scenario.x_cmd, scenario.f_ext,
+             np.ascontiguousarray(scenario.t_amb), inp.seeds, out, surf, dbg, acc)
     return SimResult(scenario=scenario, signals=out, surfaces=surf, truth=dbg, acc=acc,
                      params=par)
 
