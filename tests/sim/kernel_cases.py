@@ -2,7 +2,8 @@
 winglet modes, sensor injections, station conditions, an open MOSFET on each leg and side, and
 lengths from 1.5 to 3 s; with the sha256 digests of the outputs the scalar kernel (one flight a
 call, before the kernel ran flights in lanes) gave for each, recorded on this project's
-reference machine (see tests/sim/test_kernel_regression.py for what the digests depend on).
+reference machine (see tests/sim/test_kernel_regression.py for what the digests depend on);
+tests/sim/test_kernel_lanes.py holds every lane of the kernel in lanes to them.
 
 Run ``python tests/sim/kernel_cases.py`` to print the digests of the kernel as it is now.
 """
@@ -57,7 +58,7 @@ CASES: dict[str, tuple] = {
     "standby REWEAR": (_fault("REWEAR", "WL1"), AS, 1, 3.0, (), NO_CONDITIONS, None),
     "resolver stuck": (_fault("healthy"), AA, 0, 2.0,
                        (_inj("WT", "resolver", "stuck", 0.3),), NO_CONDITIONS, None),
-    "current clipped, voltage noisy": (
+    "clipped I, noisy V": (
         _fault("healthy"), AA, 0, 2.5,
         (_inj("WL1", "current", "clipped", 2.0), _inj("WL2", "voltage", "noise", 3.0)),
         NO_CONDITIONS, None),
@@ -65,11 +66,11 @@ CASES: dict[str, tuple] = {
         _fault("healthy"), AS, 0, 2.0,
         (_inj("WL1", "lvdt", "drift", 2e-4), _inj("WT", "lvdt", "quantisation", 1e-4)),
         NO_CONDITIONS, None),
-    "hot, loaded, small commands": (
+    "hot, loaded, small x": (
         _fault("MTEL", "WT"), AA, 0, 2.5, (),
         Conditions(ambient_offset_k=15.0, load_scale=1.6, load_offset_n=300.0,
                    command_scale=0.7), None),
-    "cold, large commands, standby": (
+    "cold, large x, standby": (
         _fault("TTS", "WL1", 0.5), AS, 1, 2.0, (),
         Conditions(ambient_offset_k=-20.0, command_scale=1.4), None),
 }
@@ -119,10 +120,10 @@ SCALAR_DIGESTS: dict[str, str] = {
     "standby SE": "92296342903d447ffe38eb88f2dbfdc78e13387f9af51037b55318fd43c54089",
     "standby REWEAR": "a8e697e3f9062c63340458e8a910aece988f9834e2257ed5409af4205b8a3c77",
     "resolver stuck": "746d973fbfcc4da78965f3c19be56a8fd708d2af67b30fe905edf7c630338a98",
-    "current clipped, voltage noisy": "b848a6b1ff9081db9b1326fabbdbc55dd0a028086e5460d349f0916309912d24",
+    "clipped I, noisy V": "b848a6b1ff9081db9b1326fabbdbc55dd0a028086e5460d349f0916309912d24",
     "lvdt drift and coarse": "b766a4c313256f8506c6708f3637d16d0a41329eb321d04bb21668fb5a973f47",
-    "hot, loaded, small commands": "67af8d1bf0f7b938b120edcfbbc3307d904a9aa93448fb8c949720a20646035b",
-    "cold, large commands, standby": "b6907e00ce50b3f02c69657aea4189b3fb5519f0af3b53c88ec12943b46516fa",
+    "hot, loaded, small x": "67af8d1bf0f7b938b120edcfbbc3307d904a9aa93448fb8c949720a20646035b",
+    "cold, large x, standby": "b6907e00ce50b3f02c69657aea4189b3fb5519f0af3b53c88ec12943b46516fa",
 }
 
 
