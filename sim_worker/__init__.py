@@ -24,7 +24,11 @@ Public API (what the service's sim worker calls)::
   be built directly (e.g. an operator injecting a given severity).
 * ``simulate_flight(aircraft, fault, flight_index, rng, *, flight_id=None, started_at=None,
   duration_s=120.0) -> (FlightLog, FlightSummary)``. All draws come from ``rng`` (seed it per
-  aircraft and flight); the same seed gives the same bytes.
+  aircraft and flight); the same seed gives the same bytes. A batch of one of:
+* ``simulate_flights(specs: Sequence[FlightSpec], *, lanes=8) -> list[(FlightLog,
+  FlightSummary)]``: several independent flights (``FlightSpec`` holds ``simulate_flight``'s
+  arguments, each with its own ``rng``) simulated ``lanes`` at once in the kernel's SIMD lanes,
+  in the order of ``specs``, each bit for bit what ``simulate_flight`` gives for it alone.
 * ``advance_fault(fault, summary, rng) -> FaultState``: one flight of progression.
 * ``estimate_summary(aircraft, flight_index, rng, ...) -> FlightSummary``: what a flight would
   do, without the 12 kHz run (for flights that are not rendered; each winglet drive in its
@@ -49,7 +53,13 @@ from .faults import (
     new_fault,
 )
 from .fleet import BASES, POSITIONS, Aircraft, build_aircraft
-from .flight import estimate_summary, reference_summary, simulate_flight
+from .flight import (
+    FlightSpec,
+    estimate_summary,
+    reference_summary,
+    simulate_flight,
+    simulate_flights,
+)
 
 __all__ = [
     "MODES",
@@ -65,6 +75,8 @@ __all__ = [
     "new_fault",
     "advance_fault",
     "simulate_flight",
+    "simulate_flights",
+    "FlightSpec",
     "estimate_summary",
     "reference_summary",
     "run_campaign",

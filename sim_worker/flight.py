@@ -8,6 +8,7 @@ a fault-to-failure run that are not rendered) sees the same conditions as a simu
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from datetime import datetime, timedelta, timezone
 
@@ -29,8 +30,8 @@ from .fleet import (
     active_channels,
     draw_ground_temperature,
 )
-from .kernel import N_ACC, N_DBG, N_SIG, A, simulate
-from .params import OUT_HZ, EmaParams, pack_ema, pack_surface
+from .kernel import MAX_LANES, N_ACC, N_DBG, N_SIG, A, simulate
+from .params import OUT_HZ, EmaParams, P, pack_ema, pack_surface
 from .scenario import (
     CRUISE_TEMP_C,
     REFERENCE_DURATION_S,
@@ -48,7 +49,14 @@ __all__ = [
     "draw_conditions",
     "imposed_conditions",
     "run_scenario",
+    "run_kernel",
+    "run_kernels",
+    "kernel_inputs",
+    "KernelInputs",
+    "FlightSpec",
+    "LANES",
     "simulate_flight",
+    "simulate_flights",
     "estimate_summary",
     "flight_start",
     "reference_summary",
@@ -119,11 +127,23 @@ def imposed_conditions(aircraft: Aircraft, flight_index: int, rng: np.random.Gen
                    warp=imposed.warp(cond.warp))
 
 
-def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
-                 rng: np.random.Generator, *, t0_winding_c: float | None = None,
-                 active: tuple[str, ...] = POSITIONS) -> SimResult:
-    """Simulate ``scenario`` at 12 kHz with ``fault`` on its position (kernel call); the
-    drives not in ``active`` are in standby (each surface needs an active one)."""
+@dataclass(frozen=True)
+class KernelInputs:
+    """One flight's kernel inputs: its parameter rows, its surfaces' and its sensor-noise seeds
+    (the scenario holds the commands, loads and ambient)."""
+
+    scenario: Scenario
+    params: np.ndarray  # (3, N_PAR) one row per position, see params.P
+    surfaces: np.ndarray  # (2, N_SURF_PAR)
+    seeds: np.ndarray  # (3,) uint64, non-zero
+
+
+def kernel_inputs(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
+                  rng: np.random.Generator, *, t0_winding_c: float | None = None,
+                  active: tuple[str, ...] = POSITIONS) -> KernelInputs:
+    """Pack ``scenario`` with ``fault`` on its position for the kernel, and draw the sensor-noise
+    seeds from ``rng``; the drives not in ``active`` are in standby (each surface needs an
+    active one)."""
     t0 = float(scenario.t_amb[0] + 3.0) if t0_winding_c is None else t0_winding_c
     for s in set(SURFACE_OF.values()):
         if not any(SURFACE_OF[p] == s for p in active):
@@ -136,16 +156,65 @@ def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
         for pos in POSITIONS
     ])
     spar = np.stack([pack_surface(s) for s in _SURFACES])
-    n = scenario.t.shape[0]
     seeds = rng.integers(1, 2**63 - 1, size=len(POSITIONS), dtype=np.uint64)
-    out = np.zeros((n, len(POSITIONS), N_SIG))
-    surf = np.zeros((n, len(_SURFACES)))
-    dbg = np.zeros((n, len(POSITIONS), N_DBG))
-    acc = np.zeros((len(POSITIONS), N_ACC))
-    simulate(par, spar, scenario.x_cmd, scenario.f_ext, np.ascontiguousarray(scenario.t_amb),
-             seeds, out, surf, dbg, acc)
-    return SimResult(scenario=scenario, signals=out, surfaces=surf, truth=dbg, acc=acc,
-                     params=par)
+    return KernelInputs(scenario=scenario, params=par, surfaces=spar, seeds=seeds)
+
+
+def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
+                 rng: np.random.Generator, *, t0_winding_c: float | None = None,
+                 active: tuple[str, ...] = POSITIONS) -> SimResult:
+    """Simulate ``scenario`` at 12 kHz with ``fault`` on its position (kernel call); the
+    drives not in ``active`` are in standby (each surface needs an active one)."""
+    return run_kernel(kernel_inputs(aircraft, fault, scenario, rng, t0_winding_c=t0_winding_c,
+                                    active=active))
+
+
+def run_kernel(inp: KernelInputs) -> SimResult:
+    """One flight through the kernel: a batch of one."""
+    return run_kernels([inp])[0]
+
+
+def run_kernels(inputs: Sequence[KernelInputs], *, truth: bool = True) -> list[SimResult]:
+    """Flights through the kernel in one call, one lane each (:func:`kernel.simulate`, at most
+    ``kernel.MAX_LANES``); each result is the flight's alone, whatever flies beside it, and
+    views the batch's arrays. Without ``truth`` the true states are not recorded (their
+    ``truth`` has no samples). Every flight's positions must be on the same surfaces (they
+    are: :data:`fleet.SURFACE_OF`)."""
+    if not inputs:
+        return []
+    if len(inputs) > MAX_LANES:
+        raise ValueError(f"{len(inputs)} flights in one kernel call: at most {MAX_LANES}")
+    par = np.stack([inp.params for inp in inputs], axis=-1)
+    if np.any(par[:, P.SURF, :] != par[:, P.SURF, :1]):
+        raise ValueError("every flight of a batch needs its EMAs on the same surfaces")
+    lengths = np.array([inp.scenario.t.shape[0] for inp in inputs], dtype=np.int64)
+    if np.any(lengths < 1):
+        raise ValueError("a flight needs at least one output sample")
+    n = int(lengths.max())
+    n_ema, n_surf, lanes = par.shape[0], inputs[0].surfaces.shape[0], len(inputs)
+    # lane-major outputs, each sample written by the kernel (a lane runs on to n)
+    out = np.empty((lanes, n, n_ema, N_SIG))
+    surf = np.empty((lanes, n, n_surf))
+    dbg = np.empty((lanes, n if truth else 0, n_ema, N_DBG))
+    acc = np.empty((lanes, n_ema, N_ACC))
+    simulate(par, np.stack([inp.surfaces for inp in inputs], axis=-1),
+             _lanes([inp.scenario.x_cmd for inp in inputs], n),
+             _lanes([inp.scenario.f_ext for inp in inputs], n),
+             _lanes([inp.scenario.t_amb for inp in inputs], n),
+             np.stack([inp.seeds for inp in inputs], axis=-1), lengths, out, surf, dbg, acc)
+    return [SimResult(scenario=inp.scenario, signals=out[ln, :m], surfaces=surf[ln, :m],
+                      truth=dbg[ln, :m], acc=acc[ln], params=inp.params)
+            for ln, (inp, m) in enumerate(zip(inputs, lengths, strict=True))]
+
+
+def _lanes(series: list[np.ndarray], n: int) -> np.ndarray:
+    """Per-flight input series (samples first) stacked on a last lane axis, each run on to
+    ``n`` samples by repeating its last (what the kernel's lane does after the flight's end)."""
+    out = np.empty((n, *series[0].shape[1:], len(series)))
+    for ln, a in enumerate(series):
+        out[:a.shape[0], ..., ln] = a
+        out[a.shape[0]:, ..., ln] = a[-1]
+    return out
 
 
 def _q32(v: np.ndarray, lsb: float) -> np.ndarray:
@@ -182,12 +251,87 @@ def simulate_flight(
 ) -> tuple[FlightLog, FlightSummary]:
     """Simulate one flight and return its download (format v1) and what the actuators did;
     under active-standby the log's metadata names the flight's active channels. The test
-    station's ``conditions`` move its physics (:mod:`.conditions`), not its metadata."""
-    cond = imposed_conditions(aircraft, flight_index, rng, conditions, started_at=started_at)
-    scenario = build_scenario(cond.warp, cond.ground_temp_c, rng, duration_s=duration_s,
-                              cruise_temp_c=CRUISE_TEMP_C + conditions.ambient_offset_k)
-    active = active_channels(winglet_mode, flight_index)
-    res = run_scenario(aircraft, fault, scenario, rng, active=active)
+    station's ``conditions`` move its physics (:mod:`.conditions`), not its metadata. A batch
+    of one of :func:`simulate_flights`."""
+    return simulate_flights([FlightSpec(
+        aircraft, fault, flight_index, rng, flight_id=flight_id, started_at=started_at,
+        duration_s=duration_s, winglet_mode=winglet_mode, conditions=conditions)])[0]
+
+
+@dataclass(frozen=True)
+class FlightSpec:
+    """One flight to simulate: the arguments of :func:`simulate_flight`. ``rng`` is the
+    flight's own (seeded per aircraft and flight): its draws are made in a lone flight's
+    order, whatever flies beside it."""
+
+    aircraft: Aircraft
+    fault: FaultState
+    flight_index: int
+    rng: np.random.Generator
+    flight_id: str | None = None
+    started_at: datetime | None = None
+    duration_s: float = REFERENCE_DURATION_S
+    winglet_mode: WingletMode = DEFAULT_WINGLET_MODE
+    conditions: Conditions = NO_CONDITIONS
+
+
+#: flights per kernel call by default: 8 lanes fill the vector registers once (AVX-512, 8
+#: float64); 16 are about an eighth faster per flight and hold twice the memory
+#: (docs/BENCHMARKS.md)
+LANES = 8
+#: flights prepared at once per kernel call's worth, to group them by length (a kernel call
+#: runs to its longest flight) while holding only a few batches' scenarios
+_WINDOW_BATCHES = 4
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    spec: FlightSpec
+    cond: FlightConditions
+    active: tuple[str, ...]
+    inputs: KernelInputs
+
+
+def simulate_flights(specs: Sequence[FlightSpec], *, lanes: int = LANES
+                     ) -> list[tuple[FlightLog, FlightSummary]]:
+    """Simulate ``specs`` several at once, ``lanes`` flights per kernel call (each flight a
+    lane, flights of similar length together), and return each flight's download and summary,
+    in the order of ``specs``: each equals what :func:`simulate_flight` gives for its spec
+    alone, bit for bit (tests/sim/test_kernel_lanes.py). The flights are independent: a
+    campaign batches flights of different aircraft or patterns, not the next flight of an
+    aircraft whose fault advances on this one's summary."""
+    if not 1 <= lanes <= MAX_LANES:
+        raise ValueError(f"lanes must be in [1, {MAX_LANES}], got {lanes}")
+    if len({id(spec.rng) for spec in specs}) != len(specs):
+        raise ValueError("each flight needs its own random generator")
+    results: list[tuple[FlightLog, FlightSummary] | None] = [None] * len(specs)
+    window = lanes * _WINDOW_BATCHES
+    for start in range(0, len(specs), window):
+        prepared = {i: _prepare(specs[i]) for i in range(start, min(start + window, len(specs)))}
+        by_length = sorted(prepared, key=lambda i: prepared[i].inputs.scenario.t.shape[0])
+        for b in range(0, len(by_length), lanes):
+            batch = by_length[b:b + lanes]
+            sims = run_kernels([prepared[i].inputs for i in batch], truth=False)
+            for i, sim in zip(batch, sims, strict=True):
+                results[i] = _flight_outputs(prepared[i], sim)
+    return [r for r in results if r is not None]
+
+
+def _prepare(spec: FlightSpec) -> _Prepared:
+    """The flight's draws, in a lone flight's order: conditions, scenario, sensor seeds."""
+    cond = imposed_conditions(spec.aircraft, spec.flight_index, spec.rng, spec.conditions,
+                              started_at=spec.started_at)
+    scenario = build_scenario(cond.warp, cond.ground_temp_c, spec.rng,
+                              duration_s=spec.duration_s,
+                              cruise_temp_c=CRUISE_TEMP_C + spec.conditions.ambient_offset_k)
+    active = active_channels(spec.winglet_mode, spec.flight_index)
+    return _Prepared(spec, cond, active, kernel_inputs(spec.aircraft, spec.fault, scenario,
+                                                       spec.rng, active=active))
+
+
+def _flight_outputs(p: _Prepared, res: SimResult) -> tuple[FlightLog, FlightSummary]:
+    """The flight's download and summary from its kernel outputs."""
+    spec, scenario = p.spec, p.inputs.scenario
     channels: dict[str, np.ndarray] = {"t": scenario.t.astype(np.float64)}
     # one cast into (EMA, signal, sample) order: each channel a contiguous row, not a strided
     # copy of its own
@@ -200,18 +344,20 @@ def simulate_flight(
     channels["T_amb"] = _q32(scenario.t_amb, _T_LSB_C)
     channels["surf_WL"] = _q32(res.surfaces[:, 0], _SURF_LSB_RAD)
     channels["surf_WT"] = _q32(res.surfaces[:, 1], _SURF_LSB_RAD)
+    aircraft = spec.aircraft
     meta = FlightMetadata(
         aircraft=aircraft.tail,
-        flight=flight_id or f"{aircraft.tail}-F{flight_index:05d}",
-        started_at=cond.started_at,
-        block_hours=cond.block_hours,
+        flight=spec.flight_id or f"{aircraft.tail}-F{spec.flight_index:05d}",
+        started_at=p.cond.started_at,
+        block_hours=p.cond.block_hours,
         sample_rate_hz=NOMINAL_SAMPLE_RATE_HZ,
         actuator_serials=dict(aircraft.serials),
         source=SOURCE,
-        active_channels=None if active == POSITIONS else active,
+        active_channels=None if p.active == POSITIONS else p.active,
     )
     duration = float(scenario.t[-1]) if scenario.t.size else 0.0
-    return FlightLog(metadata=meta, channels=channels), _summary_from_acc(res.acc, cond, duration)
+    return (FlightLog(metadata=meta, channels=channels),
+            _summary_from_acc(res.acc, p.cond, duration))
 
 
 def estimate_summary(aircraft: Aircraft, flight_index: int, rng: np.random.Generator, *,

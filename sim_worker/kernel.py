@@ -1,4 +1,5 @@
-"""The real-time half-wing model: one flat numba kernel over float64 arrays.
+"""The real-time half-wing model: one numba kernel over float64 arrays, several flights at
+once in SIMD lanes.
 
 Fixed step ``dt = 1 / 12 kHz``; current PI every step, speed PI every 3 steps (4 kHz), position P
 every 12 steps (1 kHz); sensor outputs every 15 steps (800 Hz). Per EMA the states are the d-q
@@ -33,16 +34,32 @@ Subsystems, each a small function below, wired once in :func:`simulate`:
   referred to the DC link, so a turn-to-turn short leaks no current to the frame. Its
   sensors and its link, screw and rod end are those of an active channel.
 
-The helpers are compiled with ``inline="always"``: numba inlines them into :func:`simulate` before
-type inference, so the kernel stays one loop with the same floating-point operations, in the same
-order, as a single hand-written function.
+Lanes: :func:`simulate` runs up to ``MAX_LANES`` independent flights, one per lane. Every state,
+parameter and input array has the lane innermost; a step is a few stages (:func:`_plant_stage`,
+:func:`_drive_stage`, the surfaces; the speed and position loops and the output instant's
+recording when they tick), each a loop over the lanes of one EMA whose body has no branch
+(the Karnopp stick, the backlash dead zone, the saturations, the inverter's open leg and a
+standby channel's idle loops are selects) and no call, so LLVM runs it in SIMD registers
+(8 float64 lanes with AVX-512). What all lanes do at once (an output instant, a loop tick) is
+decided between the stages; what only needs libm (the exact angle, the period's
+coefficients, an eccentric motor's flux) runs in loops of its own. Flights of different
+lengths share a call: a lane runs on its last input sample after its flight's end, and its
+accumulators are taken at that end. A lone flight's lane loops are compiled once more with
+one lane known to the compiler, as straight code. Each lane does the operations a scalar
+kernel would, in the same order: outputs are bit-identical whatever the lane count or a
+flight's neighbours (tests/sim/test_kernel_lanes.py). Two things keep them so: a product
+feeding a sum that the scalar code contracts into one FMA but that the vectorised loop would
+share between two sums is an explicit FMA (:func:`_fma`), and a value one stage hands to the
+next through memory is never a product the scalar code would have fused into the next
+stage's sum.
 
-The two compiled functions, :func:`simulate` and :func:`_position_loop`, are compiled with
-``fastmath={"contract", "arcp"}``, which also governs the inlined helpers (their code is compiled
-as the caller's: their own flags make no difference to the outputs): a multiply and an add may
-fuse into one FMA, and a division may become a multiplication by the reciprocal. Those two keep
-IEEE semantics for NaN and infinities (no ``nnan``/``ninf``) and never reorder a sum (no
-``reassoc``), and take about a quarter off the kernel's time. The outputs are deterministic for
+The helpers are compiled with ``inline="always"``: numba inlines them into their stage before
+type inference. Helpers called in a lane loop take and return scalars: an array argument would
+bring an incref/decref pair into the loop, a call the loop vectoriser cannot vectorise. The
+compiled functions are compiled with ``fastmath={"contract", "arcp"}``, which also governs the
+inlined helpers: a multiply and an add may fuse into one FMA, and a division may become a
+multiplication by the reciprocal. Those two keep IEEE semantics for NaN and infinities (no
+``nnan``/``ninf``) and never reorder a sum (no ``reassoc``). The outputs are deterministic for
 one machine and CPU build; the last bits differ from a strict-IEEE build's and, through FMA,
 from a CPU without fused multiply-add.
 """
@@ -50,14 +67,20 @@ from a CPU without fused multiply-add.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from enum import IntEnum
+from typing import cast
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
-from .params import OUT_HZ, POS_DIV, SPEED_DIV, STEP_HZ, P, S
+from .params import N_PAR, OUT_HZ, POS_DIV, SPEED_DIV, STEP_HZ, P, S
 
-__all__ = ["simulate", "simulate_motor", "warm_up", "A", "N_ACC", "D", "N_DBG", "N_SIG"]
+__all__ = ["MAX_LANES", "simulate", "simulate_motor", "warm_up", "A", "N_ACC", "D", "N_DBG",
+           "N_SIG"]
 
 SQRT3_2 = math.sqrt(3.0) / 2.0
 # FMA contraction and reciprocals only: see the module docstring
@@ -105,40 +128,82 @@ class D(IntEnum):
 
 N_DBG = 8
 
-# per-EMA state layout
+# Layout of the working array ``st`` (rows, lanes): one block of _NROW rows per EMA, then one of
+# _NSROW rows per surface. Every row holds one quantity for every lane, so the lane loop reads
+# and writes contiguous memory at offsets that differ by whole rows.
+# per-EMA states
 _ID, _IQ, _TH, _W, _TW, _IW, _WREF, _IQREF, _ICD, _ICQ = range(10)
 _DA, _DB, _DC, _WF, _THPREV, _BDOPOS, _IA, _IB, _IC, _UA = range(10, 20)
 _UB, _UC, _VCM, _PLOSS, _XM, _XROD, _WPREV, _COS, _SIN, _THE = range(20, 30)
-_NST = 30
 # per-EMA coefficients held for one output period (temperature dependent)
-_C_R, _C_RON, _C_PSI, _C_AD, _C_AQ = range(5)
-# and, in the same rows, per-EMA limits the step would otherwise recompute (with a division or a
-# square) every step
-_C_UMAX, _C_DT_J, _C_UMAX2 = range(5, 8)
-_NCOEF = 8
+_C_R, _C_RON, _C_PSI, _C_AD, _C_AQ = range(30, 35)
+# and per-EMA limits the step would otherwise recompute (with a division or a square) every step
+_C_UMAX, _C_DT_J, _C_UMAX2 = range(35, 38)
+_ACC0 = 38  # the accumulators, rows _ACC0 + A.*
+# values one stage of a step hands to the next (see simulate)
+_S_C, _S_SN, _S_UD, _S_UQ, _S_PSI, _S_DPSI, _S_WE, _S_PFAULT = range(52, 60)
+_S_IAM, _S_IBM, _S_ICM, _S_THM = range(60, 64)
+_S_F, _S_ID0, _S_IQ0, _S_IDMID, _S_IQMID, _S_W0, _S_TE = range(64, 71)
+_S_DELTA, _S_DDELTA = range(71, 73)  # the EMA's surface: deflection and rate (copies)
+_NROW = 73
+# per-surface rows
+_DELTA, _DDELTA, _TORQUE, _ARM_S, _XFB, _NFB = range(6)
+_NSROW = 6
+#: the most flights one kernel call runs; a row of ``st`` holds this many lanes whatever the
+#: batch, so that rows lie a constant distance apart and the compiler can prove that a lane
+#: loop's reads and writes of different rows never overlap (with a distance it only learns at
+#: run time it would keep the loop scalar)
+MAX_LANES = 16
 
 
 @njit(cache=True, inline="always")
-def _bits53(rng: np.ndarray, k: int) -> np.uint64:
-    """Next draw of EMA ``k``'s xorshift generator, as an integer below 2^53 (a uniform in [0, 1)
-    is that times 2^-53)."""
-    x = rng[k]
+def _at(row: int, ln: int) -> np.uint64:
+    """Index into the flat working array ``st`` of quantity ``row``, lane ``ln``; unsigned,
+    so that numba adds no wrap-around of negative indices, a select that would hide from the
+    compiler that the lane loop walks the row contiguously."""
+    return np.uint64(row * MAX_LANES + ln)
+
+
+@intrinsic
+def _fma_intrinsic(typingctx, a, b, c):  # type: ignore[no-untyped-def]
+    """``a * b + c`` rounded once (llvm.fma): where the scalar code contracts a product and a
+    sum into one FMA but the vectorised lane loop, having merged both sides of a branch into
+    one block, would share the product between two sums and round it, the kernel says FMA."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        f64 = ir.DoubleType()
+        fn = cgutils.get_or_insert_function(  # type: ignore[no-untyped-call]
+            builder.module, ir.FunctionType(f64, [f64] * 3), "llvm.fma.f64")
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+_fma = cast(Callable[[float, float, float], float], _fma_intrinsic)
+
+
+@njit(cache=True, inline="always")
+def _xorshift(x: np.uint64) -> np.uint64:
+    """The next state of a xorshift64 generator."""
     x ^= x << np.uint64(13)
     x ^= x >> np.uint64(7)
     x ^= x << np.uint64(17)
-    rng[k] = x
-    return x >> np.uint64(11)
+    return x
 
 
 @njit(cache=True, inline="always")
-def _noise(rng: np.ndarray, k: int) -> float:
-    """Zero-mean unit-variance noise (triangular, sum of two uniforms).
+def _noise(x: np.uint64) -> tuple[float, np.uint64]:
+    """Zero-mean unit-variance noise (triangular, sum of two uniforms) from generator state
+    ``x`` -> (noise, next state).
 
-    The two uniforms are added as integers and converted once: both are multiples of 2^-53, so
-    the float sum of the two uniforms rounds exactly as the conversion of the integer sum."""
-    b = _bits53(rng, k)
-    b += _bits53(rng, k)
-    return (float(b) * (1.0 / 9007199254740992.0) - 1.0) * 2.449489742783178
+    Each draw is the state's top 53 bits, a uniform in [0, 1) times 2^53. The two uniforms are
+    added as integers and converted once: both are multiples of 2^-53, so the float sum of the
+    two uniforms rounds exactly as the conversion of the integer sum."""
+    x1 = _xorshift(x)
+    x2 = _xorshift(x1)
+    b = (x1 >> np.uint64(11)) + (x2 >> np.uint64(11))
+    return (float(b) * (1.0 / 9007199254740992.0) - 1.0) * 2.449489742783178, x2
 
 
 @njit(cache=True, inline="always")
@@ -153,53 +218,11 @@ def _quant(v: float, lsb: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def _measure(v: float, noise_rms: float, lsb: float, rng: np.ndarray, k: int) -> float:
-    """One sensor reading: ``v`` (offset already added) plus noise from EMA ``k``'s generator,
-    quantised to the sensor's LSB."""
-    return _quant(v + noise_rms * _noise(rng, k), lsb)
-
-
-@njit(cache=True, inline="always")
 def _clamp(v: float, on: float, lo: float, hi: float) -> float:
     """A failed sensor's reading: held in [lo, hi] when its clamp is on (stuck: lo == hi;
     clipped: +-level), after noise and quantisation, where a saturated or frozen converter
     output sits; the controller reads it as it is."""
     return min(max(v, lo), hi) if on > 0.5 else v
-
-
-@njit(cache=True, inline="always")
-def _sample_currents(par: np.ndarray, k: int, rng: np.ndarray, ia: float, ib: float, ic: float
-                     ) -> tuple[float, float, float]:
-    ni = par[k, P.N_I]
-    lsb_i = par[k, P.LSB_I]
-    on, lo, hi = par[k, P.CL_I], par[k, P.LO_I], par[k, P.HI_I]
-    return (_clamp(_measure(ia + par[k, P.OFF_IA], ni, lsb_i, rng, k), on, lo, hi),
-            _clamp(_measure(ib + par[k, P.OFF_IB], ni, lsb_i, rng, k), on, lo, hi),
-            _clamp(_measure(ic + par[k, P.OFF_IC], ni, lsb_i, rng, k), on, lo, hi))
-
-
-@njit(cache=True, inline="always")
-def _sample_lvdt(par: np.ndarray, st: np.ndarray, k: int, rng: np.ndarray) -> float:
-    return _clamp(_measure(st[k, _XROD] + par[k, P.OFF_X], par[k, P.N_X], par[k, P.LSB_X], rng,
-                           k), par[k, P.CL_X], par[k, P.LO_X], par[k, P.HI_X])
-
-
-@njit(cache=True, inline="always")
-def _record_signals(out: np.ndarray, j: int, k: int, par: np.ndarray, rng: np.ndarray,
-                    ia_m: float, ib_m: float, ic_m: float, ua: float, ub: float, uc: float,
-                    th_m: float) -> None:
-    """Recorded sensor channels 0-6 at an output instant (the LVDT, channel 7, is sampled
-    after the speed loop)."""
-    nv = par[k, P.N_V]
-    lsb_v = par[k, P.LSB_V]
-    on, lo, hi = par[k, P.CL_V], par[k, P.LO_V], par[k, P.HI_V]
-    out[j, k, 0] = ia_m
-    out[j, k, 1] = ib_m
-    out[j, k, 2] = ic_m
-    out[j, k, 3] = _clamp(_measure(ua, nv, lsb_v, rng, k), on, lo, hi)
-    out[j, k, 4] = _clamp(_measure(ub, nv, lsb_v, rng, k), on, lo, hi)
-    out[j, k, 5] = _clamp(_measure(uc, nv, lsb_v, rng, k), on, lo, hi)
-    out[j, k, 6] = th_m
 
 
 # ---- frames --------------------------------------------------------------------------------
@@ -209,9 +232,10 @@ def _record_signals(out: np.ndarray, j: int, k: int, par: np.ndarray, rng: np.nd
 def _electrical_angle(the: float, the_prev: float, c_prev: float, s_prev: float, exact: bool
                       ) -> tuple[float, float]:
     """cos and sin of the electrical angle ``the``: exact when ``exact`` (once per output period,
-    which bounds the drift), otherwise the previous step's pair rotated by the small increment."""
+    which bounds the drift: :func:`_exact_angle` wrote them into ``c_prev``, ``s_prev``),
+    otherwise the previous step's pair rotated by the small increment."""
     if exact:
-        return math.cos(the), math.sin(the)
+        return c_prev, s_prev
     d1 = the - the_prev
     d2 = d1 * d1
     cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0))
@@ -263,7 +287,7 @@ def _current_sign_held(i_leg: float, held: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def _open_leg_duties(leg: int, positive: float, upper_open: float, da: float, db: float,
+def _open_leg_duties(leg: float, positive: float, upper_open: float, da: float, db: float,
                      dc: float) -> tuple[float, float, float]:
     """Duties (a, b, c) as applied with a base-drive-open MOSFET on ``leg``."""
     isign = 1.0 if positive > 0.5 else -1.0
@@ -375,53 +399,6 @@ def _terminal_currents(id_: float, iq: float, c: float, sn: float, cb: float, sb
 
 
 @njit(cache=True, inline="always")
-def _lerp(a: np.ndarray, j: int, jn: int, col: int, frac: float) -> float:
-    """Input channel ``col`` between output samples ``j`` and ``jn`` (linear)."""
-    return a[j, col] + frac * (a[jn, col] - a[j, col])
-
-
-@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
-def _position_loop(par: np.ndarray, st: np.ndarray, xcmd: np.ndarray, j: int, jn: int,
-                   frac: float, rng: np.ndarray, xfb: np.ndarray, nfb: np.ndarray) -> None:
-    """Position P on the consolidated LVDT of each surface: the mean of its active channels'
-    LVDTs (two active winglet channels exchange their measurements, which avoids force fight;
-    a standby channel's LVDT is sampled but not fed back)."""
-    n_ema = par.shape[0]
-    xfb[:] = 0.0
-    nfb[:] = 0.0
-    for k in range(n_ema):
-        xm = _sample_lvdt(par, st, k, rng)
-        st[k, _XM] = xm
-        if par[k, P.STANDBY] < 0.5:
-            s = int(par[k, P.SURF])
-            xfb[s] += xm
-            nfb[s] += 1.0
-    for k in range(n_ema):
-        if par[k, P.STANDBY] > 0.5:
-            continue
-        s = int(par[k, P.SURF])
-        wref = par[k, P.KP_X] * (_lerp(xcmd, j, jn, k, frac) - xfb[s] / nfb[s])
-        wmax = par[k, P.WMAX]
-        st[k, _WREF] = min(max(wref, -wmax), wmax)
-
-
-@njit(cache=True, inline="always")
-def _speed_loop(par: np.ndarray, st: np.ndarray, k: int, th_m: float, dt_w: float,
-                a_wf: float) -> None:
-    """Speed PI (leaky, clamped integrator) on the low-passed resolver difference -> i_q
-    reference, limited to the drive's current."""
-    wraw = (th_m - st[k, _THPREV]) / dt_w
-    st[k, _THPREV] = th_m
-    st[k, _WF] += a_wf * (wraw - st[k, _WF])
-    ew = st[k, _WREF] - st[k, _WF]
-    imax = par[k, P.IMAX]
-    iw = st[k, _IW] + dt_w * (par[k, P.KI_W] * ew - st[k, _IW] / par[k, P.LEAK_W])
-    iw = min(max(iw, -imax), imax)
-    st[k, _IW] = iw
-    st[k, _IQREF] = min(max(par[k, P.KP_W] * ew + iw, -imax), imax)
-
-
-@njit(cache=True, inline="always")
 def _current_pi(ed: float, eq: float, ud_ff: float, uq_ff: float, int_d: float, int_q: float,
                 kp: float, ki: float, umax: float, umax2: float, dt: float
                 ) -> tuple[float, float, float, float]:
@@ -455,14 +432,14 @@ def _screw_friction(tl: float, direction: float, tc: float, eta_d: float, eta_b:
 
 @njit(cache=True, inline="always")
 def _link_force(dx: float, dv: float, half_gap: float, k: float, c: float) -> tuple[float, float]:
-    """Dead-zone spring-damper; returns (total force, spring part) along +x on the surface."""
-    if dx > half_gap:
-        fs = k * (dx - half_gap)
-        f = fs + c * dv
+    """Dead-zone spring-damper; returns (total force, spring part) along +x on the surface.
+    (``fs + c dv`` as one FMA on either side: see :func:`_fma`.)"""
+    extended = dx > half_gap
+    fs = k * ((dx - half_gap) if extended else (dx + half_gap))
+    f = _fma(c, dv, fs)
+    if extended:
         return (f if f > 0.0 else 0.0), fs
     if dx < -half_gap:
-        fs = k * (dx + half_gap)
-        f = fs + c * dv
         return (f if f < 0.0 else 0.0), fs
     return 0.0, 0.0
 
@@ -498,101 +475,462 @@ def _shaft_speed(w: float, te: float, tl: float, dt_j: float, tc: float, tcs: fl
     return w_n, tf, False
 
 
-@njit(cache=True, inline="always")
-def _surface_arm(par: np.ndarray, s: int) -> float:
-    for k in range(par.shape[0]):
-        if int(par[k, P.SURF]) == s:
-            return par[k, P.ARM]
-    return 0.0
+# ---- lanes ---------------------------------------------------------------------------------
+#
+# Each stage below is a loop over the lanes of one EMA (or surface), the lane innermost, whose
+# body reads and writes the arrays directly and calls helpers that take and return scalars only:
+# numba inlines an array argument with an incref/decref pair, a call the loop vectoriser cannot
+# vectorise (the pair is pruned only after it ran). A lane's branches are selects
+# (:func:`_held`), so the compiler runs the lanes in SIMD registers.
 
 
 @njit(cache=True, inline="always")
-def _surface_step(spar: np.ndarray, s: int, f_aero: float, arm: float, torque: float,
-                  delta: np.ndarray, ddelta: np.ndarray, dt: float) -> None:
-    """One rigid surface about its hinge: aerodynamic moment of its actuators' shares, the link
-    torques and hinge damping (semi-implicit Euler)."""
-    m_aero = spar[s, S.N_ACT] * f_aero * arm
-    m_net = m_aero + torque - spar[s, S.C_H] * ddelta[s]
-    dd = ddelta[s] + dt * m_net / spar[s, S.J]
-    ddelta[s] = dd
-    delta[s] += dt * dd
-
-
-# ---- thermal and slow coefficients ---------------------------------------------------------
+def _held(new: float, old: float, keep: bool) -> float:
+    """``old`` where ``keep``, else ``new``: a state a lane leaves alone (a select, no
+    branch)."""
+    return old if keep else new
 
 
 @njit(cache=True, inline="always")
-def _winding_temperature(par: np.ndarray, st: np.ndarray, k: int, div: int, dt_out: float,
-                         t_amb: float) -> None:
-    """Single-body thermal model over one output period: the period's mean losses against
-    conduction to ambient through R_th."""
-    tw = st[k, _TW]
-    ploss = st[k, _PLOSS] / div
-    tw += dt_out * (ploss - (tw - t_amb) / par[k, P.RTH]) / par[k, P.CTH]
-    st[k, _TW] = tw
-    st[k, _PLOSS] = 0.0
+def _reading(v: float, noise_rms: float, lsb: float, on: float, lo: float, hi: float,
+             x: np.uint64) -> tuple[float, np.uint64]:
+    """One sensor reading: ``v`` (offset already added) plus noise from generator state ``x``,
+    quantised to the sensor's LSB, held by a failed sensor's clamp -> (reading, next state)."""
+    n, x = _noise(x)
+    return _clamp(_quant(v + noise_rms * n, lsb), on, lo, hi), x
 
 
-@njit(cache=True, inline="always")
-def _period_coefficients(par: np.ndarray, st: np.ndarray, k: int, dt: float, coef: np.ndarray
-                         ) -> None:
-    """Temperature-dependent R_s, R_on and PM flux (with the DMD loss), the current update's
-    decay factors and the reciprocals the step multiplies by, held for one output period. A
-    standby channel's windings close on the damping star: ``R_d`` takes the place of R_on."""
-    tw = st[k, _TW]
-    dtc = tw - par[k, P.TREF]
-    coef[k, _C_R] = par[k, P.R0] * (1.0 + par[k, P.ALPHA_CU] * dtc)
-    if par[k, P.STANDBY] > 0.5:
-        coef[k, _C_RON] = par[k, P.R_DAMP]
-    else:
-        coef[k, _C_RON] = par[k, P.RON] * (1.0 + par[k, P.ALPHA_ON] * (tw - 25.0))
-    coef[k, _C_PSI] = (par[k, P.PSI0] * (1.0 + par[k, P.ALPHA_BR] * dtc)
-                       * (1.0 - par[k, P.DMD_H]))
-    rt = coef[k, _C_R] + coef[k, _C_RON]
-    coef[k, _C_AD] = math.exp(-dt * rt / par[k, P.LD])
-    coef[k, _C_AQ] = math.exp(-dt * rt / par[k, P.LQ])
-    coef[k, _C_UMAX] = 0.95 * par[k, P.UDC] / math.sqrt(3.0)  # the inverter's linear range
-    coef[k, _C_DT_J] = dt / par[k, P.J]
-    # (1 - 2^-50) covers the rounding of the square: umax2 < umax^2 exactly
-    coef[k, _C_UMAX2] = coef[k, _C_UMAX] * coef[k, _C_UMAX] * (1.0 - 2.0 ** -50)
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _period_start(par: np.ndarray, st: np.ndarray, n_ema: int, tamb: np.ndarray, j: int,
+                  div: int, dt: float, first: bool, lanes: int) -> None:
+    """At an output instant: each winding's temperature over the period that ended (single
+    body: the period's mean losses against conduction to ambient through R_th); the next
+    period's temperature-dependent R_s, R_on and PM flux (with the DMD loss), the current
+    update's decay factors and the limits the step would otherwise recompute; the exact
+    electrical angle. A standby channel's windings close on the damping star: ``R_d`` takes the
+    place of R_on."""
+    dt_out = dt * div
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        for ln in range(lanes):
+            tw = st[_at(ek + _TW, ln)]
+            if not first:
+                ploss = st[_at(ek + _PLOSS, ln)] / div
+                tw += dt_out * (ploss - (tw - tamb[j, ln]) / par[pk + P.RTH, ln]) / par[
+                    pk + P.CTH, ln]
+                st[_at(ek + _TW, ln)] = tw
+                st[_at(ek + _PLOSS, ln)] = 0.0
+            dtc = tw - par[pk + P.TREF, ln]
+            rs = par[pk + P.R0, ln] * (1.0 + par[pk + P.ALPHA_CU, ln] * dtc)
+            ron = _held(par[pk + P.RON, ln] * (1.0 + par[pk + P.ALPHA_ON, ln] * (tw - 25.0)),
+                        par[pk + P.R_DAMP, ln], par[pk + P.STANDBY, ln] > 0.5)
+            st[_at(ek + _C_R, ln)] = rs
+            st[_at(ek + _C_RON, ln)] = ron
+            psi = (par[pk + P.PSI0, ln] * (1.0 + par[pk + P.ALPHA_BR, ln] * dtc)
+                   * (1.0 - par[pk + P.DMD_H, ln]))
+            st[_at(ek + _C_PSI, ln)] = psi
+            # the flux the step uses, unless the motor is eccentric (_eccentric_pass)
+            st[_at(ek + _S_PSI, ln)] = psi
+            st[_at(ek + _S_DPSI, ln)] = 0.0
+            rt = rs + ron
+            st[_at(ek + _C_AD, ln)] = math.exp(-dt * rt / par[pk + P.LD, ln])
+            st[_at(ek + _C_AQ, ln)] = math.exp(-dt * rt / par[pk + P.LQ, ln])
+            umax = 0.95 * par[pk + P.UDC, ln] / math.sqrt(3.0)  # the inverter's linear range
+            st[_at(ek + _C_UMAX, ln)] = umax
+            st[_at(ek + _C_DT_J, ln)] = dt / par[pk + P.J, ln]
+            # (1 - 2^-50) covers the rounding of the square: umax2 < umax^2 exactly
+            st[_at(ek + _C_UMAX2, ln)] = umax * umax * (1.0 - 2.0 ** -50)
+            the = par[pk + P.PP, ln] * st[_at(ek + _TH, ln)]
+            st[_at(ek + _COS, ln)] = math.cos(the)
+            st[_at(ek + _SIN, ln)] = math.sin(the)
 
 
-# ---- accounting ----------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _eccentric_pass(par: np.ndarray, st: np.ndarray, n_ema: int, lanes: int) -> None:
+    """PM flux and its derivative of the lanes whose motor has a static eccentricity (libm
+    calls, so outside the vectorised stages; the other lanes keep the period's flux)."""
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        for ln in range(lanes):
+            eps = par[pk + P.SE_EPS, ln]
+            if eps != 0.0:
+                psi, dpsi = _eccentric_flux(st[_at(ek + _C_PSI, ln)], eps,
+                                            par[pk + P.SE_PHI, ln], st[_at(ek + _TH, ln)],
+                                            st[_at(ek + _W, ln)])
+                st[_at(ek + _S_PSI, ln)] = psi
+                st[_at(ek + _S_DPSI, ln)] = dpsi
 
 
-@njit(cache=True, inline="always")
-def _accumulate(acc: np.ndarray, k: int, dt: float, ud: float, uq: float, id_mid: float,
-                iq_mid: float, p_cu: float, p_fault: float, tf: float, tl: float, f: float,
-                rr: float, wm: float, vatt: float) -> None:
-    """Energy audit and the wear drivers' sliding work, integrated every step."""
-    acc[k, A.E_IN] += dt * (1.5 * (ud * id_mid + uq * iq_mid))
-    acc[k, A.E_CU] += dt * p_cu
-    acc[k, A.E_FRIC] += dt * tf * abs(wm)
-    acc[k, A.E_LINK] += dt * tl * wm
-    acc[k, A.E_FAULT] += dt * p_fault
-    acc[k, A.WORK_SCREW] += dt * abs(f) * abs(rr * wm)
-    acc[k, A.TRAVEL] += dt * abs(rr * wm)
-    acc[k, A.WORK_ROD] += dt * abs(f) * abs(vatt)
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _position_loop(par: np.ndarray, st: np.ndarray, rng: np.ndarray, xcmd: np.ndarray,
+                   surf_of: np.ndarray, n_surf: int, j: int, jn: int, frac: float, lanes: int
+                   ) -> None:
+    """Position P on the consolidated LVDT of each surface: the mean of its active channels'
+    LVDTs (two active winglet channels exchange their measurements, which avoids force fight;
+    a standby channel's LVDT is sampled but not fed back)."""
+    n_ema = surf_of.shape[0]
+    s0 = n_ema * _NROW
+    for s in range(n_surf):
+        for ln in range(lanes):
+            st[_at(s0 + s * _NSROW + _XFB, ln)] = 0.0
+            st[_at(s0 + s * _NSROW + _NFB, ln)] = 0.0
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        sb = s0 + surf_of[k] * _NSROW
+        for ln in range(lanes):
+            xm, rng[k, ln] = _reading(
+                st[_at(ek + _XROD, ln)] + par[pk + P.OFF_X, ln], par[pk + P.N_X, ln],
+                par[pk + P.LSB_X, ln], par[pk + P.CL_X, ln], par[pk + P.LO_X, ln],
+                par[pk + P.HI_X, ln], rng[k, ln])
+            st[_at(ek + _XM, ln)] = xm
+            standby = par[pk + P.STANDBY, ln] > 0.5
+            xfb = st[_at(sb + _XFB, ln)]
+            nfb = st[_at(sb + _NFB, ln)]
+            st[_at(sb + _XFB, ln)] = _held(xfb + xm, xfb, standby)
+            st[_at(sb + _NFB, ln)] = _held(nfb + 1.0, nfb, standby)
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        sb = s0 + surf_of[k] * _NSROW
+        for ln in range(lanes):
+            x_ref = xcmd[j, k, ln] + frac * (xcmd[jn, k, ln] - xcmd[j, k, ln])
+            wref = par[pk + P.KP_X, ln] * (x_ref - st[_at(sb + _XFB, ln)]
+                                           / st[_at(sb + _NFB, ln)])
+            wmax = par[pk + P.WMAX, ln]
+            st[_at(ek + _WREF, ln)] = _held(min(max(wref, -wmax), wmax),
+                                            st[_at(ek + _WREF, ln)],
+                                            par[pk + P.STANDBY, ln] > 0.5)
 
 
-@njit(cache=True, inline="always")
-def _record_truth(acc: np.ndarray, dbg: np.ndarray, j: int, k: int, tw: float, f: float,
-                  id_: float, iq: float, id_mid: float, iq_mid: float, w: float, xrod: float,
-                  te: float, iqref: float) -> None:
-    """Flight-summary sums and the true states at an output instant."""
-    acc[k, A.TW_SUM] += tw
-    acc[k, A.TW_MAX] = max(acc[k, A.TW_MAX], tw)
-    acc[k, A.F2_SUM] += f * f
-    acc[k, A.I2_SUM] += id_ * id_ + iq * iq
-    acc[k, A.N] += 1.0
-    dbg[j, k, D.ID] = id_mid
-    dbg[j, k, D.IQ] = iq_mid
-    dbg[j, k, D.W] = w
-    dbg[j, k, D.TW] = tw
-    dbg[j, k, D.F] = f
-    dbg[j, k, D.XROD] = xrod
-    dbg[j, k, D.TE] = te
-    dbg[j, k, D.IQREF] = iqref
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _plant_stage(par: np.ndarray, st: np.ndarray, rng: np.ndarray, n_ema: int, record: bool
+                 , lanes: int) -> None:
+    """First stage of a step: angle, the inverter applying last step's duties, the motor's
+    voltages, flux and faults, the terminal currents, and their and the resolver's readings."""
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        for ln in range(lanes):
+            pp = par[pk + P.PP, ln]
+            th = st[_at(ek + _TH, ln)]
+            w = st[_at(ek + _W, ln)]
+            id_ = st[_at(ek + _ID, ln)]
+            iq = st[_at(ek + _IQ, ln)]
+            the = pp * th
+            c, sn = _electrical_angle(the, st[_at(ek + _THE, ln)], st[_at(ek + _COS, ln)],
+                                      st[_at(ek + _SIN, ln)], record)
+            st[_at(ek + _COS, ln)] = c
+            st[_at(ek + _SIN, ln)] = sn
+            st[_at(ek + _THE, ln)] = the
+            cb, sb, cc, sc = _phase_axes(c, sn)
+            # ---- inverter: apply the duties decided last step --------------------------------
+            udc = par[pk + P.UDC, ln]
+            ron = st[_at(ek + _C_RON, ln)]
+            ia_prev = st[_at(ek + _IA, ln)]
+            ib_prev = st[_at(ek + _IB, ln)]
+            ic_prev = st[_at(ek + _IC, ln)]
+            standby = par[pk + P.STANDBY, ln] > 0.5
+            leg = par[pk + P.BDO_LEG, ln]
+            open_leg = leg >= 0.0 and not standby
+            i_leg = ia_prev if leg == 0.0 else (ib_prev if leg == 1.0 else ic_prev)
+            held = st[_at(ek + _BDOPOS, ln)]
+            positive = _held(_current_sign_held(i_leg, held), held, not open_leg)
+            st[_at(ek + _BDOPOS, ln)] = positive
+            da = st[_at(ek + _DA, ln)]
+            db = st[_at(ek + _DB, ln)]
+            dc = st[_at(ek + _DC, ln)]
+            oa, ob, oc = _open_leg_duties(leg, positive, par[pk + P.BDO_UPPER, ln], da, db, dc)
+            da = _held(oa, da, not open_leg)
+            db = _held(ob, db, not open_leg)
+            dc = _held(oc, dc, not open_leg)
+            ua, ub, uc, vcm = _phase_voltages(da, db, dc, udc, ron, ia_prev, ib_prev, ic_prev)
+            # the conduction drop is inside the pole voltage; the motor sees the phase voltage
+            # plus the drop's own share, so R_on is lumped with R_s in the current update
+            vd, vq = _park(ua, ub, uc, c, sn, cb, sb, cc, sc)
+            ud = vd + ron * id_
+            uq = vq + ron * iq
+            # ---- PMSM: flux, faults, terminal currents ---------------------------------------
+            rs = st[_at(ek + _C_R, ln)]
+            we = pp * (1.5 * w - 0.5 * st[_at(ek + _WPREV, ln)])  # mid-step speed, extrapolated
+            st[_at(ek + _WPREV, ln)] = w
+            rt = rs + ron
+            v_frame = _held(vcm + 0.5 * ua, 0.0, standby)
+            dlt, i0, p_fault = _turn_short(par[pk + P.TTS_SIGMA, ln], par[pk + P.TTS_RF, ln],
+                                           par[pk + P.TTS_G, ln], ud - rt * id_, uq - rt * iq,
+                                           c, sn, rs, v_frame)
+            ia, ib, ic = _terminal_currents(id_, iq, c, sn, cb, sb, dlt, i0)
+            st[_at(ek + _IA, ln)] = ia
+            st[_at(ek + _IB, ln)] = ib
+            st[_at(ek + _IC, ln)] = ic
+            st[_at(ek + _UA, ln)] = ua
+            st[_at(ek + _UB, ln)] = ub
+            st[_at(ek + _UC, ln)] = uc
+            # ---- sensors: the three currents, then the resolver ------------------------------
+            ni = par[pk + P.N_I, ln]
+            lsb_i = par[pk + P.LSB_I, ln]
+            on, lo, hi = par[pk + P.CL_I, ln], par[pk + P.LO_I, ln], par[pk + P.HI_I, ln]
+            x = rng[k, ln]
+            ia_m, x = _reading(ia + par[pk + P.OFF_IA, ln], ni, lsb_i, on, lo,
+                               hi, x)
+            ib_m, x = _reading(ib + par[pk + P.OFF_IB, ln], ni, lsb_i, on, lo,
+                               hi, x)
+            ic_m, x = _reading(ic + par[pk + P.OFF_IC, ln], ni, lsb_i, on, lo,
+                               hi, x)
+            th_m, x = _reading(th, par[pk + P.N_TH, ln],
+                               par[pk + P.LSB_TH, ln], par[pk + P.CL_TH, ln],
+                               par[pk + P.LO_TH, ln], par[pk + P.HI_TH, ln], x)
+            rng[k, ln] = x
+            st[_at(ek + _S_IAM, ln)] = ia_m
+            st[_at(ek + _S_IBM, ln)] = ib_m
+            st[_at(ek + _S_ICM, ln)] = ic_m
+            st[_at(ek + _S_THM, ln)] = th_m
+            st[_at(ek + _S_C, ln)] = c
+            st[_at(ek + _S_SN, ln)] = sn
+            st[_at(ek + _S_UD, ln)] = ud
+            st[_at(ek + _S_UQ, ln)] = uq
+            st[_at(ek + _S_WE, ln)] = we
+            st[_at(ek + _S_PFAULT, ln)] = p_fault
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _record_signals(par: np.ndarray, st: np.ndarray, rng: np.ndarray, n_ema: int,
+                    out: np.ndarray, j: int, lanes: int) -> None:
+    """Recorded sensor channels 0-6 at an output instant: the currents and the resolver as the
+    controller read them, the three phase voltages' readings (the LVDT, channel 7, is sampled
+    after the speed loop)."""
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        for ln in range(lanes):
+            nv = par[pk + P.N_V, ln]
+            lsb_v = par[pk + P.LSB_V, ln]
+            on, lo, hi = par[pk + P.CL_V, ln], par[pk + P.LO_V, ln], par[pk + P.HI_V, ln]
+            x = rng[k, ln]
+            va, x = _reading(st[_at(ek + _UA, ln)], nv, lsb_v, on, lo, hi, x)
+            vb, x = _reading(st[_at(ek + _UB, ln)], nv, lsb_v, on, lo, hi, x)
+            vc, x = _reading(st[_at(ek + _UC, ln)], nv, lsb_v, on, lo, hi, x)
+            rng[k, ln] = x
+            out[ln, j, k, 0] = st[_at(ek + _S_IAM, ln)]
+            out[ln, j, k, 1] = st[_at(ek + _S_IBM, ln)]
+            out[ln, j, k, 2] = st[_at(ek + _S_ICM, ln)]
+            out[ln, j, k, 3] = va
+            out[ln, j, k, 4] = vb
+            out[ln, j, k, 5] = vc
+            out[ln, j, k, 6] = st[_at(ek + _S_THM, ln)]
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _speed_loop(par: np.ndarray, st: np.ndarray, n_ema: int, dt_w: float, a_wf: float
+                , lanes: int) -> None:
+    """Speed PI (leaky, clamped integrator) on the low-passed resolver difference -> i_q
+    reference, limited to the drive's current; a standby channel's loop does not run."""
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        for ln in range(lanes):
+            keep = par[pk + P.STANDBY, ln] > 0.5
+            th_m = st[_at(ek + _S_THM, ln)]
+            th_prev = st[_at(ek + _THPREV, ln)]
+            wraw = (th_m - th_prev) / dt_w
+            st[_at(ek + _THPREV, ln)] = _held(th_m, th_prev, keep)
+            wf_prev = st[_at(ek + _WF, ln)]
+            wf = wf_prev + a_wf * (wraw - wf_prev)
+            st[_at(ek + _WF, ln)] = _held(wf, wf_prev, keep)
+            ew = st[_at(ek + _WREF, ln)] - wf
+            imax = par[pk + P.IMAX, ln]
+            iw_prev = st[_at(ek + _IW, ln)]
+            iw = iw_prev + dt_w * (par[pk + P.KI_W, ln] * ew - iw_prev / par[pk + P.LEAK_W, ln])
+            iw = min(max(iw, -imax), imax)
+            st[_at(ek + _IW, ln)] = _held(iw, iw_prev, keep)
+            st[_at(ek + _IQREF, ln)] = _held(min(max(par[pk + P.KP_W, ln] * ew + iw, -imax),
+                                                 imax), st[_at(ek + _IQREF, ln)], keep)
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _record_lvdt(par: np.ndarray, st: np.ndarray, rng: np.ndarray, n_ema: int,
+                 out: np.ndarray, j: int, lanes: int) -> None:
+    """The LVDT's reading at an output instant (the position loop samples it at 1 kHz)."""
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        for ln in range(lanes):
+            out[ln, j, k, 7], rng[k, ln] = _reading(
+                st[_at(ek + _XROD, ln)] + par[pk + P.OFF_X, ln], par[pk + P.N_X, ln],
+                par[pk + P.LSB_X, ln], par[pk + P.CL_X, ln], par[pk + P.LO_X, ln],
+                par[pk + P.HI_X, ln], rng[k, ln])
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _drive_stage(par: np.ndarray, st: np.ndarray, n_ema: int, dt: float, lanes: int) -> None:
+    """Second stage of a step: the current loop's duties for the next step, the motor's
+    current update and torque, the link, the screw's friction and the shaft, the losses and
+    the energy audit."""
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        a0 = ek + _ACC0
+        for ln in range(lanes):
+            pp = par[pk + P.PP, ln]
+            th = st[_at(ek + _TH, ln)]
+            w = st[_at(ek + _W, ln)]
+            id_ = st[_at(ek + _ID, ln)]
+            iq = st[_at(ek + _IQ, ln)]
+            c = st[_at(ek + _S_C, ln)]
+            sn = st[_at(ek + _S_SN, ln)]
+            # the controller's frame is the true one rotated by the resolver error
+            cm, sm = _rotate_small(c, sn, pp * (st[_at(ek + _S_THM, ln)] - th))
+            cbm, sbm, ccm, scm = _phase_axes(cm, sm)
+            id_m, iq_m = _park(st[_at(ek + _S_IAM, ln)], st[_at(ek + _S_IBM, ln)],
+                               st[_at(ek + _S_ICM, ln)], cm, sm, cbm, sbm, ccm, scm)
+            # ---- current loop (12 kHz) -> duties for the next step (a standby leg stays at 0)
+            standby = par[pk + P.STANDBY, ln] > 0.5
+            lh = par[pk + P.LHAT, ln]
+            weh = pp * st[_at(ek + _WF, ln)]  # decoupling on the controller's own estimates
+            icd_prev = st[_at(ek + _ICD, ln)]
+            icq_prev = st[_at(ek + _ICQ, ln)]
+            udr, uqr, icd, icq = _current_pi(
+                -id_m, st[_at(ek + _IQREF, ln)] - iq_m, weh * lh * iq_m,
+                weh * (lh * id_m + par[pk + P.PSIHAT, ln]), icd_prev, icq_prev,
+                par[pk + P.KP_I, ln], par[pk + P.KI_I, ln], st[_at(ek + _C_UMAX, ln)],
+                st[_at(ek + _C_UMAX2, ln)], dt)
+            da, db, dc = _svm_duties(udr, uqr, cm, sm, cbm, sbm, par[pk + P.UDC, ln])
+            st[_at(ek + _ICD, ln)] = _held(icd, icd_prev, standby)
+            st[_at(ek + _ICQ, ln)] = _held(icq, icq_prev, standby)
+            st[_at(ek + _DA, ln)] = _held(da, st[_at(ek + _DA, ln)], standby)
+            st[_at(ek + _DB, ln)] = _held(db, st[_at(ek + _DB, ln)], standby)
+            st[_at(ek + _DC, ln)] = _held(dc, st[_at(ek + _DC, ln)], standby)
+            # ---- PMSM electrical update (exact for frozen speed), torque at mid-step --------
+            ld = par[pk + P.LD, ln]
+            lq = par[pk + P.LQ, ln]
+            rs = st[_at(ek + _C_R, ln)]
+            rt = rs + st[_at(ek + _C_RON, ln)]
+            ud = st[_at(ek + _S_UD, ln)]
+            uq = st[_at(ek + _S_UQ, ln)]
+            psi = st[_at(ek + _S_PSI, ln)]
+            p_fault = st[_at(ek + _S_PFAULT, ln)]
+            id_n, iq_n = _pmsm_currents(id_, iq, ud, uq, st[_at(ek + _S_WE, ln)], rt, ld, lq,
+                                        psi, st[_at(ek + _S_DPSI, ln)],
+                                        st[_at(ek + _C_AD, ln)], st[_at(ek + _C_AQ, ln)])
+            id_mid = 0.5 * (id_ + id_n)
+            iq_mid = 0.5 * (iq + iq_n)
+            te = _pmsm_torque(id_mid, iq_mid, pp, ld, lq, psi)
+            # ---- link (screw + rod end), screw friction and motor shaft ---------------------
+            rr = par[pk + P.R_SCREW, ln]
+            arm = par[pk + P.ARM, ln]
+            xnut = rr * th
+            vatt = arm * st[_at(ek + _S_DDELTA, ln)]
+            bl_s = par[pk + P.BL_SCREW, ln]
+            bl = bl_s + par[pk + P.BL_ROD, ln]
+            dx = xnut - arm * st[_at(ek + _S_DELTA, ln)]
+            f, fs = _link_force(dx, rr * w - vatt, 0.5 * bl, par[pk + P.K_EQ, ln],
+                                par[pk + P.C_EQ, ln])
+            xrod = _rod_position(xnut, dx, fs, bl_s, bl, par[pk + P.K_SCREW, ln])
+            st[_at(ek + _XROD, ln)] = xrod
+            tl = rr * f
+            w_n, tf, stuck = _shaft_speed(w, te, tl, st[_at(ek + _C_DT_J, ln)],
+                                          par[pk + P.TC, ln], par[pk + P.TCS, ln],
+                                          par[pk + P.ETA_D, ln], par[pk + P.ETA_B, ln])
+            st[_at(ek + _W, ln)] = w_n
+            st[_at(ek + _TH, ln)] = th + dt * w_n
+            st[_at(ek + _ID, ln)] = id_n
+            st[_at(ek + _IQ, ln)] = iq_n
+            # ---- losses (the thermal model's input), energy audit, wear drivers' work --------
+            i2 = id_mid * id_mid + iq_mid * iq_mid
+            st[_at(ek + _PLOSS, ln)] += 1.5 * rs * i2 + p_fault
+            wm = 0.5 * (w + w_n)
+            st[_at(a0 + A.E_IN, ln)] += dt * (1.5 * (ud * id_mid + uq * iq_mid))
+            st[_at(a0 + A.E_CU, ln)] += dt * (1.5 * rt * i2)
+            st[_at(a0 + A.E_FRIC, ln)] += dt * tf * abs(wm)
+            st[_at(a0 + A.E_LINK, ln)] += dt * tl * wm
+            st[_at(a0 + A.E_FAULT, ln)] += dt * p_fault
+            st[_at(a0 + A.WORK_SCREW, ln)] += dt * abs(f) * abs(rr * wm)
+            st[_at(a0 + A.TRAVEL, ln)] += dt * abs(rr * wm)
+            st[_at(a0 + A.WORK_ROD, ln)] += dt * abs(f) * abs(vatt)
+            still = st[_at(a0 + A.STILL_S, ln)]
+            st[_at(a0 + A.STILL_S, ln)] = _held(still + dt, still, not stuck)
+            # what an output instant records (_record_truth)
+            st[_at(ek + _S_F, ln)] = f
+            st[_at(ek + _S_ID0, ln)] = id_
+            st[_at(ek + _S_IQ0, ln)] = iq
+            st[_at(ek + _S_IDMID, ln)] = id_mid
+            st[_at(ek + _S_IQMID, ln)] = iq_mid
+            st[_at(ek + _S_W0, ln)] = w
+            st[_at(ek + _S_TE, ln)] = te
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _record_truth(par: np.ndarray, st: np.ndarray, n_ema: int, dbg: np.ndarray, j: int
+                  , lanes: int) -> None:
+    """Flight-summary sums and, unless ``dbg`` holds no samples, the true states at an output
+    instant."""
+    for k in range(n_ema):
+        ek = k * _NROW
+        a0 = ek + _ACC0
+        for ln in range(lanes):
+            tw = st[_at(ek + _TW, ln)]
+            f = st[_at(ek + _S_F, ln)]
+            id_ = st[_at(ek + _S_ID0, ln)]
+            iq = st[_at(ek + _S_IQ0, ln)]
+            st[_at(a0 + A.TW_SUM, ln)] += tw
+            st[_at(a0 + A.TW_MAX, ln)] = max(st[_at(a0 + A.TW_MAX, ln)], tw)
+            st[_at(a0 + A.F2_SUM, ln)] += f * f
+            st[_at(a0 + A.I2_SUM, ln)] += id_ * id_ + iq * iq
+            st[_at(a0 + A.N, ln)] += 1.0
+        if dbg.shape[1] == 0:
+            continue
+        for ln in range(lanes):
+            dbg[ln, j, k, D.ID] = st[_at(ek + _S_IDMID, ln)]
+            dbg[ln, j, k, D.IQ] = st[_at(ek + _S_IQMID, ln)]
+            dbg[ln, j, k, D.W] = st[_at(ek + _S_W0, ln)]
+            dbg[ln, j, k, D.TW] = st[_at(ek + _TW, ln)]
+            dbg[ln, j, k, D.F] = st[_at(ek + _S_F, ln)]
+            dbg[ln, j, k, D.XROD] = st[_at(ek + _XROD, ln)]
+            dbg[ln, j, k, D.TE] = st[_at(ek + _S_TE, ln)]
+            dbg[ln, j, k, D.IQREF] = st[_at(ek + _IQREF, ln)]
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _surfaces(par: np.ndarray, spar: np.ndarray, st: np.ndarray, surf_of: np.ndarray,
+              fext: np.ndarray, j: int, jn: int, frac: float, dt: float, surf_out: np.ndarray,
+              record: bool, lanes: int) -> None:
+    """One step of each rigid surface about its hinge: the aerodynamic moment of its
+    actuators' shares, the link torques (summed in EMA order) and hinge damping
+    (semi-implicit Euler), recorded at an output instant; then each EMA's copy of its
+    surface's deflection and rate."""
+    n_ema = surf_of.shape[0]
+    n_surf = spar.shape[0]
+    s0 = n_ema * _NROW
+    for s in range(n_surf):
+        for ln in range(lanes):
+            st[_at(s0 + s * _NSROW + _TORQUE, ln)] = 0.0
+    for k in range(n_ema):
+        pk = k * N_PAR
+        ek = k * _NROW
+        sb = s0 + surf_of[k] * _NSROW
+        for ln in range(lanes):
+            st[_at(sb + _TORQUE, ln)] += par[pk + P.ARM, ln] * st[_at(ek + _S_F, ln)]
+    for s in range(n_surf):
+        sb = s0 + s * _NSROW
+        for ln in range(lanes):
+            f_aero = fext[j, s, ln] + frac * (fext[jn, s, ln] - fext[j, s, ln])
+            m_aero = spar[s, S.N_ACT, ln] * f_aero * st[_at(sb + _ARM_S, ln)]
+            ddelta = st[_at(sb + _DDELTA, ln)]
+            m_net = m_aero + st[_at(sb + _TORQUE, ln)] - spar[s, S.C_H, ln] * ddelta
+            dd = ddelta + dt * m_net / spar[s, S.J, ln]
+            st[_at(sb + _DDELTA, ln)] = dd
+            st[_at(sb + _DELTA, ln)] += dt * dd
+        if record:
+            for ln in range(lanes):
+                surf_out[ln, j, s] = st[_at(sb + _DELTA, ln)]
+    for k in range(n_ema):
+        ek = k * _NROW
+        sb = s0 + surf_of[k] * _NSROW
+        for ln in range(lanes):
+            st[_at(ek + _S_DELTA, ln)] = st[_at(sb + _DELTA, ln)]
+            st[_at(ek + _S_DDELTA, ln)] = st[_at(sb + _DDELTA, ln)]
 
 
 # ---- wiring --------------------------------------------------------------------------------
@@ -625,29 +963,93 @@ def simulate_motor(u_dq: np.ndarray, r: float, ld: float, lq: float, psi: float,
         out[n, 2] = w
 
 
-@njit(cache=True, inline="always")
-def _initial_state(par: np.ndarray, xcmd: np.ndarray, st: np.ndarray, delta: np.ndarray,
-                   acc: np.ndarray) -> None:
-    """At rest at the first command; each surface at the mean of its actuators' commands."""
-    for s in range(delta.shape[0]):
-        cnt = 0.0
-        for k in range(par.shape[0]):
-            if int(par[k, P.SURF]) == s:
-                delta[s] += xcmd[0, k] / par[k, P.ARM]
-                cnt += 1.0
-        if cnt > 0.0:
-            delta[s] /= cnt
-    for k in range(par.shape[0]):
-        st[k, _TH] = xcmd[0, k] / par[k, P.R_SCREW]
-        st[k, _THPREV] = st[k, _TH]
-        st[k, _TW] = par[k, P.T0_W]
-        duty = 0.0 if par[k, P.STANDBY] > 0.5 else 0.5  # a standby leg never switches
-        st[k, _DA] = duty
-        st[k, _DB] = duty
-        st[k, _DC] = duty
-        st[k, _XM] = xcmd[0, k]
-        st[k, _XROD] = xcmd[0, k]
-        acc[k, A.TW_MAX] = -1e9
+@njit(cache=True)
+def _initial_state(par: np.ndarray, xcmd: np.ndarray, surf_of: np.ndarray, st: np.ndarray,
+                   n_surf: int) -> None:
+    """At rest at the first command; each surface at the mean of its actuators' commands, its
+    arm that of its first actuator."""
+    n_ema = surf_of.shape[0]
+    lanes = par.shape[1]
+    s0 = n_ema * _NROW
+    for ln in range(lanes):
+        for s in range(n_surf):
+            sb = s0 + s * _NSROW
+            cnt = 0.0
+            for k in range(n_ema):
+                if surf_of[k] == s:
+                    if cnt == 0.0:
+                        st[_at(sb + _ARM_S, ln)] = par[k * N_PAR + P.ARM, ln]
+                    st[_at(sb + _DELTA, ln)] += xcmd[0, k, ln] / par[k * N_PAR + P.ARM, ln]
+                    cnt += 1.0
+            if cnt > 0.0:
+                st[_at(sb + _DELTA, ln)] /= cnt
+        for k in range(n_ema):
+            pk = k * N_PAR
+            ek = k * _NROW
+            st[_at(ek + _TH, ln)] = xcmd[0, k, ln] / par[pk + P.R_SCREW, ln]
+            st[_at(ek + _THPREV, ln)] = st[_at(ek + _TH, ln)]
+            st[_at(ek + _TW, ln)] = par[pk + P.T0_W, ln]
+            duty = 0.0 if par[pk + P.STANDBY, ln] > 0.5 else 0.5  # a standby leg never switches
+            st[_at(ek + _DA, ln)] = duty
+            st[_at(ek + _DB, ln)] = duty
+            st[_at(ek + _DC, ln)] = duty
+            st[_at(ek + _XM, ln)] = xcmd[0, k, ln]
+            st[_at(ek + _XROD, ln)] = xcmd[0, k, ln]
+            st[_at(ek + _ACC0 + A.TW_MAX, ln)] = -1e9
+            sb = s0 + surf_of[k] * _NSROW
+            st[_at(ek + _S_DELTA, ln)] = st[_at(sb + _DELTA, ln)]
+
+
+@njit(cache=True)
+def _finish_lanes(st: np.ndarray, n_out: np.ndarray, j: int, n_ema: int, acc: np.ndarray
+                  ) -> None:
+    """Copy the accumulators of the lanes whose flight ends at output sample ``j``."""
+    for ln in range(n_out.shape[0]):
+        if n_out[ln] == j:
+            for k in range(n_ema):
+                for a in range(N_ACC):
+                    acc[ln, k, a] = st[_at(k * _NROW + _ACC0 + a, ln)]
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _steps(par2: np.ndarray, spar: np.ndarray, st: np.ndarray, rng: np.ndarray,
+           xcmd: np.ndarray, fext: np.ndarray, tamb: np.ndarray, n_out: np.ndarray,
+           out: np.ndarray, surf_out: np.ndarray, dbg: np.ndarray, acc: np.ndarray,
+           surf_of: np.ndarray, any_eccentric: bool, fracs: np.ndarray, a_wf: float,
+           lanes: int) -> None:
+    """Every 12 kHz step of the flights in lanes. What every lane does at once (an output
+    instant, a speed or position loop tick) is decided here, outside the lane loops."""
+    n_max = xcmd.shape[0]
+    n_ema = surf_of.shape[0]
+    n_surf = spar.shape[0]
+    div = fracs.shape[0]
+    dt = 1.0 / STEP_HZ
+    dt_w = dt * SPEED_DIV
+    for step in range(n_max * div):
+        j = step // div
+        sub = step - j * div
+        frac = fracs[sub]
+        jn = j + 1 if j + 1 < n_max else j
+        record = sub == 0
+        if record:
+            if step > 0:
+                _finish_lanes(st, n_out, j, n_ema, acc)
+            _period_start(par2, st, n_ema, tamb, j, div, dt, step == 0, lanes)
+        if any_eccentric:
+            _eccentric_pass(par2, st, n_ema, lanes)
+        if step % POS_DIV == 0:
+            _position_loop(par2, st, rng, xcmd, surf_of, n_surf, j, jn, frac, lanes)
+        _plant_stage(par2, st, rng, n_ema, record, lanes)
+        if record:
+            _record_signals(par2, st, rng, n_ema, out, j, lanes)
+        if step % SPEED_DIV == 0:  # 4 kHz; the position loop ran before the plant stage
+            _speed_loop(par2, st, n_ema, dt_w, a_wf, lanes)
+        if record:  # LVDT sampled at the recording instant (the loop samples it at 1 kHz)
+            _record_lvdt(par2, st, rng, n_ema, out, j, lanes)
+        _drive_stage(par2, st, n_ema, dt, lanes)
+        if record:
+            _record_truth(par2, st, n_ema, dbg, j, lanes)
+        _surfaces(par2, spar, st, surf_of, fext, j, jn, frac, dt, surf_out, record, lanes)
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
@@ -658,194 +1060,77 @@ def simulate(
     fext: np.ndarray,
     tamb: np.ndarray,
     seeds: np.ndarray,
+    n_out: np.ndarray,
     out: np.ndarray,
     surf_out: np.ndarray,
     dbg: np.ndarray,
     acc: np.ndarray,
 ) -> None:
-    """Run the half-wing for ``xcmd.shape[0]`` output samples.
+    """Run half-wing flights in lanes: lane ``l`` of every array is one flight, lasting
+    ``n_out[l]`` output samples; the arrays run to the longest, ``n = xcmd.shape[0]``.
 
-    par (n_ema, N_PAR), spar (n_surf, N_SURF_PAR), xcmd (n_out, n_ema) [m], fext (n_out, n_surf)
-    [N per actuator along +x], tamb (n_out,) [degC], seeds (n_ema,) uint64 non-zero.
-    Writes out (n_out, n_ema, 8), surf_out (n_out, n_surf) [rad], dbg (n_out, n_ema, N_DBG),
-    acc (n_ema, N_ACC).
+    par (n_ema, N_PAR, L), spar (n_surf, N_SURF_PAR, L), xcmd (n, n_ema, L) [m],
+    fext (n, n_surf, L) [N per actuator along +x], tamb (n, L) [degC], seeds (n_ema, L) uint64
+    non-zero, n_out (L,) int64 in [1, n]; a flight's inputs past its end repeat its last sample
+    (then a lane runs on after its end exactly as it would have run its last sample).
+    Every EMA is on the same surface in every lane (``P.SURF``).
+    Writes out (L, n, n_ema, N_SIG), surf_out (L, n, n_surf) [rad], dbg (L, n, n_ema, N_DBG),
+    samples past a lane's end unspecified (dbg may hold no samples, (L, 0, n_ema, N_DBG): the
+    true states are then not recorded), and acc (L, n_ema, N_ACC), each lane's at its end:
+    the outputs are lane-major, one flight's contiguous (written once an output period, they
+    cost the lane loops a scattered store, and the caller no transposition of every signal).
     """
-    n_out = xcmd.shape[0]
+    n_max = xcmd.shape[0]
     n_ema = par.shape[0]
     n_surf = spar.shape[0]
+    lanes = par.shape[2]
+    par2 = par.reshape(n_ema * N_PAR, lanes)
     div = int(STEP_HZ / OUT_HZ + 0.5)
     dt = 1.0 / STEP_HZ
     dt_w = dt * SPEED_DIV
-    dt_out = dt * div
     rng = seeds.copy()
-    st = np.zeros((n_ema, _NST))
-    coef = np.zeros((n_ema, _NCOEF))
-    delta = np.zeros(n_surf)
-    ddelta = np.zeros(n_surf)
-    torque_surf = np.zeros(n_surf)
-    arm_surf = np.zeros(n_surf)
-    for s in range(n_surf):
-        arm_surf[s] = _surface_arm(par, s)
-    xfb = np.zeros(n_surf)  # consolidated LVDT position per surface
-    nfb = np.zeros(n_surf)
+    surf_of = np.empty(n_ema, dtype=np.int64)
+    any_eccentric = False
+    for k in range(n_ema):
+        surf_of[k] = int(par[k, P.SURF, 0])
+        for ln in range(lanes):
+            any_eccentric = any_eccentric or par[k, P.SE_EPS, ln] != 0.0
+    s0 = n_ema * _NROW
+    if lanes > MAX_LANES:
+        raise ValueError("more lanes than MAX_LANES")
+    st = np.zeros((s0 + n_surf * _NSROW) * MAX_LANES)
     fracs = np.empty(div)  # sub / div, the position within the output period
     for sub in range(div):
         fracs[sub] = sub / div
     a_wf = 1.0 - math.exp(-dt_w * 2.0 * math.pi * 1000.0)  # speed-estimate low-pass
-    _initial_state(par, xcmd, st, delta, acc)
+    _initial_state(par2, xcmd, surf_of, st, n_surf)
 
-    # Helpers that take arrays are straight-line code, helpers with branches take and return
-    # scalars: inlining an array argument adds an incref/decref pair, which numba prunes within
-    # straight-line code but not always across branches, and a pair left in this loop costs two
-    # atomic operations per step.
-    for step in range(n_out * div):
-        j = step // div
-        sub = step - j * div
-        frac = fracs[sub]
-        jn = j + 1 if j + 1 < n_out else j
-        record = sub == 0
-        if record:
-            for k in range(n_ema):
-                if step > 0:
-                    _winding_temperature(par, st, k, div, dt_out, tamb[j])
-                _period_coefficients(par, st, k, dt, coef)
-        for s in range(n_surf):
-            torque_surf[s] = 0.0
-        if step % POS_DIV == 0:
-            _position_loop(par, st, xcmd, j, jn, frac, rng, xfb, nfb)
-
-        for k in range(n_ema):
-            pp = par[k, P.PP]
-            th = st[k, _TH]
-            w = st[k, _W]
-            id_ = st[k, _ID]
-            iq = st[k, _IQ]
-            the = pp * th
-            c, sn = _electrical_angle(the, st[k, _THE], st[k, _COS], st[k, _SIN], record)
-            st[k, _COS] = c
-            st[k, _SIN] = sn
-            st[k, _THE] = the
-            cb, sb, cc, sc = _phase_axes(c, sn)
-            # ---- inverter: apply the duties decided last step ------------------------------
-            udc = par[k, P.UDC]
-            ron = coef[k, _C_RON]
-            da = st[k, _DA]
-            db = st[k, _DB]
-            dc = st[k, _DC]
-            standby = par[k, P.STANDBY] > 0.5
-            leg = int(par[k, P.BDO_LEG])
-            if leg >= 0 and not standby:
-                st[k, _BDOPOS] = _current_sign_held(st[k, _IA + leg], st[k, _BDOPOS])
-                da, db, dc = _open_leg_duties(leg, st[k, _BDOPOS], par[k, P.BDO_UPPER], da, db,
-                                              dc)
-            ua, ub, uc, vcm = _phase_voltages(da, db, dc, udc, ron, st[k, _IA], st[k, _IB],
-                                              st[k, _IC])
-            # the conduction drop is inside the pole voltage; the motor sees the phase voltage
-            # plus the drop's own share, so R_on is lumped with R_s in the current update
-            vd, vq = _park(ua, ub, uc, c, sn, cb, sb, cc, sc)
-            ud = vd + ron * id_
-            uq = vq + ron * iq
-            # ---- PMSM: flux, faults, terminal currents --------------------------------------
-            rs = coef[k, _C_R]
-            psi, dpsi_dt = _eccentric_flux(coef[k, _C_PSI], par[k, P.SE_EPS], par[k, P.SE_PHI],
-                                           th, w)
-            we = pp * (1.5 * w - 0.5 * st[k, _WPREV])  # mid-step speed, extrapolated
-            st[k, _WPREV] = w
-            rt = rs + ron
-            v_frame = 0.0 if standby else vcm + 0.5 * ua
-            dlt, i0, p_fault = _turn_short(par[k, P.TTS_SIGMA], par[k, P.TTS_RF],
-                                           par[k, P.TTS_G], ud - rt * id_, uq - rt * iq, c, sn,
-                                           rs, v_frame)
-            ia, ib, ic = _terminal_currents(id_, iq, c, sn, cb, sb, dlt, i0)
-            st[k, _IA] = ia
-            st[k, _IB] = ib
-            st[k, _IC] = ic
-            # ---- sensors; the controller's frame is the true one rotated by the resolver error
-            ia_m, ib_m, ic_m = _sample_currents(par, k, rng, ia, ib, ic)
-            th_m = _clamp(_measure(th, par[k, P.N_TH], par[k, P.LSB_TH], rng, k),
-                          par[k, P.CL_TH], par[k, P.LO_TH], par[k, P.HI_TH])
-            cm, sm = _rotate_small(c, sn, pp * (th_m - th))
-            cbm, sbm, ccm, scm = _phase_axes(cm, sm)
-            id_m, iq_m = _park(ia_m, ib_m, ic_m, cm, sm, cbm, sbm, ccm, scm)
-            if record:
-                _record_signals(out, j, k, par, rng, ia_m, ib_m, ic_m, ua, ub, uc, th_m)
-            # ---- speed loop (4 kHz; the position loop ran before the EMA loop) --------------
-            if step % SPEED_DIV == 0 and not standby:
-                _speed_loop(par, st, k, th_m, dt_w, a_wf)
-            if record:  # LVDT sampled at the recording instant (the loop samples it at 1 kHz)
-                out[j, k, 7] = _sample_lvdt(par, st, k, rng)
-            # ---- current loop (12 kHz) -> duties for the next step (a standby leg stays at 0)
-            if not standby:
-                lh = par[k, P.LHAT]
-                weh = pp * st[k, _WF]  # decoupling on the controller's own speed and parameters
-                udr, uqr, st[k, _ICD], st[k, _ICQ] = _current_pi(
-                    -id_m, st[k, _IQREF] - iq_m, weh * lh * iq_m,
-                    weh * (lh * id_m + par[k, P.PSIHAT]), st[k, _ICD], st[k, _ICQ],
-                    par[k, P.KP_I], par[k, P.KI_I], coef[k, _C_UMAX], coef[k, _C_UMAX2], dt)
-                st[k, _DA], st[k, _DB], st[k, _DC] = _svm_duties(udr, uqr, cm, sm, cbm, sbm,
-                                                                 udc)
-            # ---- PMSM electrical update (exact for frozen speed), torque at mid-step --------
-            ld = par[k, P.LD]
-            lq = par[k, P.LQ]
-            id_n, iq_n = _pmsm_currents(id_, iq, ud, uq, we, rt, ld, lq, psi,
-                                        dpsi_dt, coef[k, _C_AD], coef[k, _C_AQ])
-            id_mid = 0.5 * (id_ + id_n)
-            iq_mid = 0.5 * (iq + iq_n)
-            te = _pmsm_torque(id_mid, iq_mid, pp, ld, lq, psi)
-            # ---- link (screw + rod end), screw friction and motor shaft ---------------------
-            s_idx = int(par[k, P.SURF])
-            rr = par[k, P.R_SCREW]
-            arm = par[k, P.ARM]
-            xnut = rr * th
-            vatt = arm * ddelta[s_idx]
-            bl_s = par[k, P.BL_SCREW]
-            bl = bl_s + par[k, P.BL_ROD]
-            dx = xnut - arm * delta[s_idx]
-            f, fs = _link_force(dx, rr * w - vatt, 0.5 * bl, par[k, P.K_EQ], par[k, P.C_EQ])
-            xrod = _rod_position(xnut, dx, fs, bl_s, bl, par[k, P.K_SCREW])
-            st[k, _XROD] = xrod
-            torque_surf[s_idx] += arm * f
-            tl = rr * f
-            w_n, tf, stuck = _shaft_speed(w, te, tl, coef[k, _C_DT_J], par[k, P.TC],
-                                          par[k, P.TCS], par[k, P.ETA_D], par[k, P.ETA_B])
-            st[k, _W] = w_n
-            st[k, _TH] = th + dt * w_n
-            st[k, _ID] = id_n
-            st[k, _IQ] = iq_n
-            # ---- losses (the thermal model's input) and accounting --------------------------
-            i2 = id_mid * id_mid + iq_mid * iq_mid
-            st[k, _PLOSS] += 1.5 * rs * i2 + p_fault
-            _accumulate(acc, k, dt, ud, uq, id_mid, iq_mid, 1.5 * rt * i2, p_fault, tf, tl, f,
-                        rr, 0.5 * (w + w_n), vatt)
-            if stuck:
-                acc[k, A.STILL_S] += dt
-            if record:
-                _record_truth(acc, dbg, j, k, st[k, _TW], f, id_, iq, id_mid, iq_mid, w, xrod,
-                              te, st[k, _IQREF])
-
-        for s in range(n_surf):
-            _surface_step(spar, s, _lerp(fext, j, jn, s, frac), arm_surf[s], torque_surf[s],
-                          delta, ddelta, dt)
-            if record:
-                surf_out[j, s] = delta[s]
+    # a lone flight's lane loops run once: known to the compiler, they are straight code
+    if lanes == 1:
+        _steps(par2, spar, st, rng, xcmd, fext, tamb, n_out, out, surf_out, dbg, acc, surf_of,
+               any_eccentric, fracs, a_wf, 1)
+    else:
+        _steps(par2, spar, st, rng, xcmd, fext, tamb, n_out, out, surf_out, dbg, acc, surf_of,
+               any_eccentric, fracs, a_wf, lanes)
+    _finish_lanes(st, n_out, n_max, n_ema, acc)
 
 
 def warm_up() -> None:
     """Compile the kernel (or load it from the numba cache) with a tiny run."""
-    from .params import N_PAR, N_SURF_PAR
+    from .params import N_SURF_PAR
 
-    par = np.zeros((1, N_PAR))
-    par[0, P.R0], par[0, P.LD], par[0, P.LQ], par[0, P.PSI0], par[0, P.PP] = (
-        1.0, 1e-3, 1e-3, 0.05, 4)
-    par[0, P.J], par[0, P.UDC], par[0, P.R_SCREW], par[0, P.ETA_D], par[0, P.ETA_B] = (
+    par = np.zeros((1, N_PAR, 1))
+    row = par[0, :, 0]
+    row[P.R0], row[P.LD], row[P.LQ], row[P.PSI0], row[P.PP] = 1.0, 1e-3, 1e-3, 0.05, 4
+    row[P.J], row[P.UDC], row[P.R_SCREW], row[P.ETA_D], row[P.ETA_B] = (
         1e-4, 270.0, 8e-4, 0.9, 0.9)
-    par[0, P.K_EQ], par[0, P.K_SCREW], par[0, P.ARM], par[0, P.RTH], par[0, P.CTH] = (
+    row[P.K_EQ], row[P.K_SCREW], row[P.ARM], row[P.RTH], row[P.CTH] = (
         1e7, 1e7, 0.04, 1.0, 1000.0)
-    par[0, P.LEAK_W], par[0, P.LSB_I], par[0, P.LSB_V], par[0, P.LSB_TH], par[0, P.LSB_X] = (
+    row[P.LEAK_W], row[P.LSB_I], row[P.LSB_V], row[P.LSB_TH], row[P.LSB_X] = (
         1.0, 0.01, 0.1, 1e-4, 1e-6)
-    par[0, P.BDO_LEG], par[0, P.IMAX], par[0, P.WMAX] = -1.0, 10.0, 100.0
-    spar = np.ones((1, N_SURF_PAR))
+    row[P.BDO_LEG], row[P.IMAX], row[P.WMAX] = -1.0, 10.0, 100.0
+    spar = np.ones((1, N_SURF_PAR, 1))
     n = 4
-    simulate(par, spar, np.zeros((n, 1)), np.zeros((n, 1)), np.zeros(n),
-             np.ones(1, dtype=np.uint64), np.zeros((n, 1, N_SIG)), np.zeros((n, 1)),
-             np.zeros((n, 1, N_DBG)), np.zeros((1, N_ACC)))
+    simulate(par, spar, np.zeros((n, 1, 1)), np.zeros((n, 1, 1)), np.zeros((n, 1)),
+             np.ones((1, 1), dtype=np.uint64), np.full(1, n), np.zeros((1, n, 1, N_SIG)),
+             np.zeros((1, n, 1)), np.zeros((1, n, 1, N_DBG)), np.zeros((1, 1, N_ACC)))
