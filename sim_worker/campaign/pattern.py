@@ -1,5 +1,11 @@
-"""Running one pattern (a task of the pool, :func:`run_pattern`): its flights simulated,
-each rendered one given to the campaign's :class:`FlightSink`, and its manifest entry.
+"""Running patterns (the pool's tasks, :func:`run_patterns`): their flights simulated, each
+rendered one given to the campaign's :class:`FlightSink`, and each pattern's manifest entry.
+
+A pattern is a generator (:func:`pattern_flights`) that yields each flight it renders and is
+sent that flight's download and summary back, since a fault advances on the summary of the
+flight before. Several patterns run in lockstep, their next flights simulated together in the
+kernel's SIMD lanes (:func:`~sim_worker.flight.simulate_flights`); each flight equals its lone
+simulation bit for bit, so a pattern's output does not depend on what flies beside it.
 
 Fault-to-failure runs start with ``lead_flights`` healthy flights (the actuator's service
 before the fault, every one rendered), then advance the progression law every flight from the
@@ -12,7 +18,8 @@ depend on ``render_every``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections import deque
+from collections.abc import Callable, Generator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -24,14 +31,28 @@ from server.flightlog import FlightLog, write_parquet
 from server.vocabulary import POSITIONS
 
 from ..conditions import NO_CONDITIONS
-from ..faults import A_PRIORI, FaultState, advance_fault, healthy, new_fault
+from ..faults import A_PRIORI, FaultState, FlightSummary, advance_fault, healthy, new_fault
 from ..fleet import Aircraft
-from ..flight import estimate_summary, flight_start, reference_summary, simulate_flight
+from ..flight import (
+    LANES,
+    FlightSpec,
+    estimate_summary,
+    flight_start,
+    reference_summary,
+    simulate_flights,
+)
 from .planning import PatternSpec, block_conditions, fleet_for, flight_rng, recording_s
 from .scales import MAX_FLIGHTS, SENSOR_STUDY_NOISE, ScaleConfig
 from .sensor_faults import SensorFault, at_flight, with_sensor_noise
 
-__all__ = ["FlightSink", "ParquetSink", "PatternTask", "run_pattern"]
+__all__ = ["FlightSink", "ParquetSink", "PatternTask", "pattern_flights", "run_pattern",
+           "run_patterns"]
+
+#: a pattern's run: yields the flights it renders, is sent each one's (log, summary), returns
+#: its result (manifest entry and what the sink stored)
+PatternRun = Generator[FlightSpec, tuple[FlightLog, FlightSummary], dict[str, Any]]
+#: a rendered flight of a pattern: yields its spec, returns its summary
+_Rendered = Generator[FlightSpec, tuple[FlightLog, FlightSummary], Any]
 
 
 class FlightSink(Protocol):
@@ -67,16 +88,23 @@ class ParquetSink:
         return None
 
 
+def _flight_spec(aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index: int,
+                 cfg: ScaleConfig, sensor_faults: tuple[SensorFault, ...]) -> FlightSpec:
+    return FlightSpec(at_flight(aircraft, sensor_faults, index), fault, index,
+                      flight_rng(spec, index, 0), flight_id=f"{spec.id}-{index:04d}",
+                      started_at=flight_start(index, day_offset=spec.day_offset),
+                      duration_s=recording_s(cfg, spec, index),
+                      conditions=block_conditions(cfg, spec, index))
+
+
 def _render(out: CampaignStore, aircraft: Aircraft, spec: PatternSpec, fault: FaultState,
             index: int, cfg: ScaleConfig, sink: FlightSink,
             sensor_faults: tuple[SensorFault, ...] = ()
-            ) -> tuple[str, str | None, Any, dict[str, Any] | None]:
-    flight_id = f"{spec.id}-{index:04d}"
-    start = flight_start(index, day_offset=spec.day_offset)
-    log, summary = simulate_flight(at_flight(aircraft, sensor_faults, index), fault, index,
-                                   flight_rng(spec, index, 0), flight_id=flight_id,
-                                   started_at=start, duration_s=recording_s(cfg, spec, index),
-                                   conditions=block_conditions(cfg, spec, index))
+            ) -> Generator[FlightSpec, tuple[FlightLog, FlightSummary],
+                           tuple[str, str | None, Any, dict[str, Any] | None]]:
+    flight = _flight_spec(aircraft, spec, fault, index, cfg, sensor_faults)
+    flight_id = str(flight.flight_id)
+    log, summary = yield flight
     rel, stored = sink(out, f"flights/{aircraft.tail}/{flight_id}.parquet", index, log,
                        _ground_temp(summary))
     return flight_id, rel, summary, stored
@@ -117,8 +145,46 @@ class PatternTask:
 
 
 def run_pattern(task: PatternTask) -> dict[str, Any]:
-    """Run one pattern (a task of the pool): its manifest entry, and under ``"stored"`` what
-    the sink kept for each rendered flight, by flight id."""
+    """Run one pattern alone: its manifest entry, and under ``"stored"`` what the sink kept
+    for each rendered flight, by flight id."""
+    return run_patterns([task], lanes=1)[0]
+
+
+def run_patterns(tasks: list[PatternTask], *, lanes: int = LANES) -> list[dict[str, Any]]:
+    """Run patterns in lockstep, up to ``lanes`` at once (a task of the pool): each next
+    flight of the running patterns simulated in one kernel call, a finished pattern's place
+    taken by the next task. Each result as :func:`run_pattern` gives it, in the tasks' order."""
+    results: list[dict[str, Any] | None] = [None] * len(tasks)
+    waiting = deque(enumerate(tasks))
+    running: list[tuple[int, PatternRun, FlightSpec]] = []
+    while waiting or running:
+        while waiting and len(running) < lanes:
+            i, task = waiting.popleft()
+            _advance(i, pattern_flights(task), None, running, results)
+        if not running:
+            continue
+        flown = simulate_flights([flight for _, _, flight in running], lanes=lanes)
+        batch, running[:] = list(running), []
+        for (i, run, _), outputs in zip(batch, flown, strict=True):
+            _advance(i, run, outputs, running, results)
+    return [r for r in results if r is not None]
+
+
+def _advance(i: int, run: PatternRun, outputs: tuple[FlightLog, FlightSummary] | None,
+             running: list[tuple[int, PatternRun, FlightSpec]],
+             results: list[dict[str, Any] | None]) -> None:
+    """Send a pattern its last flight's outputs (None: start it); keep it running with its
+    next flight, or store its result when it is done."""
+    try:
+        flight = next(run) if outputs is None else run.send(outputs)
+    except StopIteration as done:
+        results[i] = done.value
+        return
+    running.append((i, run, flight))
+
+
+def pattern_flights(task: PatternTask) -> PatternRun:
+    """One pattern's run (:data:`PatternRun`): its result is what :func:`run_pattern` gives."""
     cfg, spec, sink = task.cfg, task.spec, task.sink
     out = CampaignStore.at(task.out)
     aircraft = fleet_for(task.kind, task.seed, **task.options)[spec.aircraft_index]
@@ -131,17 +197,18 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
 
     faults = tuple(task.options.get("sensor_faults", ()))
 
-    def render(fault: FaultState, index: int) -> Any:
-        fid, rel, summ, data = _render(out, aircraft, spec, fault, index, cfg, sink, faults)
+    def render(fault: FaultState, index: int) -> _Rendered:
+        fid, rel, summ, data = yield from _render(out, aircraft, spec, fault, index, cfg, sink,
+                                                  faults)
         rendered.append((index, fid, rel, fault, summ))
         if data is not None:
             stored[fid] = data
         return summ
 
     if spec.mode == "healthy" or spec.mode in A_PRIORI:
-        threshold = _constant_run(spec, render)
+        threshold = yield from _constant_run(spec, render)
     else:
-        threshold, failure = _fault_to_failure(aircraft, spec, cfg, render)
+        threshold, failure = yield from _fault_to_failure(aircraft, spec, cfg, render)
     flights = [_flight_entry(fid, rel, index, f, summ, failure,
                              flight_start(index, day_offset=spec.day_offset).isoformat())
                | _envelope_entry(cfg, spec, index)
@@ -188,19 +255,21 @@ def _position(spec: PatternSpec) -> str:
     return spec.position
 
 
-def _constant_run(spec: PatternSpec, render: Callable[[FaultState, int], Any]) -> float | None:
+def _constant_run(spec: PatternSpec, render: Callable[[FaultState, int], _Rendered]
+                  ) -> Generator[FlightSpec, tuple[FlightLog, FlightSummary], float | None]:
     """A healthy cycle, or an a priori fault imposed from ``onset`` on; its threshold."""
     fault_on = healthy()
     if spec.mode in A_PRIORI:
         fault_on = new_fault(spec.mode, _position(spec), np.random.default_rng([spec.seed, 7]))
     for index in range(spec.n_flights):
-        render(fault_on if index >= spec.onset else healthy(), index)
+        yield from render(fault_on if index >= spec.onset else healthy(), index)
     return fault_on.threshold
 
 
 def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
-                      render: Callable[[FaultState, int], Any]
-                      ) -> tuple[float | None, int | None]:
+                      render: Callable[[FaultState, int], _Rendered]
+                      ) -> Generator[FlightSpec, tuple[FlightLog, FlightSummary],
+                                     tuple[float | None, int | None]]:
     """The healthy lead, then the fault advanced flight by flight to failure (every
     ``render_every``-th flight and the failure flight rendered); threshold and failure flight."""
     position = _position(spec)
@@ -208,13 +277,13 @@ def _fault_to_failure(aircraft: Aircraft, spec: PatternSpec, cfg: ScaleConfig,
     fault = new_fault(spec.mode, position, np.random.default_rng([spec.seed, 7]),
                       reference=ref, span_range=cfg.span_flights, span_draw=cfg.span_draw)
     for index in range(spec.onset):
-        render(healthy(), index)
+        yield from render(healthy(), index)
     for index in range(spec.onset, spec.onset + MAX_FLIGHTS):
         if fault.failed:
-            render(fault, index)
+            yield from render(fault, index)
             return fault.threshold, index
         if (index - spec.onset) % cfg.render_every == 0:
-            summ = render(fault, index)
+            summ = yield from render(fault, index)
         else:
             summ = estimate_summary(aircraft, index, flight_rng(spec, index, 0),
                                     started_at=flight_start(index, day_offset=spec.day_offset),

@@ -17,7 +17,8 @@ from typing import Any
 from server.campaign_store import CampaignStore
 
 from ..fleet import BASES, DEFAULT_WINGLET_MODE, Aircraft, WingletMode
-from .pattern import FlightSink, ParquetSink, PatternTask, run_pattern
+from ..flight import LANES
+from .pattern import FlightSink, ParquetSink, PatternTask, run_patterns
 from .planning import PatternSpec, execution_order, fleet_for, plan_campaign
 from .scales import SCALES, SENSOR_STUDY_NOISE, SENSOR_STUDY_PATTERNS, ScaleConfig, scale_config
 from .sensor_faults import SensorFault, canonical_sensor_faults
@@ -25,23 +26,35 @@ from .sensor_faults import SensorFault, canonical_sensor_faults
 __all__ = ["FORMAT", "SETTINGS_FILE", "run_campaign", "snapshot_campaign"]
 
 FORMAT = "ema-campaign/1"
+#: at most this many patterns a pool task runs in lockstep: twice the kernel's lanes, so a
+#: finished pattern's lane is taken by the next while the group's longest runs (a group is
+#: saved when it ends)
+GROUP = 2 * LANES
 #: the settings a finished campaign was made with, beside its manifest
 SETTINGS_FILE = "campaign_settings.json"
 
 
 def _completed(tasks: dict[int, PatternTask], workers: int, executor: Executor | None
                ) -> Iterator[tuple[int, dict[str, Any]]]:
-    """(task number, result) as each pattern finishes, on ``executor`` if given, else on a
-    local process pool of ``workers`` (1: in this process)."""
+    """(task number, result) as each group of patterns finishes (patterns in lockstep, their
+    flights in the kernel's lanes), on ``executor`` if given, else on a local process pool of
+    ``workers`` (1: in this process). A group holds at most :data:`GROUP` patterns, and one
+    group per worker when there are fewer; the patterns are dealt out to the groups in turn,
+    so each group holds long and short ones alike and the workers finish together."""
+    size = max(1, min(GROUP, -(-len(tasks) // max(workers, 1))))
+    numbers = list(tasks)
+    n_groups = -(-len(numbers) // size)
+    groups = [numbers[g::n_groups] for g in range(n_groups)]
     if executor is None and workers <= 1:
-        for i, task in tasks.items():
-            yield i, run_pattern(task)
+        for group in groups:
+            yield from zip(group, run_patterns([tasks[n] for n in group]), strict=True)
         return
     pool = executor if executor is not None else ProcessPoolExecutor(max_workers=workers)
     try:
-        futures = {pool.submit(run_pattern, task): i for i, task in tasks.items()}
+        futures = {pool.submit(run_patterns, [tasks[n] for n in group]): group
+                   for group in groups}
         for fut in as_completed(futures):
-            yield futures[fut], fut.result()
+            yield from zip(futures[fut], fut.result(), strict=True)
     finally:
         if executor is None:
             pool.shutdown(wait=True, cancel_futures=True)
