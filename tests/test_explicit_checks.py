@@ -43,11 +43,11 @@ def test_a_migrations_directory_without_a_head_is_an_error(monkeypatch) -> None:
 def test_a_fault_pattern_without_a_position_is_an_error(mode: str) -> None:
     spec = PatternSpec("X-01", 0, 0, mode, None, 10, 2, 1, 0.0)
 
-    def render(fault: Any, index: int) -> None:
+    def render(fault: Any, index: int) -> Any:
         raise AssertionError("nothing is rendered")
 
     with pytest.raises(ValueError, match=f"a {mode} pattern needs a position"):
         if mode == "BDO":  # a priori
-            _constant_run(spec, render)
+            next(_constant_run(spec, render))
         else:
-            _fault_to_failure(None, spec, None, render)  # type: ignore[arg-type]
+            next(_fault_to_failure(None, spec, None, render))  # type: ignore[arg-type]

@@ -19,7 +19,7 @@ depend on ``render_every``.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Generator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -45,8 +45,8 @@ from .planning import PatternSpec, block_conditions, fleet_for, flight_rng, reco
 from .scales import MAX_FLIGHTS, SENSOR_STUDY_NOISE, ScaleConfig
 from .sensor_faults import SensorFault, at_flight, with_sensor_noise
 
-__all__ = ["FlightSink", "ParquetSink", "PatternTask", "pattern_flights", "run_pattern",
-           "run_patterns"]
+__all__ = ["FlightSink", "ParquetSink", "PatternTask", "iter_patterns", "pattern_flights",
+           "run_pattern", "run_patterns"]
 
 #: a pattern's run: yields the flights it renders, is sent each one's (log, summary), returns
 #: its result (manifest entry and what the sink stored)
@@ -151,28 +151,36 @@ def run_pattern(task: PatternTask) -> dict[str, Any]:
 
 
 def run_patterns(tasks: list[PatternTask], *, lanes: int = LANES) -> list[dict[str, Any]]:
-    """Run patterns in lockstep, up to ``lanes`` at once (a task of the pool): each next
-    flight of the running patterns simulated in one kernel call, a finished pattern's place
-    taken by the next task. Each result as :func:`run_pattern` gives it, in the tasks' order."""
-    results: list[dict[str, Any] | None] = [None] * len(tasks)
+    """Run patterns in lockstep (:func:`iter_patterns`; a task of the pool): each result as
+    :func:`run_pattern` gives it, in the tasks' order."""
+    results = dict(iter_patterns(tasks, lanes=lanes))
+    return [results[i] for i in range(len(tasks))]
+
+
+def iter_patterns(tasks: list[PatternTask], *, lanes: int = LANES
+                  ) -> Iterator[tuple[int, dict[str, Any]]]:
+    """Run patterns in lockstep, up to ``lanes`` at once: each next flight of the running
+    patterns simulated in one kernel call, a finished pattern's place taken by the next task.
+    Yields (task index, result) as each pattern finishes."""
+    results: dict[int, dict[str, Any]] = {}
     waiting = deque(enumerate(tasks))
     running: list[tuple[int, PatternRun, FlightSpec]] = []
     while waiting or running:
         while waiting and len(running) < lanes:
             i, task = waiting.popleft()
             _advance(i, pattern_flights(task), None, running, results)
-        if not running:
-            continue
-        flown = simulate_flights([flight for _, _, flight in running], lanes=lanes)
-        batch, running[:] = list(running), []
-        for (i, run, _), outputs in zip(batch, flown, strict=True):
-            _advance(i, run, outputs, running, results)
-    return [r for r in results if r is not None]
+        if running:
+            flown = simulate_flights([flight for _, _, flight in running], lanes=lanes)
+            batch, running[:] = list(running), []
+            for (i, run, _), outputs in zip(batch, flown, strict=True):
+                _advance(i, run, outputs, running, results)
+        yield from results.items()
+        results.clear()
 
 
 def _advance(i: int, run: PatternRun, outputs: tuple[FlightLog, FlightSummary] | None,
              running: list[tuple[int, PatternRun, FlightSpec]],
-             results: list[dict[str, Any] | None]) -> None:
+             results: dict[int, dict[str, Any]]) -> None:
     """Send a pattern its last flight's outputs (None: start it); keep it running with its
     next flight, or store its result when it is done."""
     try:

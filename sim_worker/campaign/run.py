@@ -18,7 +18,7 @@ from server.campaign_store import CampaignStore
 
 from ..fleet import BASES, DEFAULT_WINGLET_MODE, Aircraft, WingletMode
 from ..flight import LANES
-from .pattern import FlightSink, ParquetSink, PatternTask, run_patterns
+from .pattern import FlightSink, ParquetSink, PatternTask, iter_patterns, run_patterns
 from .planning import PatternSpec, execution_order, fleet_for, plan_campaign
 from .scales import SCALES, SENSOR_STUDY_NOISE, SENSOR_STUDY_PATTERNS, ScaleConfig, scale_config
 from .sensor_faults import SensorFault, canonical_sensor_faults
@@ -40,14 +40,16 @@ def _completed(tasks: dict[int, PatternTask], workers: int, executor: Executor |
     flights in the kernel's lanes), on ``executor`` if given, else on a local process pool of
     ``workers`` (1: in this process). A group holds at most :data:`GROUP` patterns, and one
     group per worker when there are fewer; the patterns are dealt out to the groups in turn,
-    so each group holds long and short ones alike and the workers finish together."""
+    so each group holds long and short ones alike and the workers finish together. In this
+    process each pattern is saved as it finishes; on a pool, a group's when it ends."""
     size = max(1, min(GROUP, -(-len(tasks) // max(workers, 1))))
     numbers = list(tasks)
     n_groups = -(-len(numbers) // size)
     groups = [numbers[g::n_groups] for g in range(n_groups)]
     if executor is None and workers <= 1:
-        for group in groups:
-            yield from zip(group, run_patterns([tasks[n] for n in group]), strict=True)
+        for group in groups:  # saved as each pattern finishes
+            for i, result in iter_patterns([tasks[n] for n in group]):
+                yield group[i], result
         return
     pool = executor if executor is not None else ProcessPoolExecutor(max_workers=workers)
     try:

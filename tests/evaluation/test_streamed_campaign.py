@@ -27,6 +27,7 @@ from server.phm.features import FeatureConfig
 from server.phm.recording import log_features
 from server.phm.signal_quality import QualityConfig
 from sim_worker.campaign import SCALES, ScaleConfig, run_campaign
+from sim_worker.campaign.planning import execution_order, plan_campaign
 from sim_worker.faults import THRESHOLDS, FaultState, healthy
 from sim_worker.fleet import WingletMode, build_aircraft
 from sim_worker.flight import flight_start, simulate_flight
@@ -194,16 +195,19 @@ class _CountingSink(FeatureSink):
 def test_an_interrupted_campaign_resumes_without_simulating_finished_patterns(
         reference: Path, tmp_path: Path) -> None:
     _SIMULATED.clear()
-    # patterns run longest first (progressive ones), so DMD's finishes before SE's
+    # patterns run in lockstep, the last in execution order once a lane is free: some have
+    # finished, and are saved, before its first flight
+    last = execution_order(plan_campaign("verification", 3, "tiny"))[-1].id
     with pytest.raises(RuntimeError, match="interrupted"):
         _stream(tmp_path / "cut", workers=1, sink=_CountingSink(keep_raw_every=4,
-                                                                 fail_on="V-SE-"))
-    finished = {f.rsplit("-", 1)[0] for f in _SIMULATED if not f.startswith("V-SE-")}
-    assert "V-DMD-01" in finished and not (tmp_path / "cut" / "manifest.json").exists()
+                                                                 fail_on=f"{last}-"))
+    saved = {json.loads(p.read_text())["entry"]["id"]
+             for p in (tmp_path / "cut" / "progress").glob("[0-9]*.json")}
+    assert saved and not (tmp_path / "cut" / "manifest.json").exists()
     _SIMULATED.clear()
     _stream(tmp_path / "cut", workers=1, sink=_CountingSink(keep_raw_every=4))
     resumed = {f.rsplit("-", 1)[0] for f in _SIMULATED}
-    assert resumed and not resumed & finished
+    assert resumed and not resumed & saved
     assert _files(reference) == _files(tmp_path / "cut")
     # a finished campaign is not simulated again, and other settings are refused
     _SIMULATED.clear()

@@ -26,9 +26,19 @@ from sim_worker.campaign.run import _manifest, _Progress, _settings
 from sim_worker.campaign.sensor_faults import at_flight, canonical_sensor_faults, with_sensor_noise
 from sim_worker.cli import build_parser
 from sim_worker.faults import MODES, healthy
-from sim_worker.flight import draw_conditions, run_scenario
+from sim_worker.flight import draw_conditions, run_scenario, simulate_flights
 from sim_worker.kernel import D
 from sim_worker.scenario import build_scenario
+
+
+def _render_now(*args):  # type: ignore[no-untyped-def]
+    """A rendered flight of a pattern (:func:`_render`, a generator) flown at once."""
+    run = _render(*args)
+    try:
+        run.send(simulate_flights([next(run)])[0])
+    except StopIteration as done:
+        return done.value
+    raise AssertionError("a rendered flight yields one flight")
 
 
 def test_noise_scale_multiplies_sensor_noise_only() -> None:
@@ -165,7 +175,7 @@ def _rendered_x(tmp_path, faults: tuple[SensorFault, ...], index: int) -> dict[s
     aircraft = fleet_for("design", 1)[0]
     spec = plan_campaign("design", 1, "ci")[0]
     sink = _Keep()
-    _render(tmp_path, aircraft, spec, healthy(), index,
+    _render_now(tmp_path, aircraft, spec, healthy(), index,
             replace(SCALES["ci"]["design"], duration_s=4.0), sink, faults)
     return {pos: sink.logs[index].channels[f"{pos}.x"].astype(float) for pos in POSITIONS}
 
@@ -288,7 +298,7 @@ def test_a_study_flight_is_its_twin_with_one_sensor_noisier(tmp_path) -> None:
     floors = {}
     for name, spec, ac in (("twin", twin, aircraft), ("study", study, noisier)):
         sink = _Keep()
-        _render(tmp_path, ac, spec, healthy(), 0,
+        _render_now(tmp_path, ac, spec, healthy(), 0,
                 replace(SCALES["ci"]["design"], duration_s=10.0), sink)
         ch = {k: np.asarray(v, dtype=float) for k, v in sink.logs[0].channels.items()}
         floors[name] = flight_quality(ch, screw_radius_m=mc.screw_radius_m,
