@@ -172,8 +172,12 @@ def iter_patterns(tasks: list[PatternTask], *, lanes: int = LANES
         if running:
             flown = simulate_flights([flight for _, _, flight in running], lanes=lanes)
             batch, running[:] = list(running), []
-            for (i, run, _), outputs in zip(batch, flown, strict=True):
-                _advance(i, run, outputs, running, results)
+            try:
+                for (i, run, _), outputs in zip(batch, flown, strict=True):
+                    _advance(i, run, outputs, running, results)
+            except Exception:
+                yield from results.items()  # what finished in this round is kept, then the error
+                raise
         yield from results.items()
         results.clear()
 

@@ -20,7 +20,7 @@ from server.campaigns import (
     read_manifest,
     read_started_at,
 )
-from sim_worker.campaign import SCALES, run_campaign, snapshot_campaign
+from sim_worker.campaign import SCALES, plan_campaign, run_campaign, snapshot_campaign
 
 MODEL = Path(__file__).resolve().parents[2] / "docs" / "results" / "protocol_model.json"
 #: the ci scale (every flight, 30 s recordings) with two healthy patterns of six flights:
@@ -66,7 +66,8 @@ def test_a_dask_campaign_writes_to_s3_from_workers_that_share_no_directory(
         code = main(["campaign", "--kind", "verification", "--seed", "3", "--scale", SCALE,
                      "--per-mode", "0", "--keep-raw-every", "4", "--out", url,
                      "--dask", cluster.scheduler_address, "--no-progress"])
-        ran = cluster.scheduler.task_prefixes["run_pattern"].state_counts["memory"]
+        # one task per worker: a group of patterns each (2 patterns, 2 workers)
+        ran = cluster.scheduler.task_prefixes["run_patterns"].state_counts["memory"]
     assert code == 0
     assert _empty_dirs(client_dir, *worker_dirs) == {str(d): [] for d in
                                                      (client_dir, *worker_dirs)}
@@ -145,8 +146,12 @@ def test_an_interrupted_campaign_on_s3_resumes_without_simulating_finished_patte
                             sink=_StoppingSink(keep_raw_every=4, stop_on=stop_on))
 
     _SIMULATED.clear()
+    # the two patterns fly in lockstep: stopped on the second's last flight, the first (its
+    # last flight in the same round, before it) is finished and saved
+    last = next(s.n_flights for s in plan_campaign("verification", 3, SCALE, per_mode=0)
+                if s.id == "V-healthy-02") - 1
     with pytest.raises(RuntimeError, match="interrupted"):
-        run(stop_on="V-healthy-02")  # the second pattern run; the first is finished
+        run(stop_on=f"V-healthy-02-{last:04d}")
     assert set(server.keys(bucket)) >= {"cut/progress/settings.json", "cut/progress/0000.json"}
     assert not out.exists("manifest.json")
     # the finished pattern scored while the run is stopped: its kept logs copied beside it
