@@ -4,7 +4,7 @@ flights, digested.
 A campaign's ``phm_features.json`` holds every flight's features; streamed campaigns keep no
 flight log to compute them again. Keying that cache on a version string made every stored
 campaign unreadable at each bump, even where a refactor moved no feature. The key is instead
-what the features *are* on the canaries: eight short flights of one aircraft (healthy, each
+what the features *are* on the canaries: ten short flights of one aircraft (healthy, each
 fault mode at 60 % of its threshold on a varied position, one flight active-active, one under
 the station's conditions), simulated with fixed seeds and analysed with the service's own
 :func:`server.phm.recording.log_features`. A change that moves a feature or a signal-quality
@@ -67,13 +67,13 @@ def _fly(canary: _Canary, index: int) -> Any:
     check a stored campaign)."""
     import numpy as np
 
-    from sim_worker import THRESHOLDS, FaultState, build_aircraft, healthy, simulate_flight
+    from sim_worker import build_aircraft, simulate_flight
     from sim_worker.conditions import NO_CONDITIONS, Conditions
+    from sim_worker.faults import fault_at
     from sim_worker.fleet import WingletMode
 
     aircraft = build_aircraft(_TAIL, "Turin", seed=_SEED)
-    fault = healthy() if canary.mode == "healthy" else FaultState(
-        canary.mode, canary.position, 0.6 * THRESHOLDS[canary.mode], THRESHOLDS[canary.mode])
+    fault = fault_at(canary.mode, canary.position, 0.6)
     mode = WingletMode.ACTIVE_ACTIVE if canary.active_active else WingletMode.ACTIVE_STANDBY
     conditions = Conditions(ambient_offset_k=-30.0, load_scale=2.0, command_scale=2.0) \
         if canary.station_conditions else NO_CONDITIONS

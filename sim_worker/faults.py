@@ -52,6 +52,7 @@ __all__ = [
     "FlightSummary",
     "FaultState",
     "healthy",
+    "fault_at",
     "new_fault",
     "advance_fault",
     "fault_entries",
@@ -169,6 +170,16 @@ def life_to_go(state: FaultState) -> float:
     if state.mode not in PROGRESSIVE or state.position is None:
         raise ValueError(f"{state.mode} has no progression")
     return life_integral(min(state.severity_norm, 1.0), _GROWTH_C[state.mode])
+
+
+def fault_at(mode: str, position: str | None, severity_norm: float, *,
+             phase_rad: float = 0.0) -> FaultState:
+    """A fault held at ``severity_norm`` of its threshold (``"healthy"``: none), no
+    progression: what a regression case or a feature canary flies."""
+    if mode == "healthy":
+        return healthy()
+    thr = THRESHOLDS[mode]
+    return FaultState(mode, position, severity_norm * thr, thr, phase_rad=phase_rad)
 
 
 def new_fault(mode: str, position: str, rng: np.random.Generator, *,

@@ -25,7 +25,7 @@ import pytest
 
 from server.phm.features import FEATURE_VERSION, FlightFeatures, flight_features
 from server.phm.recording import Float64Channels
-from sim_worker.faults import THRESHOLDS, FaultState, healthy
+from sim_worker.faults import fault_at
 from sim_worker.fleet import WingletMode, build_aircraft
 from sim_worker.flight import simulate_flight
 
@@ -108,12 +108,7 @@ _DURATION_S = 30.0  # the reference cycle compressed: climb, cruise and descent 
 @cache
 def _flight(case: str) -> Any:
     mode, position, severity_norm, winglet_mode, flight = CASES[case]
-    if mode == "healthy":
-        fault = healthy()
-    else:
-        thr = THRESHOLDS[mode]
-        fault = FaultState(mode, position, severity_norm * thr, thr,
-                           phase_rad=1.0 if mode == "SE" else 0.0)
+    fault = fault_at(mode, position, severity_norm, phase_rad=1.0 if mode == "SE" else 0.0)
     aircraft = build_aircraft("I-FEAT01", "Turin", seed=2025)
     log, _ = simulate_flight(aircraft, fault, flight, np.random.default_rng([11, flight]),
                              duration_s=_DURATION_S, winglet_mode=winglet_mode)

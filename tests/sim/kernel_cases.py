@@ -16,7 +16,7 @@ from dataclasses import replace
 import numpy as np
 
 from sim_worker.conditions import NO_CONDITIONS, Conditions
-from sim_worker.faults import THRESHOLDS, FaultState, healthy
+from sim_worker.faults import FaultState, fault_at
 from sim_worker.fleet import WingletMode, active_channels, build_aircraft
 from sim_worker.flight import KernelInputs, SimResult, imposed_conditions, kernel_inputs
 from sim_worker.params import P
@@ -27,11 +27,7 @@ AA, AS = WingletMode.ACTIVE_ACTIVE, WingletMode.ACTIVE_STANDBY
 
 
 def _fault(mode: str, position: str | None = None, severity_norm: float = 0.7) -> FaultState:
-    if mode == "healthy":
-        return healthy()
-    thr = THRESHOLDS[mode]
-    return FaultState(mode, position, severity_norm * thr, thr,
-                      phase_rad=1.0 if mode == "SE" else 0.0)
+    return fault_at(mode, position, severity_norm, phase_rad=1.0 if mode == "SE" else 0.0)
 
 
 def _inj(position: str, sensor: str, kind: str, value: float) -> SensorInjection:

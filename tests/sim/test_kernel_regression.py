@@ -17,7 +17,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from sim_worker.faults import THRESHOLDS, FaultState, healthy
+from sim_worker.faults import fault_at
 from sim_worker.fleet import WingletMode, active_channels, build_aircraft
 from sim_worker.flight import draw_conditions, run_scenario
 from sim_worker.kernel import simulate_motor
@@ -69,12 +69,7 @@ def _sha(*arrays: np.ndarray) -> str:
 
 def flight_hash(case: str) -> str:
     mode, position, severity_norm, winglet_mode, flight = CASES[case]
-    if mode == "healthy":
-        fault = healthy()
-    else:
-        thr = THRESHOLDS[mode]
-        fault = FaultState(mode, position, severity_norm * thr, thr,
-                           phase_rad=1.0 if mode == "SE" else 0.0)
+    fault = fault_at(mode, position, severity_norm, phase_rad=1.0 if mode == "SE" else 0.0)
     aircraft = build_aircraft("I-HASH01", "Turin", seed=2024)
     rng = np.random.default_rng(7)
     cond = draw_conditions(aircraft, 0, rng)
