@@ -39,7 +39,7 @@ The LVDT also gets
                own value; a drifting LVDT moves it.
 
 NaN where the flight has too few still samples (``min_still``, or ``min_flank`` per flank
-for the offset). Vectorised numpy; no per-sample loop. The figures are compared with their
+for the offset). One compiled pass per channel The figures are compared with their
 healthy bands by :mod:`server.phm.sensor_health`.
 """
 
@@ -52,6 +52,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from server.vocabulary import POSITIONS, SIGNALS
+
+from .signal_quality_loops import channel_counts, hold_flanks, second_differences
 
 __all__ = ["FLOOR_CHANNELS", "QualityConfig", "channel_quality", "flight_quality",
            "still_samples"]
@@ -116,9 +118,11 @@ def still_samples(theta: np.ndarray, config: QualityConfig | None = None) -> np.
     return np.r_[np.repeat(still, d), np.zeros(theta.size - n * d, dtype=bool)]
 
 
-def _noise_floor(v: np.ndarray, still: np.ndarray, cfg: QualityConfig) -> float:
-    d2 = v[2:] - 2.0 * v[1:-1] + v[:-2]
-    d2 = d2[still[2:] & still[1:-1] & still[:-2]]
+def _noise_floor(v: np.ndarray, still: np.ndarray, cfg: QualityConfig,
+                 v2: np.ndarray | None = None, v3: np.ndarray | None = None) -> float:
+    """The noise floor of ``v`` (of ``v + v2 + v3`` when both are given) on ``still``
+    samples."""
+    d2 = second_differences(v, v2, v3, still)
     if d2.size < cfg.min_still:
         return float("nan")
     # a second difference has zero mean on a hold; its robust scale from a quarter of the
@@ -130,29 +134,6 @@ def _noise_floor(v: np.ndarray, still: np.ndarray, cfg: QualityConfig) -> float:
     return float(np.sqrt(np.mean(clipped * clipped) / 6.0))
 
 
-def _lsb(steps: np.ndarray) -> float:
-    # a noisy channel steps by one LSB between neighbouring samples many times a flight
-    moved = np.abs(steps[steps != 0.0])
-    return float(moved.min()) if moved.size else float("nan")
-
-
-def _samples_in_runs(mask: np.ndarray, min_len: int) -> int:
-    """How many samples of ``mask`` lie in runs of True at least ``min_len`` long."""
-    edges = np.diff(np.r_[False, mask, False].astype(np.int8))
-    lengths = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
-    return int(lengths[lengths >= min_len].sum())
-
-
-def _stuck_share(steps: np.ndarray, n: int, cfg: QualityConfig) -> float:
-    # a run of n equal samples is a run of n - 1 zero steps
-    min_len = int(round(cfg.stuck_min_s * cfg.sample_rate_hz))
-    return _samples_in_runs(steps == 0.0, min_len) / n
-
-
-def _saturated_share(v: np.ndarray) -> float:
-    return _samples_in_runs((v == v.max()) | (v == v.min()), 2) / v.size
-
-
 def channel_quality(v: np.ndarray, still: np.ndarray | None = None,
                     config: QualityConfig | None = None) -> dict[str, float]:
     """``lsb``, ``stuck`` and ``saturated`` of one channel, and its ``noise`` floor when
@@ -161,34 +142,22 @@ def channel_quality(v: np.ndarray, still: np.ndarray | None = None,
     v = np.asarray(v, dtype=np.float64)
     if v.size < 2:
         return {"lsb": float("nan"), "stuck": 0.0, "saturated": 0.0}
-    steps = np.diff(v)  # one pass shared by the step and the stuck share
-    out = {"lsb": _lsb(steps), "stuck": _stuck_share(steps, v.size, cfg),
-           "saturated": _saturated_share(v)}
+    # a run of n equal samples is a run of n - 1 zero steps
+    lsb, stuck, saturated = channel_counts(v, int(round(cfg.stuck_min_s * cfg.sample_rate_hz)))
+    out = {"lsb": float(lsb), "stuck": stuck / v.size, "saturated": saturated / v.size}
     if still is not None:
         out["noise"] = _noise_floor(v, still, cfg)
     return out
 
 
-def _q_current(ia: np.ndarray, ib: np.ndarray, ic: np.ndarray, theta: np.ndarray,
-               pole_pairs: int, electrical_offset_rad: float) -> np.ndarray:
-    """Torque-producing current ``i_q`` [A] (amplitude-invariant Clarke, then Park)."""
-    i_al = (2.0 * ia - ib - ic) / 3.0
-    i_be = (ib - ic) / math.sqrt(3.0)
-    th_e = pole_pairs * theta - electrical_offset_rad
-    return -i_al * np.sin(th_e) + i_be * np.cos(th_e)
-
-
 def _lvdt_offset(sig: Mapping[str, np.ndarray], still: np.ndarray, radius_m: float,
                  pole_pairs: int, electrical_offset_rad: float, cfg: QualityConfig) -> float:
-    hold = np.flatnonzero(still)  # only holds count: i_q and x - r theta there alone
-    at = {k: sig[k][hold] for k in ("ia", "ib", "ic", "theta", "x")}
-    i_q = _q_current(at["ia"], at["ib"], at["ic"], at["theta"], pole_pairs,
-                     electrical_offset_rad)
-    rel = at["x"] - radius_m * at["theta"]
-    up, down = i_q > cfg.min_flank_current_a, i_q < -cfg.min_flank_current_a
-    if min(np.count_nonzero(up), np.count_nonzero(down)) < cfg.min_flank:
+    # only holds count: i_q and x - r theta there alone
+    up, down = hold_flanks(sig["ia"], sig["ib"], sig["ic"], sig["theta"], sig["x"], still,
+                           radius_m, pole_pairs, electrical_offset_rad, cfg.min_flank_current_a)
+    if min(up.size, down.size) < cfg.min_flank:
         return float("nan")
-    return 0.5 * float(np.median(rel[up]) + np.median(rel[down]))
+    return 0.5 * float(np.median(up) + np.median(down))
 
 
 def flight_quality(channels: Mapping[str, np.ndarray], *, screw_radius_m: float,
@@ -209,10 +178,10 @@ def flight_quality(channels: Mapping[str, np.ndarray], *, screw_radius_m: float,
             # a phase channel's own floor carries the drive: its sensor is read on the sum
             out[f"{p}.{s}"] = channel_quality(v, still if s in FLOOR_CHANNELS else None, cfg)
         root3 = math.sqrt(3.0)
-        out[f"{p}.i_sum"] = {"noise": _noise_floor(sig["ia"] + sig["ib"] + sig["ic"], still,
-                                                   cfg) / root3}
-        out[f"{p}.v_sum"] = {"noise": _noise_floor(sig["va"] + sig["vb"] + sig["vc"], still,
-                                                   cfg) / root3}
+        out[f"{p}.i_sum"] = {"noise": _noise_floor(sig["ia"], still, cfg, sig["ib"],
+                                                   sig["ic"]) / root3}
+        out[f"{p}.v_sum"] = {"noise": _noise_floor(sig["va"], still, cfg, sig["vb"],
+                                                   sig["vc"]) / root3}
         out[f"{p}.x"]["offset"] = _lvdt_offset(sig, still, screw_radius_m, pole_pairs,
                                                electrical_offset_rad, cfg)
     return out

@@ -12,6 +12,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from .config import FeatureConfig
+from .fused import solve_small
 from .results import FeatureTrack
 
 __all__ = ["block_mean", "row_means", "row_max", "row_min", "exp_filter", "filter_alpha",
@@ -161,25 +162,14 @@ def normal_accumulators(xs: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out
 
 
-def _normal_matrix(f: np.ndarray, k: int) -> np.ndarray:
-    """The symmetric (n, k, k) matrices of (filtered) normal-equation accumulators."""
-    iu = np.triu_indices(k)
-    a = np.zeros((f.shape[0], k, k))
-    a[:, iu[0], iu[1]] = f[:, :iu[0].size]
-    a[:, iu[1], iu[0]] = f[:, :iu[0].size]
-    return a
-
-
 def solve_normal(f: np.ndarray, k: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares coefficients (n, k) from (filtered) normal-equation accumulators, and
-    whether each system was well posed."""
-    a = _normal_matrix(f, k)
-    m = k * (k + 1) // 2
-    det = np.linalg.det(a)
-    ok = np.isfinite(det) & (np.abs(det) > 1e-12 * np.abs(a[:, 0, 0]) ** k)
-    a[~ok] = np.eye(k)
-    rhs = np.where(ok[:, np.newaxis], f[:, m:m + k], 0.0)
-    return np.linalg.solve(a, rhs[..., np.newaxis])[..., 0], ok
+    whether each system was well posed (zero coefficients where not)."""
+    f = np.ascontiguousarray(f, dtype=np.float64)
+    coef, det = solve_small(f, k)
+    ok = np.isfinite(det) & (np.abs(det) > 1e-12 * np.abs(f[:, 0]) ** k)
+    coef[~ok] = 0.0
+    return coef, ok
 
 
 def event_track(n_steps: int, steps: np.ndarray, vals: np.ndarray, alpha: float,

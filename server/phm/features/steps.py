@@ -13,15 +13,10 @@ import numpy as np
 from server.vocabulary import SIGNALS
 
 from .config import FeatureConfig, MotorConstants
-from .numerics import block_mean, row_means, run_length_ok
+from .fused import STEP_ROWS, step_quantities
+from .numerics import block_mean, run_length_ok
 
 __all__ = ["ActuatorSteps", "actuator_steps", "ValidityWindows", "validity_windows"]
-
-
-def _clarke(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    alpha = (2.0 * a - b - c) / 3.0
-    beta = (b - c) / np.sqrt(3.0)
-    return alpha, beta
 
 
 @dataclass(frozen=True)
@@ -74,52 +69,33 @@ def actuator_steps(sig: Mapping[str, np.ndarray], *, config: FeatureConfig | Non
     def arr(k: str) -> np.ndarray:
         return np.asarray(sig[k][:cut], dtype=np.float64)
 
-    def blk(a: np.ndarray) -> np.ndarray:
-        return a.reshape(n, d)
-
-    def step_mean(a: np.ndarray) -> np.ndarray:
-        return row_means(blk(a))
-
-    def step_peak(a: np.ndarray) -> np.ndarray:  # of |a|: no signed zero, any order is exact
-        b = blk(a)
-        peak = np.abs(b[:, 0])
-        for j in range(1, d):
-            np.maximum(peak, np.abs(b[:, j]), out=peak)
-        return peak
-
     ia, ib, ic = arr("ia"), arr("ib"), arr("ic")
-    va, vb, vc = arr("va"), arr("vb"), arr("vc")
-    theta, x = arr("theta"), arr("x")
-    i_al, i_be = _clarke(ia, ib, ic)
-    v_al, v_be = _clarke(va, vb, vc)
-    i0 = ia + ib + ic
-    i0 = i0 - np.median(i0)  # sensor offsets of the three channels add up to a constant
-    i2 = i_al * i_al + i_be * i_be  # |i|^2 [A^2]
-    omega = np.gradient(theta, 1.0 / cfg.sample_rate_hz)  # rad/s, 800 Hz
-    v0 = (va + vb + vc) / 3.0
+    theta = arr("theta")
     th_e = mc.pole_pairs * theta - cfg.electrical_offset_rad
-    ce, se_ = np.cos(th_e), np.sin(th_e)
-
-    w_mean = step_mean(omega)
+    # sensor offsets of the three current channels add up to a constant: the flight median
+    i0_median = float(np.median(ia + ib + ic))
+    q = step_quantities(ia, ib, ic, arr("va"), arr("vb"), arr("vc"), theta, arr("x"),
+                        np.cos(th_e), np.sin(th_e), np.cos(theta), np.sin(theta), i0_median,
+                        float(cfg.sample_rate_hz), n, d)
+    row = dict(zip(STEP_ROWS, q, strict=True))
     return ActuatorSteps(
         n_samples=cut,
-        speed=w_mean,
-        electrical_hz_peak=mc.pole_pairs * step_peak(omega) / (2.0 * np.pi),
-        electrical_hz_mean=mc.pole_pairs * np.abs(w_mean) / (2.0 * np.pi),
-        current=step_mean(np.sqrt(i2)),
-        voltage=step_mean(np.sqrt(v_al * v_al + v_be * v_be)),
-        current_sq=step_mean(i2),
-        power=step_mean(v_al * i_al + v_be * i_be),
-        theta=step_mean(theta),
-        cos_theta=step_mean(np.cos(theta)),
-        sin_theta=step_mean(np.sin(theta)),
-        x=step_mean(x),
-        i_q=step_mean(-i_al * se_ + i_be * ce),
-        v_q=step_mean(-v_al * se_ + v_be * ce),
-        phase_voltage=np.column_stack([step_mean(va), step_mean(vb), step_mean(vc)]),
-        phase_voltage_ms=np.column_stack([step_mean((va - v0) ** 2), step_mean((vb - v0) ** 2),
-                                          step_mean((vc - v0) ** 2)]),
-        common_current=step_mean(i0),
+        speed=row["speed"],
+        electrical_hz_peak=mc.pole_pairs * row["speed_peak"] / (2.0 * np.pi),
+        electrical_hz_mean=mc.pole_pairs * np.abs(row["speed"]) / (2.0 * np.pi),
+        current=row["current"],
+        voltage=row["voltage"],
+        current_sq=row["current_sq"],
+        power=row["power"],
+        theta=row["theta"],
+        cos_theta=row["cos_theta"],
+        sin_theta=row["sin_theta"],
+        x=row["x"],
+        i_q=row["i_q"],
+        v_q=row["v_q"],
+        phase_voltage=np.column_stack([row["u_a"], row["u_b"], row["u_c"]]),
+        phase_voltage_ms=np.column_stack([row["ms_a"], row["ms_b"], row["ms_c"]]),
+        common_current=row["common_current"],
     )
 
 
