@@ -53,7 +53,13 @@ import numpy as np
 
 from server.vocabulary import POSITIONS, SIGNALS
 
-from .signal_quality_loops import channel_counts, hold_flanks, second_differences
+from .signal_quality_loops import (
+    channel_counts,
+    clipped_mean_square,
+    hold_flanks,
+    second_differences,
+    sparse_abs_median,
+)
 
 __all__ = ["FLOOR_CHANNELS", "QualityConfig", "channel_quality", "flight_quality",
            "still_samples"]
@@ -127,11 +133,10 @@ def _noise_floor(v: np.ndarray, still: np.ndarray, cfg: QualityConfig,
         return float("nan")
     # a second difference has zero mean on a hold; its robust scale from a quarter of the
     # samples is as good for a winsorising limit and four times cheaper
-    scale = 1.4826 * float(np.median(np.abs(d2[::4])))
+    scale = 1.4826 * float(sparse_abs_median(d2, 4))
     if scale <= 0.0:  # quantised below one step: winsorise at the spread of the values
         scale = float(np.std(d2))
-    clipped = np.clip(d2, -cfg.winsor_k * scale, cfg.winsor_k * scale)
-    return float(np.sqrt(np.mean(clipped * clipped) / 6.0))
+    return float(np.sqrt(clipped_mean_square(d2, cfg.winsor_k * scale) / 6.0))
 
 
 def channel_quality(v: np.ndarray, still: np.ndarray | None = None,
@@ -143,7 +148,8 @@ def channel_quality(v: np.ndarray, still: np.ndarray | None = None,
     if v.size < 2:
         return {"lsb": float("nan"), "stuck": 0.0, "saturated": 0.0}
     # a run of n equal samples is a run of n - 1 zero steps
-    lsb, stuck, saturated = channel_counts(v, int(round(cfg.stuck_min_s * cfg.sample_rate_hz)))
+    lsb, stuck, saturated = channel_counts(v, float(v.max()), float(v.min()),
+                                           int(round(cfg.stuck_min_s * cfg.sample_rate_hz)))
     out = {"lsb": float(lsb), "stuck": stuck / v.size, "saturated": saturated / v.size}
     if still is not None:
         out["noise"] = _noise_floor(v, still, cfg)

@@ -1,7 +1,7 @@
 """The per-sample passes of :mod:`server.phm.signal_quality` as compiled loops (numba), one pass
-per channel instead of a dozen array passes; integer counts and exact selections, so every
-figure is the bits the array form gave. Medians, clipping and means stay in NumPy (its
-pairwise sums), on the few arrays these loops select.
+per channel instead of a dozen array passes: integer counts, exact selections, medians by
+selection and means in NumPy's order of additions (:mod:`server.phm.pairwise`), so every
+figure is the bits the array form gave.
 """
 
 from __future__ import annotations
@@ -9,59 +9,40 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["channel_counts", "hold_flanks", "second_differences"]
+from .pairwise import pairwise_sum
+
+__all__ = ["channel_counts", "clipped_mean_square", "hold_flanks", "second_differences",
+           "sparse_abs_median"]
 
 
 @njit(cache=True)
-def channel_counts(v, stuck_min_len):  # type: ignore[no-untyped-def]  # numba types it from its arguments
-    """``(lsb, stuck, saturated)`` of one channel (n >= 2): the smallest nonzero step between
-    neighbouring samples (NaN if none moved, or if a step is NaN), the samples of the step
-    series in runs of zero steps at least ``stuck_min_len`` long, and the samples in runs of at
-    least two at the channel's largest or smallest value (none if a value is NaN)."""
+def channel_counts(v, vmax, vmin, stuck_min_len):  # type: ignore[no-untyped-def]  # numba types it from its arguments
+    """``(lsb, stuck, saturated)`` of one channel (n >= 2) whose largest and smallest values
+    are ``vmax`` and ``vmin`` (NaN if a value is NaN, as ``np.max`` gives): the smallest
+    nonzero step between neighbouring samples (NaN if none moved or a step is NaN), the steps
+    in runs of zero steps at least ``stuck_min_len`` long, and the samples in runs of at
+    least two at either extreme (none if a value is NaN). Runs are counted without
+    branches: a run adds its whole length the step it reaches the least, then one a step."""
     n = v.size
-    vmax = v[0]
-    vmin = v[0]
-    has_nan = v[0] != v[0]
-    for i in range(1, n):
-        x = v[i]
-        if x != x:
-            has_nan = True
-        elif x > vmax:
-            vmax = x
-        elif x < vmin:
-            vmin = x
     lsb = np.inf
+    nan_step = False
     moved = False
-    nan_step = has_nan
     stuck = 0
     run = 0
     for i in range(n - 1):
         step = v[i + 1] - v[i]
-        if step == 0.0:
-            run += 1
-            continue
-        if run >= stuck_min_len:
-            stuck += run
-        run = 0
-        moved = True
-        if step != step:  # inf - inf
-            nan_step = True
-        elif abs(step) < lsb:
-            lsb = abs(step)
-    if run >= stuck_min_len:
-        stuck += run
+        zero = step == 0.0
+        nan_step |= step != step
+        moved |= not zero
+        lsb = min(lsb, np.inf if zero else abs(step))
+        run = run + 1 if zero else 0
+        stuck += stuck_min_len if run == stuck_min_len else (1 if run > stuck_min_len else 0)
     saturated = 0
-    if not has_nan:
-        run = 0
-        for i in range(n):
-            if v[i] == vmax or v[i] == vmin:
-                run += 1
-                continue
-            if run >= 2:
-                saturated += run
-            run = 0
-        if run >= 2:
-            saturated += run
+    run = 0
+    for i in range(n):
+        at = v[i] == vmax or v[i] == vmin
+        run = run + 1 if at else 0
+        saturated += 2 if run == 2 else (1 if run > 2 else 0)
     if nan_step or not moved:
         lsb = np.nan
     return lsb, stuck, saturated
@@ -114,3 +95,25 @@ def hold_flanks(ia, ib, ic, theta, x, still, radius_m, pole_pairs,  # type: igno
             down[n_down] = rel
             n_down += 1
     return up[:n_up], down[:n_down]
+
+
+@njit(cache=True)
+def sparse_abs_median(d2, every):  # type: ignore[no-untyped-def]
+    """``np.median(np.abs(d2[::every]))``."""
+    return np.median(np.abs(d2[::every]))
+
+
+@njit(cache=True)
+def clipped_mean_square(d2, limit):  # type: ignore[no-untyped-def]
+    """``np.mean(c * c)`` of ``c = np.clip(d2, -limit, limit)`` (NaN stays NaN), to the bit."""
+    if limit != limit:
+        return np.nan
+    sq = np.empty(d2.size)
+    for i in range(d2.size):
+        c = d2[i]
+        if c > limit:
+            c = limit
+        elif c < -limit:
+            c = -limit
+        sq[i] = c * c
+    return pairwise_sum(sq) / d2.size

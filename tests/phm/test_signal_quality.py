@@ -16,6 +16,7 @@ from server.phm.signal_quality import (
     flight_quality,
     still_samples,
 )
+from server.phm.signal_quality_loops import channel_counts
 from server.vocabulary import POSITIONS, SIGNALS
 from sim_worker.campaign import fleet_for
 from sim_worker.faults import healthy
@@ -168,3 +169,31 @@ def test_a_sensor_flown_noisier_is_the_one_whose_floor_rises(fault: str, channel
     ratio = {ch: noisy[ch]["noise"] / base[ch]["noise"] for ch in floors}
     assert 2.6 < ratio[channel] < 3.1
     assert max(abs(r - 1.0) for ch, r in ratio.items() if ch != channel) < 0.1
+
+
+def _array_counts(v: np.ndarray, min_len: int) -> tuple[float, int, int]:
+    """The step, stuck and rail counts in array form (what the compiled pass replaced)."""
+    def in_runs(mask: np.ndarray, least: int) -> int:
+        edges = np.diff(np.r_[False, mask, False].astype(np.int8))
+        lengths = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+        return int(lengths[lengths >= least].sum())
+    steps = np.diff(v)
+    moved = np.abs(steps[steps != 0.0])
+    lsb = float(moved.min()) if moved.size else float("nan")
+    return lsb, in_runs(steps == 0.0, min_len), in_runs((v == v.max()) | (v == v.min()), 2)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_compiled_counts_equal_the_array_forms(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    v = np.round(rng.normal(0.0, 3.0, 5000)) * 0.25  # quantised: many zero steps
+    v[1000:1100 + 40 * seed] = v[1000]  # a frozen span
+    v = np.clip(v, -2.0, 2.5)  # rails
+    if seed == 4:
+        v[2500] = np.nan
+    if seed == 5:
+        v[:] = 1.0  # never moves
+    lsb, stuck, sat = channel_counts(v, float(v.max()), float(v.min()), 80)
+    want = _array_counts(v, 80)
+    assert (stuck, sat) == want[1:]
+    assert lsb == want[0] or (np.isnan(lsb) and np.isnan(want[0]))

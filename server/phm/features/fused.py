@@ -1,11 +1,14 @@
-"""The 800 Hz -> 80 Hz preparation of one actuator in one compiled pass (numba).
+"""The features' compiled loops (numba): the 800 Hz -> 80 Hz preparation of one actuator in
+one pass (:func:`step_quantities`) and the small least-squares systems (:func:`solve_small`).
 
 :func:`step_quantities` reads each 800 Hz sample once and writes every step quantity of
 :class:`server.phm.features.steps.ActuatorSteps`: the Clarke and Park transforms, the phase
 powers and amplitudes per sample, and each step's mean in NumPy's own order of additions
-(:func:`block_sum`), so the result is the bits the array form gave (eleven array passes and
-fifteen block means before). The trigonometric functions stay in NumPy (its SIMD ``cos`` and
-``sin`` need not round as the compiled ones do) and come in as arrays.
+(:func:`server.phm.pairwise.block_sum`), so the result is the bits the array form gave
+(eleven array passes and fifteen block means before). NumPy's float64 ``cos`` and ``sin``
+are glibc's, as the compiled ones are (equal on every one of 10 million angles up to
+1e5 rad); a NumPy that brought its own would show in
+``tests/phm/test_feature_regression.py``.
 """
 
 from __future__ import annotations
@@ -13,90 +16,65 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["STEP_ROWS", "block_sum", "solve_small", "step_quantities"]
+from ..pairwise import block_sum
+
+__all__ = ["STEP_ROWS", "solve_small", "step_quantities"]
 
 #: rows of :func:`step_quantities`' output, in order
 STEP_ROWS = ("speed", "speed_peak", "current", "voltage", "current_sq", "power", "theta",
              "cos_theta", "sin_theta", "x", "i_q", "v_q", "u_a", "u_b", "u_c", "ms_a", "ms_b",
              "ms_c", "common_current")
 
-_LANES = 8  # NumPy's pairwise sum: 8 partial sums over a short row, then the rest in turn
-
-
-@njit(cache=True, inline="always")
-def block_sum(buf, row, d):  # type: ignore[no-untyped-def]  # numba types it from its arguments
-    """Sum of ``buf[row, :d]`` (d <= 128) as NumPy's pairwise sum adds it, plus 0.0 (the
-    reduction's identity): a row mean is this over d."""
-    if d < _LANES:
-        total = buf[row, 0]
-        for j in range(1, d):
-            total += buf[row, j]
-    else:
-        r0, r1, r2, r3 = buf[row, 0], buf[row, 1], buf[row, 2], buf[row, 3]
-        r4, r5, r6, r7 = buf[row, 4], buf[row, 5], buf[row, 6], buf[row, 7]
-        whole = d - d % _LANES
-        for i in range(_LANES, whole, _LANES):
-            r0 += buf[row, i]
-            r1 += buf[row, i + 1]
-            r2 += buf[row, i + 2]
-            r3 += buf[row, i + 3]
-            r4 += buf[row, i + 4]
-            r5 += buf[row, i + 5]
-            r6 += buf[row, i + 6]
-            r7 += buf[row, i + 7]
-        total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        for j in range(whole, d):
-            total += buf[row, j]
-    return total + 0.0
+_N_ROWS = len(STEP_ROWS)
+_CHUNK = 64  # steps transformed before they are summed: their samples stay in cache
 
 
 @njit(cache=True)
-def step_quantities(ia, ib, ic, va, vb, vc, theta, x, cos_e, sin_e, cos_m, sin_m,  # type: ignore[no-untyped-def]  # noqa: E501
-                    i0_median, sample_rate_hz, n, d):
+def step_quantities(ia, ib, ic, va, vb, vc, theta, x, i0_median, pole_pairs,  # type: ignore[no-untyped-def]  # noqa: E501
+                    electrical_offset_rad, sample_rate_hz, n, d):
     """Every step quantity of one actuator, one row per name of :data:`STEP_ROWS` ((19, n)).
 
     Inputs are 800 Hz float64 arrays of at least ``n * d`` samples: the phase currents and
-    voltages, the shaft angle and rod position, ``cos``/``sin`` of the electrical angle
-    (``cos_e``, ``sin_e``) and of the shaft angle (``cos_m``, ``sin_m``); ``i0_median`` is the
-    flight median of ``ia + ib + ic``. ``speed_peak`` is the step's largest ``|omega|``; every
-    other row a step mean.
+    voltages, the shaft angle and rod position; ``i0_median`` is the flight median of
+    ``ia + ib + ic``; the electrical angle is ``pole_pairs theta - electrical_offset_rad``.
+    ``speed_peak`` is the step's largest ``|omega|`` (``np.gradient`` of ``theta``); every
+    other row a step mean. Steps go in chunks whose samples are transformed in loops of their
+    own (the trigonometric calls apart, glibc's as NumPy's), then summed step by step.
     """
-    out = np.empty((len(STEP_ROWS), n))
-    buf = np.empty((len(STEP_ROWS), d))
+    out = np.empty((_N_ROWS, n))
+    buf = np.empty((_N_ROWS, _CHUNK * d))
     root3 = np.sqrt(3.0)
-    dt2 = 2.0 * (1.0 / sample_rate_hz)  # np.gradient's central step
+    h = 1.0 / sample_rate_hz
     cut = n * d
-    for k in range(n):
-        peak = -1.0
-        for j in range(d):
-            s = k * d + j
+    for k0 in range(0, n, _CHUNK):
+        s0 = k0 * d
+        ns = (min(n, k0 + _CHUNK) - k0) * d
+        for j in range(ns):
+            th = theta[s0 + j]
+            th_e = pole_pairs * th - electrical_offset_rad
+            buf[7, j] = np.cos(th)
+            buf[8, j] = np.sin(th)
+            buf[10, j] = np.cos(th_e)  # overwritten below by i_q and v_q
+            buf[11, j] = np.sin(th_e)
+        for j in range(ns):
+            s = s0 + j
             a, b, c = ia[s], ib[s], ic[s]
             ua, ub, uc = va[s], vb[s], vc[s]
             i_al = (2.0 * a - b - c) / 3.0
             i_be = (b - c) / root3
             v_al = (2.0 * ua - ub - uc) / 3.0
             v_be = (ub - uc) / root3
-            if s == 0:
-                w = (theta[1] - theta[0]) / (1.0 / sample_rate_hz)
-            elif s == cut - 1:
-                w = (theta[s] - theta[s - 1]) / (1.0 / sample_rate_hz)
-            else:
-                w = (theta[s + 1] - theta[s - 1]) / dt2
             i2 = i_al * i_al + i_be * i_be
             v0 = (ua + ub + uc) / 3.0
-            buf[0, j] = w
-            if abs(w) > peak or w != w:  # np.maximum: a NaN wins
-                peak = abs(w)
+            ce, se = buf[10, j], buf[11, j]
             buf[2, j] = np.sqrt(i2)
             buf[3, j] = np.sqrt(v_al * v_al + v_be * v_be)
             buf[4, j] = i2
             buf[5, j] = v_al * i_al + v_be * i_be
             buf[6, j] = theta[s]
-            buf[7, j] = cos_m[s]
-            buf[8, j] = sin_m[s]
             buf[9, j] = x[s]
-            buf[10, j] = -i_al * sin_e[s] + i_be * cos_e[s]
-            buf[11, j] = -v_al * sin_e[s] + v_be * cos_e[s]
+            buf[10, j] = -i_al * se + i_be * ce
+            buf[11, j] = -v_al * se + v_be * ce
             buf[12, j] = ua
             buf[13, j] = ub
             buf[14, j] = uc
@@ -104,10 +82,34 @@ def step_quantities(ia, ib, ic, va, vb, vc, theta, x, cos_e, sin_e, cos_m, sin_m
             buf[16, j] = (ub - v0) * (ub - v0)
             buf[17, j] = (uc - v0) * (uc - v0)
             buf[18, j] = ((a + b) + c) - i0_median
-        for r in range(len(STEP_ROWS)):
-            out[r, k] = block_sum(buf, r, d) / d
-        out[1, k] = peak
+        _speed(theta, s0, ns, cut, h, buf)
+        for kk in range(ns // d):
+            peak = -1.0
+            for j in range(kk * d, kk * d + d):
+                w = buf[0, j]
+                if abs(w) > peak or w != w:  # np.maximum: a NaN wins
+                    peak = abs(w)
+            out[1, k0 + kk] = peak
+            block = buf[:, kk * d:]
+            for r in range(_N_ROWS):
+                if r != 1:
+                    out[r, k0 + kk] = block_sum(block, r, d) / d
     return out
+
+
+@njit(cache=True, inline="always")
+def _speed(theta, s0, ns, cut, h, buf):  # type: ignore[no-untyped-def]
+    """``np.gradient(theta[:cut], h)`` over samples ``s0 .. s0 + ns`` into ``buf[0]``: central
+    differences, one-sided at the ends."""
+    lo = 1 if s0 == 0 else 0
+    hi = ns - 1 if s0 + ns == cut else ns
+    dt2 = 2.0 * h
+    for j in range(lo, hi):
+        buf[0, j] = (theta[s0 + j + 1] - theta[s0 + j - 1]) / dt2
+    if lo == 1:
+        buf[0, 0] = (theta[1] - theta[0]) / h
+    if hi == ns - 1:
+        buf[0, ns - 1] = (theta[cut - 1] - theta[cut - 2]) / h
 
 
 @njit(cache=True)

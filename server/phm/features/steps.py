@@ -70,12 +70,10 @@ def actuator_steps(sig: Mapping[str, np.ndarray], *, config: FeatureConfig | Non
         return np.asarray(sig[k][:cut], dtype=np.float64)
 
     ia, ib, ic = arr("ia"), arr("ib"), arr("ic")
-    theta = arr("theta")
-    th_e = mc.pole_pairs * theta - cfg.electrical_offset_rad
     # sensor offsets of the three current channels add up to a constant: the flight median
     i0_median = float(np.median(ia + ib + ic))
-    q = step_quantities(ia, ib, ic, arr("va"), arr("vb"), arr("vc"), theta, arr("x"),
-                        np.cos(th_e), np.sin(th_e), np.cos(theta), np.sin(theta), i0_median,
+    q = step_quantities(ia, ib, ic, arr("va"), arr("vb"), arr("vc"), arr("theta"), arr("x"),
+                        i0_median, mc.pole_pairs, float(cfg.electrical_offset_rad),
                         float(cfg.sample_rate_hz), n, d)
     row = dict(zip(STEP_ROWS, q, strict=True))
     return ActuatorSteps(
