@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from sqlalchemy import select
 
 from server.db import session_scope
 from server.models import Alarm, GroundTruth, Injection
-from server.web.routes import csrf_token
+from server.web.routes import csrf_token, templates
 from tests.web.seed import add_alarm, seed_results
 from tests.web.test_pages import sign_in
 
@@ -151,3 +152,12 @@ def test_the_station_page_warns_of_a_span_outside_the_models_training(
     warning = page[page.index('id="span-warning-1"'):].split("</small>")[0]
     assert f"{low}-{high} flights" in warning and "extrapolation" in warning
 
+
+
+@pytest.mark.parametrize(("value", "text"), [(1.2, "1 flight"), (0.6, "1 flight"),
+                                             (1.6, "2 flights"), (40.0, "40 flights")])
+def test_a_count_of_flights_takes_its_plural_as_displayed(value: float,
+                                                          text: str) -> None:
+
+    macro = templates().env.get_template("_macros.html").module.flights  # type: ignore[attr-defined]
+    assert str(macro(value)) == text
