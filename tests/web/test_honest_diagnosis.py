@@ -158,6 +158,5 @@ def test_the_station_page_warns_of_a_span_outside_the_models_training(
                                              (1.6, "2 flights"), (40.0, "40 flights")])
 def test_a_count_of_flights_takes_its_plural_as_displayed(value: float,
                                                           text: str) -> None:
-
     macro = templates().env.get_template("_macros.html").module.flights  # type: ignore[attr-defined]
     assert str(macro(value)) == text
