@@ -8,7 +8,9 @@ ours (progpy is the ``bench`` extra).
 
 Families (none is the engine's own law by construction except where physics says so): linear,
 exponential, power-law, change point then growth, capacity-like fade with recovery jumps,
-noise growing with level. Every unit gets a random life (80-400 samples), time unit
+noise growing with level, a knee (a slow linear phase, then an accelerating drop, as a cell's
+capacity fades) and quiet then exponential (flat until a defect starts, as a bearing's
+vibration). Every unit gets a random life (80-400 samples), time unit
 (10^-2..10^2 per step), sampling (even or jittered steps), noise, and an indicator that rises
 or falls toward its threshold. Draws with an even index are the tuning half (defaults are
 chosen on it only), odd ones the held-out half. Each unit is scored at 8 instants from 40 %
@@ -39,7 +41,8 @@ from server.phm.metrics import bootstrap_indices, bootstrap_mean_interval  # noq
 from server.phm.prognosis.forecast import forecast_rul  # noqa: E402
 from server.phm.prognosis.law_average import LawAverageConfig  # noqa: E402
 
-FAMILIES = ("linear", "exponential", "power", "change_point", "capacity_jumps", "growing_noise")
+FAMILIES = ("linear", "exponential", "power", "change_point", "capacity_jumps", "growing_noise",
+            "knee", "quiet_then_exponential")
 
 
 def _truth(family: str, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -60,6 +63,14 @@ def _truth(family: str, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         for start in rng.uniform(0.05, 0.85, rng.integers(2, 6)):
             s -= rng.uniform(0.02, 0.08) * np.where(u >= start, np.exp(-(u - start) / 0.03), 0.0)
         return s / s[-1]
+    if family == "knee":
+        # a cell's capacity fade: a slow linear phase, then past the knee an accelerating drop
+        a, knee, p = rng.uniform(0.1, 0.3), rng.uniform(0.5, 0.8), rng.uniform(1.5, 3.0)
+        return a * u + (1.0 - a) * (np.clip(u - knee, 0.0, None) / (1.0 - knee)) ** p
+    if family == "quiet_then_exponential":
+        # a bearing's vibration: flat until a defect starts, then growing exponentially
+        start, k = rng.uniform(0.3, 0.7), rng.uniform(3.0, 6.0)
+        return np.expm1(k * np.clip(u - start, 0.0, None) / (1.0 - start)) / math.expm1(k)
     raise ValueError(family)
 
 
