@@ -13,7 +13,7 @@ from server.config import Settings
 from server.jobs.queue import ClaimedJob
 from server.timing import StageClock
 
-__all__ = ["JobContext", "Handler", "DeadLetter", "Deferred"]
+__all__ = ["JobContext", "Handler", "DeadLetter", "RetryNotice", "Deferred"]
 
 
 @dataclass
@@ -29,6 +29,9 @@ Handler = Callable[[JobContext, ClaimedJob], None]
 #: what to do when a job of a kind is given up (``dead``): given the session that records it,
 #: the job and its last error; it flushes, the worker commits both together
 DeadLetter = Callable[[Session, ClaimedJob, str], None]
+#: what to do when an attempt of a job of a kind failed and it is queued again: the same
+#: arguments as a dead letter (the failed attempt is ``job.attempts``)
+RetryNotice = Callable[[Session, ClaimedJob, str], None]
 
 
 class Deferred(Exception):

@@ -21,7 +21,7 @@ from server.phm.recording import log_features
 from server.services import analysis, analysis_input, retention
 from server.services import models as model_service
 
-__all__ = ["analyze_flight_job", "analysis_given_up"]
+__all__ = ["analyze_flight_job", "analysis_given_up", "analysis_retried"]
 
 
 def analyze_flight_job(ctx: JobContext, job: ClaimedJob) -> None:
@@ -84,3 +84,11 @@ def analysis_given_up(session: Session, job: ClaimedJob, error: str) -> None:
     if job.flight_id is not None:
         analysis.mark_failed(session=session, flight_id=job.flight_id, error=error,
                              attempts=job.attempts)
+
+
+def analysis_retried(session: Session, job: ClaimedJob, error: str) -> None:
+    """An attempt of ``analyze_flight`` failed and the job is queued again: the flight says
+    ``queued`` with the failure as its reason, not ``analyzing`` while it waits."""
+    if job.flight_id is not None:
+        analysis.mark_retrying(session=session, flight_id=job.flight_id, error=error,
+                               attempt=job.attempts, of=job.max_attempts)

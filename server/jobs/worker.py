@@ -4,7 +4,8 @@
 CPU-bound numpy, so processes, not threads). A worker killed mid-job leaves its job ``running``
 with a lease that expires; the next claim picks it up again, and every handler is idempotent.
 A job given up (``dead``: out of attempts, or its last attempt's worker vanished) runs its
-kind's dead letter (``handlers.DEAD_LETTERS``) in the same transaction.
+kind's dead letter (``handlers.DEAD_LETTERS``) in the same transaction; a failed attempt that
+is queued again, its kind's retry notice (``handlers.RETRY_NOTICES``).
 
 What a worker measures reaches the API's /metrics through the database
 (:mod:`server.services.telemetry`): each attempt's outcome, a finished job's duration and its
@@ -33,8 +34,8 @@ from server.blobstore_factory import open_blob_store
 from server.config import Settings
 from server.db import make_engine, make_session_factory
 from server.jobs import queue
-from server.jobs.context import DeadLetter, Deferred, Handler, JobContext
-from server.jobs.handlers import DEAD_LETTERS, HANDLERS
+from server.jobs.context import DeadLetter, Deferred, Handler, JobContext, RetryNotice
+from server.jobs.handlers import DEAD_LETTERS, HANDLERS, RETRY_NOTICES
 from server.migrate import ensure_schema
 from server.models import utcnow
 from server.services import retention, telemetry
@@ -52,7 +53,8 @@ FORGET_SILENT_AFTER = timedelta(days=1)
 class Worker:
     def __init__(self, settings: Settings, *, lease_s: float = 120.0, poll_s: float = 0.5,
                  handlers: dict[str, Handler] | None = None, worker_id: str | None = None,
-                 dead_letters: dict[str, DeadLetter] | None = None, beat_s: float = 10.0):
+                 dead_letters: dict[str, DeadLetter] | None = None, beat_s: float = 10.0,
+                 retry_notices: dict[str, RetryNotice] | None = None):
         self.settings = settings
         self.lease_s = lease_s
         self.poll_s = poll_s
@@ -66,6 +68,7 @@ class Worker:
         self.ctx = JobContext(settings, make_session_factory(engine), open_blob_store(settings))
         self.handlers = dict(HANDLERS) if handlers is None else handlers
         self.dead_letters = dict(DEAD_LETTERS) if dead_letters is None else dead_letters
+        self.retry_notices = dict(RETRY_NOTICES) if retry_notices is None else retry_notices
 
     def _heartbeat(self, job_id: int, done: threading.Event) -> None:
         while not done.wait(self.lease_s / 3):
@@ -165,6 +168,8 @@ class Worker:
                 outcome = queue.fail(session, job=job, worker_id=self.worker_id, error=error)
                 if outcome == JobStatus.DEAD:
                     self._given_up(session, job, error)
+                elif outcome == JobStatus.QUEUED and job.kind in self.retry_notices:
+                    self.retry_notices[job.kind](session, job, error)
                 session.commit()
             log.info("job %s -> %s", job.id, outcome)
             if outcome != "lost":  # lost: another worker holds it now and will count it

@@ -40,8 +40,8 @@ from server.services.urgency import RUL_LOW_QUANTILE
 from server.timing import StageClock
 from server.vocabulary import AlarmStatus, FlightStatus, JobStatus
 
-__all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "mark_waiting", "reject",
-           "mark_failed",
+__all__ = ["FlightToAnalyse", "flight_to_analyse", "mark_analyzing", "mark_waiting",
+           "mark_retrying", "reject", "mark_failed",
            "retry_failed", "failed_flights", "store_analysis", "json_safe"]
 
 log = logging.getLogger("hmsm.analysis")
@@ -90,6 +90,15 @@ def mark_waiting(*, session: Session, flight_id: int, code: str, message: str) -
         flight.status, flight.updated_at = FlightStatus.QUEUED, utcnow()
         flight.reasons = [{"code": code, "message": message}]
         session.flush()
+
+
+def mark_retrying(*, session: Session, flight_id: int, error: str, attempt: int,
+                  of: int) -> None:
+    """Attempt ``attempt`` of ``of`` failed and the job is queued again after a backoff: the
+    flight says ``queued``, with the failure as its reason, until the next attempt starts."""
+    mark_waiting(session=session, flight_id=flight_id, code="analysis_retried",
+                 message=f"Attempt {attempt} of {of} failed ({_last_line(error)}); the "
+                         "analysis is tried again.")
 
 
 def reject(*, session: Session, flight_id: int, reasons: list[dict[str, Any]]) -> None:

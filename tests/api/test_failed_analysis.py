@@ -1,7 +1,7 @@
 """A flight whose analysis is given up ends ``failed`` with the reason, never ``analyzing`` for
 good: listed as failed, shown on the dashboard, and queued again by an admin
-(``POST /flights/{id}/retry``). Through the real worker (``server.jobs.worker.Worker``) on
-each backend."""
+(``POST /flights/{id}/retry``); between failed attempts it says ``queued`` with the failure.
+Through the real worker (``server.jobs.worker.Worker``) on each backend."""
 
 from __future__ import annotations
 
@@ -96,11 +96,18 @@ def test_analysis_failing_on_every_attempt_fails_then_analyses_once_retried(
     # a worker whose decode limits are below this flight's size fails it on every attempt
     narrow = Worker(settings.model_copy(update={"max_decoded_bytes": 1024}))
     try:
-        for _ in range(5):
+        for attempt in range(1, 6):
             with app.state.session_factory() as session:  # the backoff has passed
                 session.execute(update(Job).values(run_after=utcnow()))
                 session.commit()
             assert narrow.run_once()
+            if attempt < 5:  # queued again: the flight waits, with why, not "analyzing"
+                waiting = _flight(client, keys, flight_id)
+                assert waiting["status"] == "queued", waiting
+                [reason] = waiting["reasons"]
+                assert reason["code"] == "analysis_retried"
+                assert reason["message"].startswith(f"Attempt {attempt} of 5 failed (")
+                assert "max_decoded_bytes" in reason["message"]
     finally:
         narrow.engine.dispose()
     failed = _flight(client, keys, flight_id)
