@@ -10,10 +10,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["block_sum", "pairwise_sum"]
+__all__ = ["PAIRWISE_BLOCK", "PAIRWISE_LANES", "block_sum", "pairwise_sum"]
 
-_LANES = 8  # partial sums of a block
-_BLOCK = 128  # largest block summed without halving
+#: NumPy's pairwise sum: partial sums of a block ...
+PAIRWISE_LANES = 8
+#: ... of up to this many values (longer spans are halved)
+PAIRWISE_BLOCK = 128
+_LANES = PAIRWISE_LANES
+_BLOCK = PAIRWISE_BLOCK
 
 
 @njit(cache=True, inline="always")

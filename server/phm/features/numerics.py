@@ -11,6 +11,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.signal import lfilter
 
+from ..pairwise import PAIRWISE_BLOCK, PAIRWISE_LANES
 from .config import FeatureConfig
 from .fused import solve_small
 from .results import FeatureTrack
@@ -31,12 +32,6 @@ def block_mean(a: np.ndarray, decimation: int) -> np.ndarray:
     return a[: n * decimation].reshape((n, decimation) + a.shape[1:]).mean(axis=1)
 
 
-_PAIRWISE_LANES = 8  # NumPy's pairwise sum of a short row: 8 partial sums, then the rest
-
-
-_PAIRWISE_BLOCK = 128  # ... up to this many elements (longer rows are split)
-
-
 def row_means(blocks: np.ndarray) -> np.ndarray:
     """``blocks.mean(axis=1)`` of an (n, d) array, to the bit, in column operations.
 
@@ -46,18 +41,18 @@ def row_means(blocks: np.ndarray) -> np.ndarray:
     additions in the same order, column by column, cost a third as much.
     """
     d = blocks.shape[1]
-    if d == 0 or d > _PAIRWISE_BLOCK:
+    if d == 0 or d > PAIRWISE_BLOCK:
         return blocks.mean(axis=1)
     col = [blocks[:, j] for j in range(d)]
-    if d < _PAIRWISE_LANES:
+    if d < PAIRWISE_LANES:
         total = col[0].copy()
         for c in col[1:]:
             total += c
     else:
-        whole = d - d % _PAIRWISE_LANES
-        r = col[:_PAIRWISE_LANES]
-        for i in range(_PAIRWISE_LANES, whole, _PAIRWISE_LANES):
-            r = [r[j] + col[i + j] for j in range(_PAIRWISE_LANES)]
+        whole = d - d % PAIRWISE_LANES
+        r = col[:PAIRWISE_LANES]
+        for i in range(PAIRWISE_LANES, whole, PAIRWISE_LANES):
+            r = [r[j] + col[i + j] for j in range(PAIRWISE_LANES)]
         total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
         for c in col[whole:]:
             total += c
