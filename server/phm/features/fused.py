@@ -90,10 +90,9 @@ def step_quantities(ia, ib, ic, va, vb, vc, theta, x, i0_median, pole_pairs,  # 
                 if abs(w) > peak or w != w:  # np.maximum: a NaN wins
                     peak = abs(w)
             out[1, k0 + kk] = peak
-            block = buf[:, kk * d:]
             for r in range(_N_ROWS):
                 if r != 1:
-                    out[r, k0 + kk] = block_sum(block, r, d) / d
+                    out[r, k0 + kk] = block_sum(buf[r], kk * d, d) / d
     return out
 
 
