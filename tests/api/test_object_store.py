@@ -123,10 +123,14 @@ def test_store_outage_answers_503_loses_nothing_and_recovers(
     assert (done["status"], done["reasons"]) == ("analyzed", []), done
 
 
+REQUEST_OWN_WORK_S = 0.5
+
+
 def test_a_store_that_never_answers_costs_an_upload_at_most_the_deadline(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A store that takes connections and never answers: the upload is 503 with Retry-After
-    within HMSM_BLOB_STORE_DEADLINE_S (one retry made, the next refused by the deadline),
+    within HMSM_BLOB_STORE_DEADLINE_S and the request's own work (one retry made, the next
+    refused by the deadline),
     and /health/ready says the store does not answer, naming it, within the probe's timeout.
     Bounded here as a client would: without the deadline the upload took 150 s."""
     for name, value in AWS_ENV.items():
@@ -172,7 +176,9 @@ def test_a_store_that_never_answers_costs_an_upload_at_most_the_deadline(
     assert up.status_code == 503, up.text
     assert up.json()["error"]["code"] == "storage_unreachable"
     assert int(up.headers["Retry-After"]) > 0
-    assert seen["upload_s"] <= settings.blob_store_deadline_s, seen
+    # the deadline bounds the store's operation; the request's own work (auth, spooling the
+    # body, its rows) comes on top, and a socket's timeout fires a few ms late (4.006 s seen)
+    assert seen["upload_s"] <= settings.blob_store_deadline_s + REQUEST_OWN_WORK_S, seen
     assert seen["tries"] == 2, seen  # the HEAD tried again once; a third could not end in time
 
     ready = seen["ready"]
