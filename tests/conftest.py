@@ -106,14 +106,18 @@ DESIGN_SEED, VERIFICATION_SEED = 1, 2
 
 def make_campaign(kind: str, seed: int, root) -> object:  # type: ignore[no-untyped-def]
     """``root/<kind>_<seed>``: a quick campaign, generated unless its manifest exists."""
+    import fcntl
     from pathlib import Path
 
     out = Path(root) / f"{kind}_{seed}"
-    if not (out / "manifest.json").exists():
-        from sim_worker import run_campaign
+    # one writer: the suite's xdist workers share the root, the first makes it, the others wait
+    with open(Path(root) / f"{kind}_{seed}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (out / "manifest.json").exists():
+            from sim_worker import run_campaign
 
-        run_campaign(kind, out, seed=seed, scale="quick", workers=os.cpu_count() or 1,
-                     progress=False)
+            run_campaign(kind, out, seed=seed, scale="quick", workers=os.cpu_count() or 1,
+                         progress=False)
     return out
 
 
@@ -125,6 +129,10 @@ def campaign_root(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-
     if env:
         Path(env).mkdir(parents=True, exist_ok=True)
         return Path(env)
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # one root for the run's workers (pytest -n)
+        shared = tmp_path_factory.getbasetemp().parent / "phm_campaigns"
+        shared.mkdir(exist_ok=True)
+        return shared
     return tmp_path_factory.mktemp("phm_campaigns")
 
 
