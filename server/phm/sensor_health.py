@@ -209,13 +209,15 @@ def _floor_ratio(study: Mapping[str, Mapping[str, float]],
 
 @dataclass
 class _Pair:
-    """One feature on one study flight and its twin: residuals, excess noise variance ``e``
-    and evidence weight ``w``."""
+    """One feature on one study flight and its twin: residuals, excess noise variance ``e``,
+    evidence weight ``w`` and the feature's scale on its log (0 for a feature judged on its
+    value)."""
 
     z_study: float
     z_twin: float
     e: float
     w: float
+    log_scale: float
 
 
 @dataclass
@@ -224,34 +226,45 @@ class NoiseSensitivity:
 
     Learned on the design campaign's sensor study: healthy patterns flown twice, once as
     rigged and once with one sensor's noise raised (same flights, seeds and noise draws), so
-    that each pair of flights differs by that sensor's noise alone, loops included. A feature
-    averages its flight's valid windows, so to first order its noise-driven error scales with
-    the sensor's noise variance over the number of windows (the bias of a noisy magnitude such
-    as F_SE's, the variance of a noisy slope such as F_TTS's): per unit of
-    ``e w``, ``e = r^2 - 1`` the excess noise variance (``r``: the measured floor ratio of the
-    pair) and ``w`` the evidence weight (``FleetBaseline.evidence_weights``), the residual
-    moves by
-    ``bias_[g][s]`` and its flight scatter gains ``variance_[g][s]``.
+    that each pair of flights differs by that sensor's noise alone, loops included. ``e =
+    r^2 - 1`` is the pair's excess noise variance (``r``: the measured floor ratio) and ``w``
+    the flight's evidence weight (``FleetBaseline.evidence_weights``).
 
-    The bias is the mean paired difference per unit ``e w`` (none unless beyond three
-    standard errors). The added variance comes from the pairs' spread: with the same noise
-    draws scaled ``r`` times, a feature's noise error ``n`` becomes ``r n``, a pair differs by
-    ``(r - 1) n`` and the scatter grows by ``(r^2 - 1) var(n)``; ``var(n)`` is the squared
-    robust scale (1.4826 MAD) of ``(d - bias e w) / ((r - 1) sqrt(w))`` within each study
-    pattern and position (one actuator's flights), averaged over them. Robust, because a few
-    flights with few windows carry most of a noisier sensor's large differences; the evidence
-    weight carries them instead (docs/TUNING.md, Sensor health).
+    * **Bias of a feature judged on its value** (a slope such as F_TTS's): a feature averages
+      its flight's valid windows, so its noise-driven error grows with the noise variance over
+      the number of windows; per unit of ``e w`` the residual moves by ``bias_[g][s]``, the
+      mean paired difference per unit ``e w``. Sensors add.
+    * **Bias of a magnitude judged on its log** (``F_SE``, ``F_BDO``: amplitudes that noise
+      inflates in power): a sensor's noise adds power in proportion to its excess, so
+      ``exp(2 dlog) - 1 = power_[g][s] e`` per sensor, the noisier sensors' shares add in
+      power and the log shift is ``log(1 + sum_s power_[g][s] e_s) / 2``, not the sum of
+      each sensor's log shift (three sensors each doubled: about log 2, where summing the
+      logs gave 1.6 times it). ``dlog`` is the residual's difference times the feature's
+      log scale. No ``w``: the healthy magnitude is mostly noise, and its share is the same
+      at any number of windows.
+    * **Added scatter** per unit ``e w``, ``variance_[g][s]``: what the study flights' scatter
+      gains over their twins', measured, not derived from a noise model:
+      ``var(z_s) - var(z_t) = var(d) + 2 cov(d, z_t)`` for the pair difference ``d`` less
+      its bias, within each study pattern and position (one actuator's flights), pooled over
+      them and divided by their ``sum e w``; 0 when negative. An earlier estimator assumed the
+      noise error scales by ``r`` (scatter ``(r^2 - 1) var(d) / (r - 1)^2``), three times the
+      pair spread at ``r = 2``; on a magnitude judged on its log, where a louder noise moves
+      the value and leaves its scatter, it widened bands by a variance of 3 for nothing and
+      hid step faults (docs/TUNING.md, Sensor health).
     """
 
     def __post_init__(self) -> None:
         self.bias_: dict[str, dict[str, float]] = {}
+        self.power_: dict[str, dict[str, float]] = {}
         self.variance_: dict[str, dict[str, float]] = {}
+        self.log_scale_: dict[str, float] = {}
 
     def fit(self, pairs: Sequence[tuple[str, str, FlightFeatures, FlightFeatures]],
             baseline: Any) -> NoiseSensitivity:
         """``pairs``: ``(sensor, study pattern, study flight, twin flight)`` with their
         :class:`~server.phm.features.FlightFeatures`; ``baseline``: the fitted
         :class:`server.phm.baselines.FleetBaseline`."""
+        self.log_scale_ = _log_scales(baseline)
         groups: dict[tuple[str, str, str], list[_Pair]] = {}
         for sensor, pattern, study, twin in pairs:
             z_s, z_t = baseline.zscores(study), baseline.zscores(twin)
@@ -263,64 +276,109 @@ class NoiseSensitivity:
                 zs = z_s.get(name, math.nan)
                 if math.isfinite(zs) and math.isfinite(zt) and e > 0.05:
                     groups.setdefault((name, sensor, pattern), []).append(
-                        _Pair(zs, zt, e, weights.get(name, 1.0)))
+                        _Pair(zs, zt, e, weights.get(name, 1.0),
+                              self.log_scale_.get(name, 0.0)))
         self.bias_ = {g: {} for g in FEATURE_SENSORS}
+        self.power_ = {g: {} for g in FEATURE_SENSORS}
         self.variance_ = {g: {} for g in FEATURE_SENSORS}
         by_generic: dict[tuple[str, str], list[list[_Pair]]] = {}
         for (name, sensor, _), rows in groups.items():
             if len(rows) >= 3:
                 by_generic.setdefault((name.split(".", 1)[1], sensor), []).append(rows)
         for (g, sensor), sets in by_generic.items():
-            if g in FEATURE_SENSORS and sensor in FEATURE_SENSORS[g]:
+            if g not in FEATURE_SENSORS or sensor not in FEATURE_SENSORS[g]:
+                continue
+            if sets[0][0].log_scale > 0:
+                self.power_[g][sensor] = _power_share(sets)
+            else:
                 self.bias_[g][sensor] = _bias(sets)
-                self.variance_[g][sensor] = _added_variance(sets, self.bias_[g][sensor])
+            self.variance_[g][sensor] = _added_variance(sets, self.bias_[g].get(sensor, 0.0))
         return self
 
     def fitted(self) -> bool:
         """Whether the study gave any coefficient (pairs too few or too alike give none)."""
         return any(self.variance_.values())
 
-    def effect(self, generic: str, excess: Mapping[str, float],
+    def effect(self, name: str, excess: Mapping[str, float],
                weight: float = 1.0) -> tuple[float, float]:
-        """``(bias, added variance)`` of feature ``generic`` on a flight of evidence weight
-        ``weight`` for the sensors' excess noise variances ``excess`` (sensor -> r^2 - 1)."""
-        bias = sum(self.bias_.get(generic, {}).get(s, 0.0) * e for s, e in excess.items())
+        """``(bias, added variance)`` of feature ``name`` (``"WT.F_SE"``) on a flight of
+        evidence weight ``weight`` for the sensors' excess noise variances ``excess``
+        (sensor -> r^2 - 1), in residual units."""
+        generic = name.split(".", 1)[1]
         var = sum(self.variance_.get(generic, {}).get(s, 0.0) * e for s, e in excess.items())
+        scale = self.log_scale_.get(name, 0.0)
+        if scale > 0 and generic in self.power_:
+            power = sum(self.power_[generic].get(s, 0.0) * e for s, e in excess.items())
+            # a share below -1 is no power; the floor keeps the log finite
+            return 0.5 * math.log(max(1.0 + power, _MIN_POWER_RATIO)) / scale, var * weight
+        bias = sum(self.bias_.get(generic, {}).get(s, 0.0) * e for s, e in excess.items())
         return bias * weight, var * weight
 
     def to_dict(self) -> dict[str, Any]:
-        return {"bias": self.bias_, "variance": self.variance_}
+        return {"bias": self.bias_, "power": self.power_, "variance": self.variance_,
+                "log_scale": self.log_scale_}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> NoiseSensitivity:
+        """A document written before the log features' power shares (no ``power``) is judged
+        as it was fitted: every bias linear in ``e w``."""
         obj = cls()
-        obj.bias_ = {g: {s: float(v) for s, v in m.items()} for g, m in d["bias"].items()}
-        obj.variance_ = {g: {s: float(v) for s, v in m.items()}
-                         for g, m in d["variance"].items()}
+        obj.bias_ = _coefficients(d["bias"])
+        obj.power_ = _coefficients(d.get("power", {}))
+        obj.variance_ = _coefficients(d["variance"])
+        obj.log_scale_ = {k: float(v) for k, v in d.get("log_scale", {}).items()}
         return obj
+
+
+#: the least power ratio a log feature's shift is computed at (a study share below -1/e)
+_MIN_POWER_RATIO = 1e-2
+
+
+def _coefficients(d: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, float]]:
+    return {g: {s: float(v) for s, v in m.items()} for g, m in d.items()}
+
+
+def _log_scales(baseline: Any) -> dict[str, float]:
+    """Feature -> its residual's scale in log units, for the features judged on their log."""
+    logged = set(getattr(baseline, "log_features", ()))
+    names = [n for n in baseline.feature_names_ if n.split(".", 1)[1] in logged]
+    return {n: float(v) for n, v in baseline.to_physical(dict.fromkeys(names, 1.0)).items()}
+
+
+def _significant_mean(x: np.ndarray) -> float:
+    """The mean of ``x``; 0 unless beyond three standard errors (or fewer than 3 values)."""
+    if x.size < 3:
+        return 0.0
+    mean, se = float(x.mean()), float(x.std(ddof=1) / math.sqrt(x.size))
+    return mean if abs(mean) > 3.0 * se else 0.0
 
 
 def _bias(sets: Sequence[Sequence[_Pair]]) -> float:
     """Mean paired difference per unit ``e w``; 0 unless beyond three standard errors."""
-    d = np.array([(p.z_study - p.z_twin) / (p.e * p.w) for rows in sets for p in rows])
-    if d.size < 3:
-        return 0.0
-    mean, se = float(d.mean()), float(d.std(ddof=1) / math.sqrt(d.size))
-    return mean if abs(mean) > 3.0 * se else 0.0
+    return _significant_mean(np.array([(p.z_study - p.z_twin) / (p.e * p.w)
+                                       for rows in sets for p in rows]))
+
+
+def _power_share(sets: Sequence[Sequence[_Pair]]) -> float:
+    """A log feature's added power per unit ``e``: ``exp(2 dlog) - 1`` over ``e``, ``dlog``
+    the pair's log difference; 0 unless beyond three standard errors."""
+    return _significant_mean(np.array([
+        math.expm1(2.0 * (p.z_study - p.z_twin) * p.log_scale) / p.e
+        for rows in sets for p in rows]))
 
 
 def _added_variance(sets: Sequence[Sequence[_Pair]], bias: float) -> float:
-    """Added flight scatter per unit ``e w``, from each group's robust pair spread once the
-    bias is taken off."""
-    out, n = 0.0, 0
+    """Added flight scatter per unit ``e w``: ``var(d) + 2 cov(d, z_twin)`` within each group
+    (``d`` the pair difference less its linear bias), pooled, over the groups' ``sum e w``;
+    0 when negative."""
+    num, den = 0.0, 0.0
     for rows in sets:
-        r = np.sqrt(1.0 + np.array([p.e for p in rows]))
-        d = np.array([(p.z_study - p.z_twin - bias * p.e * p.w) / math.sqrt(p.w)
-                      for p in rows]) / (r - 1.0)
-        mad = 1.4826 * float(np.median(np.abs(d - np.median(d))))
-        out += mad * mad * len(rows)
-        n += len(rows)
-    return out / n if n else 0.0
+        zt = np.array([p.z_twin for p in rows])
+        d = np.array([p.z_study - p.z_twin - bias * p.e * p.w for p in rows])
+        d, zt = d - d.mean(), zt - zt.mean()
+        num += float(np.sum(d * (d + 2.0 * zt)))
+        den += float(sum(p.e * p.w for p in rows))
+    return max(num / den, 0.0) if den > 0 else 0.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -405,7 +463,7 @@ class SensorModel:
             if compensate and any(v > 0 for v in e.values()):
                 # compensate is only true with a sensitivity model
                 bias, var = self.sensitivity.effect(  # type: ignore[union-attr]
-                    generic, e, (evidence or {}).get(name, 1.0))
+                    name, e, (evidence or {}).get(name, 1.0))
                 out[name] = z[name] - bias
                 extra[name] = var
         return SensorJudgement(findings, out, extra, aside)

@@ -178,12 +178,18 @@ def test_the_effect_scales_with_the_flights_evidence(bands: SensorBands) -> None
 
 
 class _Baseline:
-    """Residuals are the stored values; the healthy median is 100 valid windows."""
+    """Residuals are the stored values (``F_SE``'s its log over ``LOG_SCALE``); the healthy
+    median is 100 valid windows."""
 
     min_evidence = 0.25
+    log_features = ("F_SE",)
 
     def __init__(self, names: list[str]) -> None:
         self.min_valid_ = dict.fromkeys(names, 25.0)
+        self.feature_names_ = tuple(names)
+
+    def to_physical(self, z: dict[str, float]) -> dict[str, float]:
+        return {n: v * LOG_SCALE if n.endswith("F_SE") else v for n, v in z.items()}
 
     def zscores(self, flight: FlightFeatures) -> dict[str, float]:
         return {n: s.value for n, s in flight.summaries.items()}
@@ -191,6 +197,70 @@ class _Baseline:
     # the baseline's own evidence weights, on these valid-window counts
     evidence_weights = FleetBaseline.evidence_weights
     _typical_valid = FleetBaseline._typical_valid
+
+
+LOG_SCALE = 0.5
+
+
+def _study_pair(rng: np.random.Generator, sensor: str, z_twin: float, z_study: float,
+                n_valid: int = 100, ratio: float = 2.0) -> tuple[FlightFeatures, FlightFeatures]:
+    """(study, twin) flights of one feature whose ``sensor`` floor is ``ratio`` times the
+    twin's in the study flight."""
+    channel = {"current": "WT.i_sum", "voltage": "WT.v_sum"}[sensor]
+    q_twin = _quality(rng)
+    q_study = {ch: dict(v) for ch, v in q_twin.items()}
+    q_study[channel]["noise"] *= ratio
+    return (FlightFeatures({"X": FeatureSummary(z_study, 0.0, n_valid)}, {}, quality=q_study),
+            FlightFeatures({"X": FeatureSummary(z_twin, 0.0, n_valid)}, {}, quality=q_twin))
+
+
+def _named(flight: FlightFeatures, name: str) -> FlightFeatures:
+    return FlightFeatures({name: flight.summaries["X"]}, {}, quality=flight.quality)
+
+
+def test_added_scatter_is_what_the_study_flights_gain_not_a_scaled_copy() -> None:
+    """Study flights that add independent noise of variance 0.1 e w to their twins' residuals
+    (not a scaled copy of the twin's noise): the added scatter per unit e w is 0.1; the
+    scaled-noise estimator gave (r + 1) / (r - 1) = 3 times it."""
+    rng = np.random.default_rng(21)
+    pairs = []
+    for k in range(240):
+        n_valid = int(rng.choice([50, 100, 200]))
+        w = 100 / n_valid
+        twin_z = rng.normal(0.0, 1.0) + rng.normal(0.0, 0.5) * math.sqrt(w)
+        study, twin = _study_pair(rng, "current", twin_z,
+                                  twin_z + rng.normal(0.0, math.sqrt(0.1 * 3.0 * w)), n_valid)
+        pairs.append(("current", f"P{k % 6}", _named(study, "WT.F_TTS"),
+                      _named(twin, "WT.F_TTS")))
+    s = NoiseSensitivity().fit(pairs, _Baseline(["WT.F_TTS"]))
+    assert s.variance_["F_TTS"]["current"] == pytest.approx(0.1, abs=0.03)
+    assert s.bias_["F_TTS"]["current"] == 0.0
+
+
+def test_a_magnitude_on_its_log_adds_its_sensors_in_power() -> None:
+    """F_SE's power is the current sensor's noise (share 0.6) and the voltage sensor's (0.4):
+    each sensor doubled alone moves its log by log(1 + 3 share) / 2; both doubled move it by
+    log(4) / 2, less than the two shifts summed, and the scatter stays as it was."""
+    rng = np.random.default_rng(22)
+    shares = {"current": 0.6, "voltage": 0.4}
+    pairs = []
+    for sensor, share in shares.items():
+        for k in range(100):
+            log_twin = rng.normal(0.0, LOG_SCALE)
+            log_study = log_twin + 0.5 * math.log1p(3.0 * share) + rng.normal(0.0, 0.01)
+            study, twin = _study_pair(rng, sensor, log_twin / LOG_SCALE,
+                                      log_study / LOG_SCALE)
+            pairs.append((sensor, f"{sensor}{k % 4}", _named(study, "WT.F_SE"),
+                          _named(twin, "WT.F_SE")))
+    s = NoiseSensitivity().fit(pairs, _Baseline(["WT.F_SE"]))
+    assert s.power_["F_SE"] == pytest.approx(shares, abs=0.05)
+    assert s.variance_["F_SE"]["current"] < 0.01
+    both, _ = s.effect("WT.F_SE", {"current": 3.0, "voltage": 3.0})
+    alone = sum(s.effect("WT.F_SE", {sensor: 3.0})[0] for sensor in shares)
+    assert both * LOG_SCALE == pytest.approx(0.5 * math.log(4.0), abs=0.03)
+    assert alone > 1.3 * both
+    again = NoiseSensitivity.from_dict(s.to_dict())
+    assert again.effect("WT.F_SE", {"current": 3.0}) == s.effect("WT.F_SE", {"current": 3.0})
 
 
 def test_noise_sensitivity_recovers_a_known_bias_and_scatter() -> None:
@@ -217,7 +287,8 @@ def test_noise_sensitivity_recovers_a_known_bias_and_scatter() -> None:
     assert s.bias_["F_TTS"]["current"] == pytest.approx(0.4, abs=0.02)
     assert s.variance_["F_TTS"]["current"] == pytest.approx(0.25, rel=0.3)
     again = NoiseSensitivity.from_dict(s.to_dict())
-    assert again.effect("F_TTS", {"current": 3.0}, 2.0) == s.effect("F_TTS", {"current": 3.0}, 2.0)
+    assert (again.effect("WT.F_TTS", {"current": 3.0}, 2.0)
+            == s.effect("WT.F_TTS", {"current": 3.0}, 2.0))
 
 
 def test_evidence_weights_against_the_healthy_median() -> None:
