@@ -833,6 +833,18 @@ class SensorFindingRead(BaseModel):
     high: float | None
 
 
+class OutsideDesignRead(BaseModel):
+    """A flight condition far outside the healthy design flights' range: the features that
+    model it are not judged on the flight (server/phm/baselines.py)."""
+
+    condition: str = Field(description="temp_ground_c | temp_mean_c | load_rms_n | "
+                           "speed_rms_rad_s | temp_winding_est_c | mtel_drag_weight_per_nm")
+    value: float | None
+    low: float | None = Field(description="the design flights' range of the condition")
+    high: float | None
+    features: list[str]
+
+
 class SensorFlightRead(BaseModel):
     flight_id: int
     flight_index: int
@@ -841,6 +853,8 @@ class SensorFlightRead(BaseModel):
     set_aside: list[str] = Field(description="features not judged on this flight")
     widened: dict[str, float] = Field(
         description="features judged with a widened flight scatter: added variance [z^2]")
+    outside_design: list[OutsideDesignRead] = Field(
+        default_factory=list, description="conditions far outside the design's")
 
 
 class GridCellRead(BaseModel):

@@ -27,6 +27,10 @@ windows of the healthy design flights gets no residual (NaN): its sampling noise
 twice the usual (variance ~ 1 / windows), and such flights carried most of the far healthy
 residuals of ``F_SE`` and ``F_BDO`` on the design campaign (docs/TUNING.md, Baselines).
 
+Each baseline keeps the range of its conditions over the healthy flights it was fitted on; a
+flight far outside it (:meth:`FleetBaseline.outside_design`, ``design_margin``) is one the
+baseline would extrapolate on, and the chain sets those features aside with a finding.
+
 The tuned values are the defaults of :class:`BaselineConfig`. Scikit-learn manner:
 ``__init__`` stores hyper-parameters, ``fit`` returns ``self``, learned attributes end in ``_``.
 Persisted as JSON (``to_dict`` / ``from_dict``), never pickle.
@@ -34,6 +38,7 @@ Persisted as JSON (``to_dict`` / ``from_dict``), never pickle.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -49,6 +54,7 @@ __all__ = [
     "DEFAULT_COVARIATES",
     "LinearBaseline",
     "FleetBaseline",
+    "OutsideDesign",
     "feature_position",
 ]
 
@@ -94,6 +100,13 @@ class BaselineConfig:
         and single flights at 0.025 on one long design life), so a normal band on the value
         itself takes their ordinary upper tail for a fault; on the log scale that tail is
         symmetric. A fault multiplies them, which the log keeps.
+    design_margin:
+        How far beyond the healthy design flights' range of a condition a flight may be and
+        still be judged, as a fraction of that range [-]: a linear baseline extrapolated far
+        past what it was fitted on says nothing about the unit, so such a flight's features
+        are not judged (a finding, not an alarm). A quarter: the shipped design spans the
+        test station's accepted conditions, so ambient offsets past about +-45 K, or loads
+        past about x2.4, are out (first-cut value, not tuned).
     """
 
     covariates: tuple[str, ...] = ("temp_ground_c", "temp_mean_c", "load_rms_n",
@@ -105,11 +118,29 @@ class BaselineConfig:
     min_evidence: float = 0.25
     within_units: bool = True
     log_features: tuple[str, ...] = ("F_SE", "F_BDO")
+    design_margin: float = 0.25
 
 
 #: the tuned baselines (``FleetBaseline()``)
 BASELINE_DEFAULTS = BaselineConfig()
 DEFAULT_COVARIATES: tuple[str, ...] = BASELINE_DEFAULTS.covariates
+
+
+@dataclass
+class OutsideDesign:
+    """A flight's condition far outside what the healthy design flights had: not a fault, a
+    flight the baseline cannot judge (its ``features`` are set aside)."""
+
+    position: str
+    condition: str
+    value: float
+    low: float  # the design flights' range of the condition
+    high: float
+    features: list[str]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"condition": self.condition, "value": self.value, "low": self.low,
+                "high": self.high, "features": list(self.features)}
 
 
 def feature_position(name: str) -> str:
@@ -175,6 +206,10 @@ class LinearBaseline:
         mean = np.where(np.isfinite(mean), mean, 0.0)
         scale = np.where(np.isfinite(scale) & (scale > 1e-12), scale, 1.0)
         self.cov_mean_, self.cov_scale_ = mean, scale
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN column: no range
+            self.cov_range_ = np.column_stack([np.nanmin(C, axis=0), np.nanmax(C, axis=0)]
+                                              ) if C.size else np.full((len(mean), 2), np.nan)
         X = self._prep(C)
         w = np.ones(y.size, dtype=bool)
         for _ in range(2):
@@ -221,13 +256,30 @@ class LinearBaseline:
         """Standardised residual ``(y - predict(C)) / scale_`` (n,)."""
         return (np.asarray(y, dtype=np.float64) - self.predict(C)) / self.scale_
 
+    def outside(self, c: np.ndarray, margin: float) -> list[int]:
+        """Indices of the covariates of one flight ``c`` (n_covariates,) beyond the fitted
+        flights' range widened by ``margin`` times it each side (none without a range: a
+        document written before ranges were kept; none for a condition the fit never saw
+        vary)."""
+        rng = getattr(self, "cov_range_", None)
+        if rng is None:
+            return []
+        span = rng[:, 1] - rng[:, 0]
+        with np.errstate(invalid="ignore"):
+            out = (c < rng[:, 0] - margin * span) | (c > rng[:, 1] + margin * span)
+        # a condition the design never varied taught no slope, so nothing extrapolates on it
+        return [int(i) for i in np.flatnonzero(out & (span > 0))]
+
     def to_dict(self) -> dict[str, Any]:
         self._check()
         return {"covariates": list(self.covariates), "ridge": self.ridge,
                 "outlier_k": self.outlier_k, "cov_mean": self.cov_mean_.tolist(),
                 "cov_scale": self.cov_scale_.tolist(), "coef": self.coef_.tolist(),
                 "intercept": self.intercept_, "scale": self.scale_,
-                "residual_std": self.residual_std_, "n_samples": self.n_samples_}
+                "residual_std": self.residual_std_, "n_samples": self.n_samples_,
+                **({"cov_range": [[float(v) if np.isfinite(v) else None for v in row]
+                                  for row in self.cov_range_]}
+                   if getattr(self, "cov_range_", None) is not None else {})}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> LinearBaseline:
@@ -239,6 +291,9 @@ class LinearBaseline:
         b.scale_ = float(d["scale"])
         b.residual_std_ = float(d["residual_std"])
         b.n_samples_ = int(d["n_samples"])
+        if d.get("cov_range") is not None:
+            b.cov_range_ = np.array([[np.nan if v is None else v for v in row]
+                                     for row in d["cov_range"]], dtype=np.float64).reshape(-1, 2)
         return b
 
 
@@ -276,7 +331,8 @@ class FleetBaseline:
                  outlier_k: float = BASELINE_DEFAULTS.outlier_k,
                  min_evidence: float = BASELINE_DEFAULTS.min_evidence,
                  within_units: bool = BASELINE_DEFAULTS.within_units,
-                 log_features: Sequence[str] = BASELINE_DEFAULTS.log_features) -> None:
+                 log_features: Sequence[str] = BASELINE_DEFAULTS.log_features,
+                 design_margin: float = BASELINE_DEFAULTS.design_margin) -> None:
         unknown = set(covariates) - set(CONDITION_NAMES)
         if unknown:
             raise ValueError(f"unknown covariates {sorted(unknown)}")
@@ -286,6 +342,7 @@ class FleetBaseline:
         self.min_evidence = float(min_evidence)
         self.within_units = bool(within_units)
         self.log_features = tuple(log_features)
+        self.design_margin = float(design_margin)
 
     def _values(self, flights: Sequence[FlightFeatures], name: str) -> np.ndarray:
         """Feature values (their log for ``log_features``), NaN where the flight has too
@@ -345,6 +402,21 @@ class FleetBaseline:
             out[name] = float(m.zscore(C, self._values([flight], name))[0])
         return out
 
+    def outside_design(self, flight: FlightFeatures) -> list[OutsideDesign]:
+        """The flight's conditions far outside the healthy design flights' (``design_margin``),
+        one per position and condition, each with the features that model it."""
+        self._check()
+        found: dict[tuple[str, str], OutsideDesign] = {}
+        for name, m in self.models_.items():
+            c = self._cond_matrix([flight], name, m.covariates)[0]
+            for i in m.outside(c, self.design_margin):
+                key = (feature_position(name), m.covariates[i])
+                if key not in found:
+                    lo, hi = m.cov_range_[i]
+                    found[key] = OutsideDesign(*key, float(c[i]), float(lo), float(hi), [])
+                found[key].features.append(name)
+        return list(found.values())
+
     def evidence_weights(self, flight: FlightFeatures) -> dict[str, float]:
         """Per feature of a flight, the healthy design flights' median number of valid windows
         over this flight's (at least one): how much more a noise-driven error weighs on it
@@ -394,6 +466,7 @@ class FleetBaseline:
                 "ridge": self.ridge, "outlier_k": self.outlier_k, "n_flights": self.n_flights_,
                 "min_evidence": self.min_evidence, "min_valid": dict(self.min_valid_),
                 "within_units": self.within_units, "log_features": list(self.log_features),
+                "design_margin": self.design_margin,
                 "models": {k: m.to_dict() for k, m in self.models_.items()}}
 
     @classmethod
@@ -404,7 +477,8 @@ class FleetBaseline:
         b = cls(d["covariates"], ridge=float(d["ridge"]), outlier_k=float(d["outlier_k"]),
                 min_evidence=float(d.get("min_evidence", 0.0)),
                 within_units=bool(d.get("within_units", False)),
-                log_features=tuple(d.get("log_features", ())))
+                log_features=tuple(d.get("log_features", ())),
+                design_margin=float(d.get("design_margin", BASELINE_DEFAULTS.design_margin)))
         b.min_valid_ = {k: float(v) for k, v in (d.get("min_valid") or {}).items()}
         b.models_ = {k: LinearBaseline.from_dict(v) for k, v in d["models"].items()}
         b.feature_names_ = tuple(b.models_)

@@ -233,6 +233,7 @@ def _store_record(session: Session, flight: Flight, act: Actuator, out: Actuator
                           "alarm_features": out.alarm_features,
                           "sensor_findings": out.sensor_findings,
                           "set_aside": out.set_aside, "widened": out.widened,
+                          "outside_design": out.outside_design,
                           "quality": quality}),
         confidence=out.max_confidence, alarm=out.alarm,
         class_probabilities=json_safe(out.class_probabilities)))

@@ -229,19 +229,21 @@ class SensorFlight:
     findings: list[dict[str, Any]]
     set_aside: list[str]
     widened: dict[str, float]
+    outside_design: list[dict[str, Any]]
 
 
 def sensor_findings(*, session: Session, actuator_id: int, limit: int) -> list[SensorFlight]:
-    """The actuator's flights with a sensor finding among its latest ``limit`` analysed
-    flights, oldest first."""
+    """The actuator's flights with a sensor finding or a condition outside the design among
+    its latest ``limit`` analysed flights, oldest first."""
     out = []
     for r in health_records(session=session, actuator_id=actuator_id, limit=limit):
         scores = r.scores or {}
-        if scores.get("sensor_findings"):
+        if scores.get("sensor_findings") or scores.get("outside_design"):
             out.append(SensorFlight(r.flight_id, r.flight_index, r.started_at,
-                                    list(scores["sensor_findings"]),
+                                    list(scores.get("sensor_findings") or []),
                                     list(scores.get("set_aside") or []),
-                                    dict(scores.get("widened") or {})))
+                                    dict(scores.get("widened") or {}),
+                                    list(scores.get("outside_design") or [])))
     return out
 
 

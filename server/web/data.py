@@ -64,10 +64,34 @@ def finding_text(f: dict[str, Any]) -> dict[str, str]:
             "value": f"{num(f.get('value'))} {unit}", "band": f"{band} {unit}"}
 
 
+#: a flight condition's words and unit, as the page shows one outside the design
+_CONDITION_NAMES = {"temp_ground_c": ("ground temperature", "°C"),
+                    "temp_mean_c": ("mean air temperature", "°C"),
+                    "load_rms_n": ("aerodynamic load (rms)", "N"),
+                    "speed_rms_rad_s": ("motor speed (rms)", "rad/s"),
+                    "temp_winding_est_c": ("winding temperature (estimated)", "°C"),
+                    "mtel_drag_weight_per_nm": ("hinge-load drag weight", "1/N·m")}
+
+
+def outside_text(o: dict[str, Any]) -> dict[str, str]:
+    """A condition outside the design, in the columns of a sensor finding."""
+    name, unit = _CONDITION_NAMES.get(str(o.get("condition")), (str(o.get("condition")), ""))
+
+    def num(v: Any) -> str:
+        return "–" if v is None else f"{float(v):.4g}"
+
+    return {"channel": "conditions", "sensor": "flight conditions",
+            "metric": f"{name}: outside the design",
+            "value": f"{num(o.get('value'))} {unit}",
+            "band": f"{num(o.get('low'))} to {num(o.get('high'))} {unit} (design)"}
+
+
 def sensor_view(flights: Iterable[SensorFlight]) -> list[dict[str, Any]]:
-    """Flights with sensor findings (as :func:`server.services.dashboard.sensor_flights`
-    orders them), their findings in words."""
-    return [{"flight_index": f.flight_index, "findings": [finding_text(x) for x in f.findings],
+    """Flights with sensor findings or conditions outside the design (as
+    :func:`server.services.dashboard.sensor_flights` orders them), in words."""
+    return [{"flight_index": f.flight_index,
+             "findings": ([finding_text(x) for x in f.findings]
+                          + [outside_text(x) for x in f.outside_design]),
              "set_aside": f.set_aside, "widened": sorted(f.widened)}
             for f in flights]
 

@@ -1,7 +1,8 @@
 """Sensor advisories end to end: a flight flown with a noisier LVDT, uploaded and analysed by
 the real worker, gives a sensor finding on that channel in the API (the actuator's findings,
 the fleet grid) and on the actuator's page; a flight of the same aircraft as rigged gives
-none."""
+none. A flight flown far outside the conditions the model was designed on is named with the
+condition and its design range, its features set aside, and raises no alarm."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from server.config import Settings
 from server.flightlog import write_parquet
 from server.jobs.worker import Worker
 from sim_worker.campaign import fleet_for
+from sim_worker.conditions import NO_CONDITIONS, Conditions
 from sim_worker.faults import healthy
 from sim_worker.flight import simulate_flight
 from tests.api.conftest import auth
@@ -23,11 +25,12 @@ from tests.web.test_pages import sign_in
 PARQUET = {"Content-Type": "application/vnd.apache.parquet"}
 
 
-def _flight(tail: str, code: str, index: int, sensor_faults: tuple[str, ...]) -> bytes:
+def _flight(tail: str, code: str, index: int, sensor_faults: tuple[str, ...],
+            conditions: Conditions = NO_CONDITIONS) -> bytes:
     """A 60 s flight of the verification fleet's first aircraft, as downloaded by ``tail``."""
     aircraft = fleet_for("verification", 2, sensor_faults=sensor_faults)[0]
     log, _ = simulate_flight(aircraft, healthy(), index, np.random.default_rng(index),
-                             duration_s=60.0)
+                             duration_s=60.0, conditions=conditions)
     meta = replace(log.metadata, aircraft=tail, flight=code,
                    actuator_serials=serials_for(tail))
     return write_parquet(replace(log, metadata=meta))
@@ -92,3 +95,27 @@ def test_a_noisier_lvdt_is_a_sensor_finding_not_an_alarm(
     assert "noise floor (rms)" in page and "µm" in page
     fleet = client.get("/fleet").text
     assert "sensor finding on WT.x" in fleet
+
+
+def test_a_flight_far_outside_the_design_conditions_is_named_not_alarmed(
+        app, client: TestClient, keys: dict[str, str], aircraft: str, settings: Settings,
+        active_model: None) -> None:  # type: ignore[no-untyped-def]
+    """70 K above the day's ambient (the station accepts 30): the ground temperature lies
+    beyond every position's design range, so every feature is set aside and none alarms."""
+    viewer = auth(keys["viewer"])
+    cells = {c["position"]: c for c in client.get("/api/v1/fleet/health", headers=viewer).json()}
+    _analyse(client, keys, settings, _flight(aircraft, "F1", 1, ()))
+    hot = _analyse(client, keys, settings,
+                   _flight(aircraft, "F2", 2, (), Conditions(ambient_offset_k=70.0)))
+    for p, cell in cells.items():
+        [found] = client.get(f"/api/v1/actuators/{cell['actuator_id']}/sensor-findings",
+                             headers=viewer).json()
+        assert found["flight_id"] == hot and found["findings"] == []
+        outside = {o["condition"]: o for o in found["outside_design"]}
+        assert outside["temp_ground_c"]["value"] > outside["temp_ground_c"]["high"]
+        assert set(found["set_aside"]) == {n for o in outside.values() for n in o["features"]}
+        assert {n.split(".")[0] for n in found["set_aside"]} == {p}
+    assert client.get("/api/v1/alarms", headers=viewer).json()["items"] == []
+    sign_in(client, keys["viewer"])
+    page = client.get(f"/actuators/{cells['WT']['actuator_id']}").text
+    assert "ground temperature: outside the design" in page and "(design)" in page

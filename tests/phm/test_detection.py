@@ -289,6 +289,36 @@ def test_fleet_baseline_and_model_round_trip() -> None:
     assert z1["WT.F_DMD"] > 10
 
 
+def test_a_flight_far_outside_the_design_conditions_is_named_not_judged() -> None:
+    """Design flights at 0-40 degC on the ground: a flight at 41 degC (within a quarter of the
+    range beyond it) is judged; one at 60 degC on the wingtip is named with the range it left
+    and the wingtip features that model the temperature; a constant condition of the design
+    (the load) names nothing; a document without ranges (written before them) names nothing."""
+    rng = np.random.default_rng(7)
+    flights = [_flight(rng) for _ in range(80)]
+    for f in flights:
+        f.conditions["WT"]["temp_ground_c"] = float(rng.uniform(0.0, 40.0))
+    fb = FleetBaseline().fit(flights)
+    near, far = _flight(rng), _flight(rng)
+    for f in (near, far):
+        for p in ("WL1", "WL2", "WT"):
+            f.conditions[p]["temp_ground_c"] = 20.0
+            f.conditions[p]["load_rms_n"] = 5000.0
+    near.conditions["WT"]["temp_ground_c"] = 41.0
+    far.conditions["WT"]["temp_ground_c"] = 60.0
+    assert fb.outside_design(near) == []
+    [found] = fb.outside_design(far)
+    assert (found.position, found.condition, found.value) == ("WT", "temp_ground_c", 60.0)
+    assert 0.0 <= found.low < 5.0 and 35.0 < found.high <= 40.0
+    assert found.features == [n for n in AIRCRAFT_FEATURES if n.startswith("WT.")]
+    again = FleetBaseline.from_dict(json.loads(json.dumps(fb.to_dict())))
+    assert [o.to_dict() for o in again.outside_design(far)] == [found.to_dict()]
+    doc = fb.to_dict()
+    for m in doc["models"].values():
+        del m["cov_range"]
+    assert FleetBaseline.from_dict(doc).outside_design(far) == []
+
+
 def test_ratio_features_are_judged_on_their_log() -> None:
     """A healthy F_BDO is log-normal-like: a flight at 4x the median is an ordinary upper
     tail on the log scale (z about 2.3 at a log-sd of 0.6) but 5 robust scales out on the

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from ..baselines import OutsideDesign
 from ..detection import DetectionResult, update_units
 from ..features import FlightFeatures
 from ..prognosis import RulDistribution
@@ -56,6 +57,9 @@ class ActuatorOutcome:
     set_aside: list[str] = field(default_factory=list)
     #: features judged with a widened flight scatter (a noisier sensor): added variance
     widened: dict[str, float] = field(default_factory=dict)
+    #: this actuator's conditions far outside the design's (OutsideDesign.to_dict): their
+    #: features are in ``set_aside``
+    outside_design: list[dict[str, Any]] = field(default_factory=list)
 
 
 def analyze_flight(model: PhmModel, features: FlightFeatures,
@@ -90,6 +94,8 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
     judged = _judge_sensors(model, features, z_all, evidence)
     if judged is not None:
         z_all = judged.z
+    outside = model.baseline.outside_design(features)
+    z_all = _set_aside_outside(z_all, outside)
     index_of: dict[str, int] = {}
     for position, h in health.items():
         index_of[position] = _advance(h, flight_index)
@@ -115,7 +121,20 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         out[position] = _outcome(features, z_all, det, h, position, index, probs, rul)
         if judged is not None:
             _note_sensors(out[position], judged, position)
+        _note_outside(out[position], outside, position)
     return out
+
+
+def _set_aside_outside(z: dict[str, float], outside: list[OutsideDesign]) -> dict[str, float]:
+    """The residuals with the features of conditions outside the design not judged (NaN)."""
+    names = {n for o in outside for n in o.features}
+    return {n: math.nan if n in names else v for n, v in z.items()} if names else z
+
+
+def _note_outside(out: ActuatorOutcome, outside: list[OutsideDesign], position: str) -> None:
+    mine = [o for o in outside if o.position == position]
+    out.outside_design = [o.to_dict() for o in mine]
+    out.set_aside += [n for o in mine for n in o.features if n not in out.set_aside]
 
 
 def _judge_sensors(model: PhmModel, features: FlightFeatures, z: dict[str, float],
