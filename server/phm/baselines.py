@@ -104,9 +104,10 @@ class BaselineConfig:
         How far beyond the healthy design flights' range of a condition a flight may be and
         still be judged, as a fraction of that range [-]: a linear baseline extrapolated far
         past what it was fitted on says nothing about the unit, so such a flight's features
-        are not judged (a finding, not an alarm). A quarter: the shipped design spans the
-        test station's accepted conditions, so ambient offsets past about +-45 K, or loads
-        past about x2.4, are out (first-cut value, not tuned).
+        are not judged (a finding, not an alarm). A quarter (first-cut value, not tuned):
+        the shipped design's ground temperatures span -35..54 degC (its bases' seasons and
+        the station's +-30 K), so a flight below about -57 or above 76 degC is out, and one
+        whose cruise air (design -55..17 degC) is past 35.
     """
 
     covariates: tuple[str, ...] = ("temp_ground_c", "temp_mean_c", "load_rms_n",
