@@ -837,8 +837,9 @@ class OutsideDesignRead(BaseModel):
     """A flight condition far outside the healthy design flights' range: the features that
     model it are not judged on the flight (server/phm/baselines.py)."""
 
-    condition: str = Field(description="temp_ground_c | temp_mean_c | load_rms_n | "
-                           "speed_rms_rad_s | temp_winding_est_c | mtel_drag_weight_per_nm")
+    condition: str = Field(description="one of the conditions the baselines follow "
+                           "(CONDITION_NAMES, server/phm/features/results.py), e.g. "
+                           "temp_mean_c")
     value: float | None
     low: float | None = Field(description="the design flights' range of the condition")
     high: float | None

@@ -238,10 +238,11 @@ class NoiseSensitivity:
       inflates in power): a sensor's noise adds power in proportion to its excess, so
       ``exp(2 dlog) - 1 = power_[g][s] e`` per sensor, the noisier sensors' shares add in
       power and the log shift is ``log(1 + sum_s power_[g][s] e_s) / 2``, not the sum of
-      each sensor's log shift (three sensors each doubled: about log 2, where summing the
-      logs gave 1.6 times it). ``dlog`` is the residual's difference times the feature's
-      log scale. No ``w``: the healthy magnitude is mostly noise, and its share is the same
-      at any number of windows.
+      each sensor's log shift (the shipped design's study, ``WT.F_SE`` with its three
+      sensors doubled: 1.62 residual units, the log shifts summed 2.20). ``dlog`` is the
+      residual's difference times the feature's log scale. No ``w``: taken as mostly noise,
+      the healthy magnitude's noise share is the same at any number of windows (an
+      assumption, not measured).
     * **Added scatter** per unit ``e w``, ``variance_[g][s]``: what the study flights' scatter
       gains over their twins', measured, not derived from a noise model:
       ``var(z_s) - var(z_t) = var(d) + 2 cov(d, z_t)`` for the pair difference ``d`` less
