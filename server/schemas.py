@@ -877,6 +877,9 @@ class GridCellRead(BaseModel):
     flights_seen: int
     sensor_findings: list[SensorFindingRead] = Field(
         description="sensor advisory: findings of the latest analysed flight")
+    outside_design: list[OutsideDesignRead] = Field(
+        default_factory=list, description="conditions of the latest analysed flight far "
+        "outside the model's design flights: the features they model were not judged")
 
 
 # ---------------------------------------------------------------------------------------------

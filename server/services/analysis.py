@@ -244,6 +244,7 @@ def _store_state(session: Session, flight: Flight, act: Actuator, out: ActuatorO
     doc = json_safe(health.to_dict())
     doc["confidence"] = out.max_confidence
     doc["sensor_findings"] = json_safe(out.sensor_findings)  # the latest flight's
+    doc["outside_design"] = json_safe(out.outside_design)  # the latest flight's
     if state is None:
         state = ActuatorState(actuator_id=act.id)
         session.add(state)

@@ -328,5 +328,6 @@ def fleet_grid(*, session: Session, base: str | None = None) -> list[GridCellRea
                                       act, alarm.rul_low_flights if alarm else None),
                                   open_alarm_id=alarm.id if alarm else None,
                                   flights_seen=seen,
-                                  sensor_findings=list(det.get("sensor_findings") or [])))
+                                  sensor_findings=list(det.get("sensor_findings") or []),
+                                  outside_design=list(det.get("outside_design") or [])))
     return cells

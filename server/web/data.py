@@ -27,7 +27,8 @@ from server.services.evaluation_status import read_progress
 from server.services.health import SensorFlight
 from server.vocabulary import BASES, CONDITION_KINDS, PAPER_TABLE2, SENSORS
 
-__all__ = ["actuator_view", "sensor_view", "finding_text", "station_forms", "evaluation_view"]
+__all__ = ["actuator_view", "sensor_view", "finding_text", "condition_name", "station_forms",
+           "evaluation_view"]
 
 
 def actuator_view(read: dict[str, Any]) -> dict[str, Any]:
@@ -71,6 +72,11 @@ _CONDITION_NAMES = {"temp_ground_c": ("ground temperature", "°C"),
                     "speed_rms_rad_s": ("motor speed (rms)", "rad/s"),
                     "temp_winding_est_c": ("winding temperature (estimated)", "°C"),
                     "mtel_drag_weight_per_nm": ("hinge-load drag weight", "1/N·m")}
+
+
+def condition_name(condition: str) -> str:
+    """A flight condition in words, e.g. ``temp_mean_c`` -> ``mean air temperature``."""
+    return _CONDITION_NAMES.get(condition, (condition, ""))[0]
 
 
 def outside_text(o: dict[str, Any]) -> dict[str, str]:

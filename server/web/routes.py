@@ -83,6 +83,7 @@ def templates() -> Jinja2Templates:
     t.env.globals["work_order_pattern"] = WORK_ORDER_FORM_PATTERN
     t.env.globals["mode_names"] = MODE_NAMES
     t.env.globals["feature_labels"] = FEATURE_LABELS
+    t.env.filters["condition_name"] = data.condition_name
     return t
 
 

@@ -117,6 +117,13 @@ def test_a_flight_far_outside_the_design_conditions_is_named_not_alarmed(
         assert set(found["set_aside"]) == {n for o in outside.values() for n in o["features"]}
         assert {n.split(".")[0] for n in found["set_aside"]} == {p}
     assert client.get("/api/v1/alarms", headers=viewer).json()["items"] == []
+    grid = {c["position"]: c for c in client.get("/api/v1/fleet/health", headers=viewer).json()}
+    assert all(c["outside_design"] and not c["sensor_findings"] for c in grid.values())
     sign_in(client, keys["viewer"])
     page = client.get(f"/actuators/{cells['WT']['actuator_id']}").text
     assert "mean air temperature: outside the design" in page and "(design)" in page
+    assert "latest flight outside the design (" in client.get("/fleet").text
+    assert "mean air temperature" in client.get("/fleet").text
+    _analyse(client, keys, settings, _flight(aircraft, "F3", 3, ()))
+    grid = {c["position"]: c for c in client.get("/api/v1/fleet/health", headers=viewer).json()}
+    assert all(c["outside_design"] == [] for c in grid.values())  # the latest flight's only
