@@ -78,6 +78,10 @@ def fly(index: int, conditions: Conditions, sensor: SensorInjection | None, seed
                             "z_top": _largest(o.z),
                             "findings": sorted({f["channel"] for f in o.sensor_findings}),
                             "set_aside": o.set_aside,
+                            "outside_design": [
+                                {"condition": x["condition"], "value": round(x["value"], 4),
+                                 "range": [round(x["low"], 4), round(x["high"], 4)]}
+                                for x in o.outside_design],
                             "winding_mean_c": summary.actuators[p].winding_mean_c,
                             "current_rms_a": summary.actuators[p].current_rms_a}
                         for p, o in out.items()}})
@@ -112,6 +116,8 @@ def summarise(runs: list[dict[str, Any]]) -> dict[str, Any]:
                 "channels": sorted({c for _, o in test for c in o["findings"]}),
                 "set_aside_flights": sum(bool(o["set_aside"]) for _, o in test),
                 "set_aside": sorted({f for _, o in test for f in o["set_aside"]}),
+                "outside_design": sorted({x["condition"] for _, o in test
+                                          for x in o.get("outside_design", ())}),
                 "winding_c": [round(float(np.mean([o["winding_mean_c"] for o in lead])), 2),
                               round(float(np.mean([o["winding_mean_c"] for _, o in test])), 2)],
                 "current_rms_a": [round(float(np.mean([o["current_rms_a"] for o in lead])), 3),

@@ -359,7 +359,7 @@ def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:
             "band_floor": 3.0, "false_alarm_rate": 3e-5, "scale_quantile": 0.99,
             "directions": grows, "pool_positions": True,
             "min_windows": three, "reference_flights": 6, "window_clip": 6.0, "median_from": 8,
-            "fleet_referenced": ["F_REWEAR"]}
+            "reference_guard": None, "fleet_referenced": ["F_REWEAR"]}
     assert {k: doc[k] for k in want} == want
     assert list(doc)[: len(want)] == list(want)
     assert list(doc["directions"]) == list(grows) and list(doc["min_windows"]) == list(three)

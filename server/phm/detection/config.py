@@ -3,6 +3,7 @@ and the names of what it monitors: the units and their features."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -70,6 +71,12 @@ class DetectionConfig:
     median_from:
         Windows of at least this many flights use the running median [flight]: a minority of
         odd flights does not move the statistic; 0 never.
+    reference_guard:
+        A valid flight whose self-referenced residual stands more than this many flight-scatter
+        sd along its fault's direction is judged but kept out of the actuator's reference
+        [sd]: a step fault in a unit's first flights (an SE or a BDO on a new unit) would
+        otherwise become the reference its later flights are judged against. ``inf``: every
+        valid flight enters until the reference is full.
     fleet_referenced:
         Generic features tested against the fleet, not the actuator's own first flights [-]:
         ``F_REWEAR``, which a worn rod end moves far beyond any actuator offset, so a median of
@@ -89,6 +96,7 @@ class DetectionConfig:
     reference_flights: int = 6
     window_clip: float = 6.0
     median_from: int = 8
+    reference_guard: float = math.inf
     fleet_referenced: tuple[str, ...] = (REWEAR_FEATURE,)
 
 

@@ -79,6 +79,7 @@ class FaultDetector:
                  reference_flights: int = DETECTION_DEFAULTS.reference_flights,
                  window_clip: float = DETECTION_DEFAULTS.window_clip,
                  median_from: int = DETECTION_DEFAULTS.median_from,
+                 reference_guard: float = DETECTION_DEFAULTS.reference_guard,
                  fleet_referenced: Sequence[str] | None = None) -> None:
         if not windows or min(windows) < 1:
             raise ValueError("windows must be positive flight counts")
@@ -105,6 +106,9 @@ class FaultDetector:
             raise ValueError("window_clip must be positive")
         self.window_clip = float(window_clip)
         self.median_from = int(median_from)
+        if not reference_guard > 0:
+            raise ValueError("reference_guard must be positive (inf: off)")
+        self.reference_guard = float(reference_guard)
         self.fleet_referenced = tuple(DETECTION_DEFAULTS.fleet_referenced
                                       if fleet_referenced is None else fleet_referenced)
 
@@ -117,6 +121,7 @@ class FaultDetector:
                    directions=config.directions, pool_positions=config.pool_positions,
                    min_windows=config.min_windows, reference_flights=config.reference_flights,
                    window_clip=config.window_clip, median_from=config.median_from,
+                   reference_guard=config.reference_guard,
                    fleet_referenced=config.fleet_referenced)
 
     @property
@@ -133,7 +138,8 @@ class FaultDetector:
             pool_positions=self.pool_positions,
             min_windows=MappingProxyType(dict(self.min_windows)),
             reference_flights=self.reference_flights, window_clip=self.window_clip,
-            median_from=self.median_from, fleet_referenced=self.fleet_referenced)
+            median_from=self.median_from, reference_guard=self.reference_guard,
+            fleet_referenced=self.fleet_referenced)
 
     # -- what the hyper-parameters say about one feature or window -------------------------
 
@@ -279,7 +285,9 @@ class FaultDetector:
         """Self-referenced residuals of one history (n_flights, all features);
         ``extra_variance`` (same shape) adds to each flight's scatter."""
         return self_referenced_sequence(z, self.within_std_, self.between_std_,
-                                        self.reference_flights, extra_variance)
+                                        self.reference_flights, extra_variance,
+                                        guard=self.reference_guard,
+                                        directions=self.directions_of(self.feature_names_))
 
     def evidence_extra(self, weights: np.ndarray,
                        feature_names: Sequence[str] | None = None) -> np.ndarray:
@@ -314,6 +322,8 @@ class FaultDetector:
                 "reference_flights": self.reference_flights,
                 "window_clip": self.window_clip if math.isfinite(self.window_clip) else None,
                 "median_from": self.median_from,
+                "reference_guard": (self.reference_guard if math.isfinite(self.reference_guard)
+                                    else None),
                 "fleet_referenced": list(self.fleet_referenced),
                 "within_std": self.within_std_.tolist(),
                 "between_std": self.between_std_.tolist(),
@@ -344,6 +354,9 @@ class FaultDetector:
                   window_clip=math.inf if d.get("window_clip") is None
                   else float(d["window_clip"]),
                   median_from=int(d.get("median_from", 0)),
+                  # a document without it let every valid flight into the reference
+                  reference_guard=math.inf if d.get("reference_guard") is None
+                  else float(d["reference_guard"]),
                   fleet_referenced=tuple(d.get("fleet_referenced", ())))
         det.feature_names_ = list(d["feature_names"])
         n = len(det.feature_names_)
