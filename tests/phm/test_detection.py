@@ -357,7 +357,7 @@ def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:
     three = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3, "F_REWEAR": 3}
     want = {"format": "ema-detector/2", "windows": [1, 3, 8], "alarm_confidence": 0.98,
             "band_floor": 3.0, "false_alarm_rate": 3e-5, "scale_quantile": 0.99,
-            "directions": grows, "pool_positions": True,
+            "directions": grows, "pool_positions": True, "pool_surfaces": True,
             "min_windows": three, "reference_flights": 6, "window_clip": 6.0, "median_from": 8,
             "reference_guard": None, "fleet_referenced": ["F_REWEAR"]}
     assert {k: doc[k] for k in want} == want
@@ -499,3 +499,25 @@ def test_partner_held_leaves_each_drive_its_own_evidence() -> None:
     for _ in range(3):  # F_MTEL, a progressive fault's feature, alarms on 3 flights or more
         res = decide(det, st, observe(det, st, {"WL1.F_MTEL": 40.0}), held=["WL1.F_MTEL"])
     assert not res.alarm and res.held == ["WL1.F_MTEL"] and res.max_confidence > 0.98
+
+
+def test_a_surface_whose_feature_scatters_more_gets_its_own_population() -> None:
+    """The wingtip's screw-gap estimate scatters 2.5 times the winglet drives' (its own load
+    spectrum presses the flanks differently): pooled with them, its flights are judged on a
+    scatter they do not have; one population per surface gives each its own, and keeps the
+    two winglet drives together."""
+    rng = np.random.default_rng(41)
+    names = ["WL1.F_MTWEAR", "WL2.F_MTWEAR", "WT.F_MTWEAR"]
+    scale = np.array([0.1, 0.1, 0.25])
+    seqs = [rng.standard_normal((150, 3)) * scale + rng.normal(0.0, 1.0, 3) for _ in range(10)]
+    pooled = FaultDetector().fit(seqs, names)
+    apart = FaultDetector(pool_surfaces=False).fit(seqs, names)
+    assert pooled.within_std_[0] == pooled.within_std_[2]
+    assert apart.within_std_[0] == apart.within_std_[1]
+    assert apart.within_std_[2] == pytest.approx(0.25, rel=0.1)
+    assert apart.within_std_[0] == pytest.approx(0.1, rel=0.1)
+    wt = [apart.self_referenced(q)[6:, 2] for q in seqs]
+    assert np.std(np.concatenate(wt)) == pytest.approx(1.0, abs=0.1)
+    wt_pooled = [pooled.self_referenced(q)[6:, 2] for q in seqs]
+    assert np.std(np.concatenate(wt_pooled)) > 1.3
+    assert FaultDetector.from_dict(apart.to_dict()).pool_surfaces is False

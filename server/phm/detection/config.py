@@ -55,6 +55,10 @@ class DetectionConfig:
     pool_positions:
         One band per generic feature, its scale measured on every position's healthy flights
         together: more healthy flights behind each band, the same physics on every actuator.
+    pool_surfaces:
+        With ``pool_positions``, the wingtip's flights pooled with the winglet drives' as well;
+        ``False``: one population per generic feature and surface (the two winglet drives
+        together, the wingtip alone), for features whose scatter follows the surface's loads.
     min_windows:
         Generic feature -> shortest window allowed to raise an alarm [flight]: 3 for the five
         progressive faults' features (they build up over hundreds of flights, while single
@@ -91,6 +95,7 @@ class DetectionConfig:
     directions: Mapping[str, int] = field(
         default_factory=lambda: MappingProxyType(dict.fromkeys(GENERIC_FEATURES, 1)))
     pool_positions: bool = True
+    pool_surfaces: bool = True
     min_windows: Mapping[str, int] = field(
         default_factory=lambda: MappingProxyType({OWN_FEATURE[m]: 3 for m in PROGRESSIVE}))
     reference_flights: int = 6

@@ -40,6 +40,8 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtri
 
+from server.vocabulary import is_winglet
+
 from .config import DETECTION_DEFAULTS, DetectionConfig, generic_feature, unit_of
 from .evidence import at_typical_evidence, evidence_shares
 from .sequences import healthy_statistics
@@ -52,10 +54,12 @@ DETECTOR_FORMAT = "ema-detector/2"
 _DETECTOR_FORMATS = (DETECTOR_FORMAT, "ema-detector/1")
 
 
-def _generic_groups(names: Sequence[str]) -> list[list[int]]:
-    """Column indices of each generic feature (``WL1.F_TTS``, ``WT.F_TTS`` -> one group)."""
-    gen = [generic_feature(n) for n in names]
-    return [[i for i, x in enumerate(gen) if x == g] for g in dict.fromkeys(gen)]
+def _generic_groups(names: Sequence[str], surfaces: bool = True) -> list[list[int]]:
+    """Column indices of each generic feature (``WL1.F_TTS``, ``WT.F_TTS`` -> one group);
+    with ``surfaces`` False, of each generic feature on each surface (``WL1.F_TTS`` and
+    ``WL2.F_TTS`` one group, ``WT.F_TTS`` another)."""
+    key = [(generic_feature(n), surfaces or is_winglet(unit_of(n))) for n in names]
+    return [[i for i, x in enumerate(key) if x == k] for k in dict.fromkeys(key)]
 
 
 class FaultDetector:
@@ -75,6 +79,7 @@ class FaultDetector:
                  scale_quantile: float = DETECTION_DEFAULTS.scale_quantile,
                  directions: Mapping[str, int] | None = None,
                  pool_positions: bool = DETECTION_DEFAULTS.pool_positions,
+                 pool_surfaces: bool = DETECTION_DEFAULTS.pool_surfaces,
                  min_windows: Mapping[str, int] | None = None,
                  reference_flights: int = DETECTION_DEFAULTS.reference_flights,
                  window_clip: float = DETECTION_DEFAULTS.window_clip,
@@ -97,6 +102,7 @@ class FaultDetector:
         self.directions = dict(DETECTION_DEFAULTS.directions if directions is None
                                else directions)
         self.pool_positions = bool(pool_positions)
+        self.pool_surfaces = bool(pool_surfaces)
         self.min_windows = dict(DETECTION_DEFAULTS.min_windows if min_windows is None
                                 else min_windows)
         if reference_flights < 0:
@@ -119,6 +125,7 @@ class FaultDetector:
                    band_floor=config.band_floor, false_alarm_rate=config.false_alarm_rate,
                    scale_quantile=config.scale_quantile,
                    directions=config.directions, pool_positions=config.pool_positions,
+                   pool_surfaces=config.pool_surfaces,
                    min_windows=config.min_windows, reference_flights=config.reference_flights,
                    window_clip=config.window_clip, median_from=config.median_from,
                    reference_guard=config.reference_guard,
@@ -135,7 +142,7 @@ class FaultDetector:
             false_alarm_rate=self.false_alarm_rate,  # type: ignore[arg-type]
             scale_quantile=self.scale_quantile,
             directions=MappingProxyType(dict(self.directions)),
-            pool_positions=self.pool_positions,
+            pool_positions=self.pool_positions, pool_surfaces=self.pool_surfaces,
             min_windows=MappingProxyType(dict(self.min_windows)),
             reference_flights=self.reference_flights, window_clip=self.window_clip,
             median_from=self.median_from, reference_guard=self.reference_guard,
@@ -192,8 +199,7 @@ class FaultDetector:
                    [np.asarray(e, dtype=np.float64).reshape(-1, len(names)) for e in evidence])
         share = np.zeros(len(names))
         if weights is not None and self.reference_flights > 0:
-            share = evidence_shares(seqs, weights, _generic_groups(names)
-                                    if self.pool_positions else [[i] for i in range(len(names))])
+            share = evidence_shares(seqs, weights, self._pools(names))
         typical = (seqs if weights is None else
                    [at_typical_evidence(q, e, share) for q, e in zip(seqs, weights, strict=True)])
         if self.reference_flights == 0:  # the fleet test: z as it is
@@ -201,7 +207,7 @@ class FaultDetector:
         else:
             sigma, tau = offset_components(typical)
             if self.pool_positions:  # one actuator population per generic feature
-                for idx in _generic_groups(names):
+                for idx in self._pools(names):
                     sigma[idx] = np.sqrt(np.mean(sigma[idx] ** 2))
                     tau[idx] = np.sqrt(np.mean(tau[idx] ** 2))
             self.evidence_variance_ = share * sigma**2
@@ -217,8 +223,7 @@ class FaultDetector:
             seen += np.isfinite(seq).sum(axis=0)
         self.feature_names_ = names
         stats = healthy_statistics(self, seqs, names, weights)
-        groups = (_generic_groups(names) if self.pool_positions
-                  else [[i] for i in range(len(names))])
+        groups = self._pools(names)
         scale = np.full((len(names), len(self.windows)), np.nan)
         for idx in groups:
             two_sided = self.direction(names[idx[0]]) == 0
@@ -229,6 +234,12 @@ class FaultDetector:
         self.band_ = self._bands_for(scale)
         self.n_healthy_flights_ = seen
         return self
+
+    def _pools(self, names: Sequence[str]) -> list[list[int]]:
+        """Column indices fitted as one population (``pool_positions``, ``pool_surfaces``)."""
+        if not self.pool_positions:
+            return [[i] for i in range(len(names))]
+        return _generic_groups(names, self.pool_surfaces)
 
     def _scale_of(self, s: np.ndarray, two_sided: bool) -> float:
         """Normal scale of healthy judged statistics: their ``scale_quantile`` quantile (Weibull
@@ -317,7 +328,7 @@ class FaultDetector:
                 "alarm_confidence": self.alarm_confidence, "band_floor": self.band_floor,
                 "false_alarm_rate": self.false_alarm_rate,
                 "scale_quantile": self.scale_quantile, "directions": dict(self.directions),
-                "pool_positions": self.pool_positions,
+                "pool_positions": self.pool_positions, "pool_surfaces": self.pool_surfaces,
                 "min_windows": dict(self.min_windows),
                 "reference_flights": self.reference_flights,
                 "window_clip": self.window_clip if math.isfinite(self.window_clip) else None,
@@ -349,6 +360,8 @@ class FaultDetector:
                                        or DETECTION_DEFAULTS.scale_quantile),
                   directions={k: int(v) for k, v in d.get("directions", {}).items()},
                   pool_positions=bool(d.get("pool_positions", False)),
+                  # a document without it pooled every position of a generic feature
+                  pool_surfaces=bool(d.get("pool_surfaces", True)),
                   min_windows={k: int(v) for k, v in d.get("min_windows", {}).items()},
                   reference_flights=int(d.get("reference_flights", 0)),
                   window_clip=math.inf if d.get("window_clip") is None
