@@ -145,6 +145,24 @@ def test_a_guarded_reference_keeps_a_step_in_its_first_flights_out() -> None:
     assert late[math.inf] < 0.6 * 5.0 / sd < 0.85 * 5.0 / sd < late[3.0], late
 
 
+def test_a_unit_far_from_the_fleet_still_gets_its_reference_with_the_guard() -> None:
+    """A feature whose units differ far more than its flights (as a screw gap's tolerance,
+    tau / sigma about 8): judged against the fleet alone, a healthy unit 3.3 tau out stands
+    beyond the guard on its first flight. That flight enters all the same, the unit's offset
+    is then learned from it, and the unit reads healthy rather than fleet-tested for ever."""
+    rng = np.random.default_rng(38)
+    names = ["WL1.F_MTWEAR", "WL2.F_MTWEAR", "WT.F_MTWEAR"]
+    seqs = [0.2 * rng.standard_normal((120, 3)) + rng.normal(0.0, 1.5, 3) for _ in range(10)]
+    det = FaultDetector(reference_guard=3.0).fit(seqs, names)
+    z = 0.2 * rng.standard_normal((40, 3)) + np.array([0.0, 0.0, 5.0])
+    states = new_states(det, UNITS)
+    late = [update_units(det, states, dict(zip(names, row.tolist(), strict=True)))["WT"]
+            .z_self["WT.F_MTWEAR"] for row in z]
+    assert late[0] > 3.0  # the fleet test of its first flight: beyond the guard
+    assert len(states["WT"].reference["WT.F_MTWEAR"]) == 6
+    assert abs(np.mean(late[10:])) < 1.0 and not states["WT"].alarm
+
+
 def test_the_guard_travels_with_the_detector_document() -> None:
     det = _fitted(np.random.default_rng(36), reference_guard=3.0)
     assert FaultDetector.from_dict(det.to_dict()).reference_guard == 3.0

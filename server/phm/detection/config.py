@@ -79,8 +79,8 @@ class DetectionConfig:
         A valid flight whose self-referenced residual stands more than this many flight-scatter
         sd along its fault's direction is judged but kept out of the actuator's reference
         [sd]: a step fault in a unit's first flights (an SE or a BDO on a new unit) would
-        otherwise become the reference its later flights are judged against. ``inf``: every
-        valid flight enters until the reference is full.
+        otherwise become the reference its later flights are judged against. The first valid
+        flight always enters. ``inf``: every valid flight enters until the reference is full.
     fleet_referenced:
         Generic features tested against the fleet, not the actuator's own first flights [-]:
         ``F_REWEAR``, which a worn rod end moves far beyond any actuator offset, so a median of

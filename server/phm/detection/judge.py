@@ -94,8 +94,8 @@ def observe(detector: FaultDetector, state: DetectionState, z: Mapping[str, floa
         if v is not None and math.isfinite(v):
             z_self[f], offset[f] = _self_referenced(detector, ref, i, float(v),
                                                     extra.get(f, 0.0))
-            if len(ref) < detector.reference_flights and admitted(
-                    z_self[f], detector.direction(f), detector.reference_guard):
+            if len(ref) < detector.reference_flights and (not ref or admitted(
+                    z_self[f], detector.direction(f), detector.reference_guard)):
                 ref.append(float(v))
             hist.append(z_self[f])
             del hist[:-keep]

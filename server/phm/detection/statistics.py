@@ -114,8 +114,10 @@ def reference_posterior(ref: np.ndarray, n: np.ndarray, sigma: np.ndarray,
 
 
 def admitted(z_self: float, direction: int, guard: float) -> bool:
-    """Whether a flight's self-referenced residual may enter its actuator's reference: no
-    further than ``guard`` along its fault's ``direction`` (either way when it is 0)."""
+    """Whether a flight's self-referenced residual may enter its actuator's reference once
+    the reference holds a flight: no further than ``guard`` along its fault's ``direction``
+    (either way when it is 0). The first valid flight always enters: judged against the fleet
+    alone, an actuator whose own offset lies far out would otherwise never get a reference."""
     along = abs(z_self) if direction == 0 else direction * z_self
     return bool(along <= guard)
 
@@ -176,7 +178,7 @@ def _guarded_reference_before(col: np.ndarray, ok: np.ndarray, reference_flights
         u_hat, sd = reference_posterior(np.array(med), np.array(n), np.asarray(sigma),
                                         np.asarray(tau))
         z_self = (col[i] - float(u_hat)) / math.sqrt(float(sd) ** 2 + extra[i])
-        if admitted(z_self, direction, guard):
+        if n == 0 or admitted(z_self, direction, guard):
             admitted_values.append(float(col[i]))
         pos += 1
     if pos < ok.size:  # full: every later flight against the whole reference
