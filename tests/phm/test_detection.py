@@ -357,9 +357,9 @@ def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:
     three = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3, "F_REWEAR": 3}
     want = {"format": "ema-detector/2", "windows": [1, 3, 8], "alarm_confidence": 0.98,
             "band_floor": 3.0, "false_alarm_rate": 3e-5, "scale_quantile": 0.99,
-            "directions": grows, "pool_positions": True, "pool_surfaces": True,
+            "directions": grows, "pool_positions": True, "pool_surfaces": False,
             "min_windows": three, "reference_flights": 6, "window_clip": 6.0, "median_from": 8,
-            "reference_guard": None, "fleet_referenced": ["F_REWEAR"]}
+            "fleet_referenced": ["F_REWEAR"]}
     assert {k: doc[k] for k in want} == want
     assert list(doc)[: len(want)] == list(want)
     assert list(doc["directions"]) == list(grows) and list(doc["min_windows"]) == list(three)
@@ -510,8 +510,8 @@ def test_a_surface_whose_feature_scatters_more_gets_its_own_population() -> None
     names = ["WL1.F_MTWEAR", "WL2.F_MTWEAR", "WT.F_MTWEAR"]
     scale = np.array([0.1, 0.1, 0.25])
     seqs = [rng.standard_normal((150, 3)) * scale + rng.normal(0.0, 1.0, 3) for _ in range(10)]
-    pooled = FaultDetector().fit(seqs, names)
-    apart = FaultDetector(pool_surfaces=False).fit(seqs, names)
+    pooled = FaultDetector(pool_surfaces=True).fit(seqs, names)
+    apart = FaultDetector().fit(seqs, names)
     assert pooled.within_std_[0] == pooled.within_std_[2]
     assert apart.within_std_[0] == apart.within_std_[1]
     assert apart.within_std_[2] == pytest.approx(0.25, rel=0.1)

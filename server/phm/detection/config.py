@@ -3,7 +3,6 @@ and the names of what it monitors: the units and their features."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -53,12 +52,14 @@ class DetectionConfig:
         Generic feature -> +1 (the fault makes it grow), -1 (fall), 0 (either) [-]: every
         feature grows with its fault, so the test is one-sided.
     pool_positions:
-        One band per generic feature, its scale measured on every position's healthy flights
-        together: more healthy flights behind each band, the same physics on every actuator.
+        One band per generic feature (per surface, below), its scale measured on its
+        positions' healthy flights together: more healthy flights behind each band, the same
+        physics on each drive.
     pool_surfaces:
         With ``pool_positions``, the wingtip's flights pooled with the winglet drives' as well;
         ``False``: one population per generic feature and surface (the two winglet drives
-        together, the wingtip alone), for features whose scatter follows the surface's loads.
+        together, the wingtip alone): a feature's scatter follows its surface's loads (the
+        wingtip's screw-gap estimate scatters about 2.7 times the winglet drives').
     min_windows:
         Generic feature -> shortest window allowed to raise an alarm [flight]: 3 for the five
         progressive faults' features (they build up over hundreds of flights, while single
@@ -75,12 +76,6 @@ class DetectionConfig:
     median_from:
         Windows of at least this many flights use the running median [flight]: a minority of
         odd flights does not move the statistic; 0 never.
-    reference_guard:
-        A valid flight whose self-referenced residual stands more than this many flight-scatter
-        sd along its fault's direction is judged but kept out of the actuator's reference
-        [sd]: a step fault in a unit's first flights (an SE or a BDO on a new unit) would
-        otherwise become the reference its later flights are judged against. The first valid
-        flight always enters. ``inf``: every valid flight enters until the reference is full.
     fleet_referenced:
         Generic features tested against the fleet, not the actuator's own first flights [-]:
         ``F_REWEAR``, which a worn rod end moves far beyond any actuator offset, so a median of
@@ -95,13 +90,12 @@ class DetectionConfig:
     directions: Mapping[str, int] = field(
         default_factory=lambda: MappingProxyType(dict.fromkeys(GENERIC_FEATURES, 1)))
     pool_positions: bool = True
-    pool_surfaces: bool = True
+    pool_surfaces: bool = False
     min_windows: Mapping[str, int] = field(
         default_factory=lambda: MappingProxyType({OWN_FEATURE[m]: 3 for m in PROGRESSIVE}))
     reference_flights: int = 6
     window_clip: float = 6.0
     median_from: int = 8
-    reference_guard: float = math.inf
     fleet_referenced: tuple[str, ...] = (REWEAR_FEATURE,)
 
 

@@ -11,8 +11,8 @@ probability ``q = 1 - (1 - false_alarm_rate)^(1/m)``, ``m`` the unit's tests (a 
 feature gives ``q / 2`` to each tail). The healthy statistic is modelled as
 ``S_w ~ N(0, s_w^2)``; ``s_w`` is measured on the healthy design flights by matching the upper
 ``scale_quantile`` quantile of their judged ``S_w`` (what the online judge would alarm on,
-:func:`~server.phm.detection.sequences.healthy_statistics`; every position together with
-``pool_positions``), ``s_w = Q_p(S_w) / z_p``: a tail quantile rather than an RMS or a MAD,
+:func:`~server.phm.detection.sequences.healthy_statistics`; a surface's positions together
+with ``pool_positions``), ``s_w = Q_p(S_w) / z_p``: a tail quantile rather than an RMS or a MAD,
 because the healthy tails are heavier than normal. A test alarms at ``s_w z_{1-q}``; with the
 confidence margin ``z_alarm = ndtri(alarm_confidence)`` the band is
 
@@ -84,7 +84,6 @@ class FaultDetector:
                  reference_flights: int = DETECTION_DEFAULTS.reference_flights,
                  window_clip: float = DETECTION_DEFAULTS.window_clip,
                  median_from: int = DETECTION_DEFAULTS.median_from,
-                 reference_guard: float = DETECTION_DEFAULTS.reference_guard,
                  fleet_referenced: Sequence[str] | None = None) -> None:
         if not windows or min(windows) < 1:
             raise ValueError("windows must be positive flight counts")
@@ -112,9 +111,6 @@ class FaultDetector:
             raise ValueError("window_clip must be positive")
         self.window_clip = float(window_clip)
         self.median_from = int(median_from)
-        if not reference_guard > 0:
-            raise ValueError("reference_guard must be positive (inf: off)")
-        self.reference_guard = float(reference_guard)
         self.fleet_referenced = tuple(DETECTION_DEFAULTS.fleet_referenced
                                       if fleet_referenced is None else fleet_referenced)
 
@@ -128,7 +124,6 @@ class FaultDetector:
                    pool_surfaces=config.pool_surfaces,
                    min_windows=config.min_windows, reference_flights=config.reference_flights,
                    window_clip=config.window_clip, median_from=config.median_from,
-                   reference_guard=config.reference_guard,
                    fleet_referenced=config.fleet_referenced)
 
     @property
@@ -145,8 +140,7 @@ class FaultDetector:
             pool_positions=self.pool_positions, pool_surfaces=self.pool_surfaces,
             min_windows=MappingProxyType(dict(self.min_windows)),
             reference_flights=self.reference_flights, window_clip=self.window_clip,
-            median_from=self.median_from, reference_guard=self.reference_guard,
-            fleet_referenced=self.fleet_referenced)
+            median_from=self.median_from, fleet_referenced=self.fleet_referenced)
 
     # -- what the hyper-parameters say about one feature or window -------------------------
 
@@ -296,9 +290,7 @@ class FaultDetector:
         """Self-referenced residuals of one history (n_flights, all features);
         ``extra_variance`` (same shape) adds to each flight's scatter."""
         return self_referenced_sequence(z, self.within_std_, self.between_std_,
-                                        self.reference_flights, extra_variance,
-                                        guard=self.reference_guard,
-                                        directions=self.directions_of(self.feature_names_))
+                                        self.reference_flights, extra_variance)
 
     def evidence_extra(self, weights: np.ndarray,
                        feature_names: Sequence[str] | None = None) -> np.ndarray:
@@ -333,8 +325,6 @@ class FaultDetector:
                 "reference_flights": self.reference_flights,
                 "window_clip": self.window_clip if math.isfinite(self.window_clip) else None,
                 "median_from": self.median_from,
-                "reference_guard": (self.reference_guard if math.isfinite(self.reference_guard)
-                                    else None),
                 "fleet_referenced": list(self.fleet_referenced),
                 "within_std": self.within_std_.tolist(),
                 "between_std": self.between_std_.tolist(),
@@ -367,9 +357,6 @@ class FaultDetector:
                   window_clip=math.inf if d.get("window_clip") is None
                   else float(d["window_clip"]),
                   median_from=int(d.get("median_from", 0)),
-                  # a document without it let every valid flight into the reference
-                  reference_guard=math.inf if d.get("reference_guard") is None
-                  else float(d["reference_guard"]),
                   fleet_referenced=tuple(d.get("fleet_referenced", ())))
         det.feature_names_ = list(d["feature_names"])
         n = len(det.feature_names_)

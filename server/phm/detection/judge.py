@@ -39,7 +39,7 @@ from .config import UNITS, unit_features
 from .detector import FaultDetector
 from .pair import is_pair_coupled, pair_level, partner_held
 from .state import DetectionResult, DetectionState, Observation
-from .statistics import admitted, median_n_eff, reference_posterior
+from .statistics import median_n_eff, reference_posterior
 
 __all__ = ["decide", "new_state", "new_states", "observe", "update_units"]
 
@@ -94,8 +94,7 @@ def observe(detector: FaultDetector, state: DetectionState, z: Mapping[str, floa
         if v is not None and math.isfinite(v):
             z_self[f], offset[f] = _self_referenced(detector, ref, i, float(v),
                                                     extra.get(f, 0.0))
-            if len(ref) < detector.reference_flights and (not ref or admitted(
-                    z_self[f], detector.direction(f), detector.reference_guard)):
+            if len(ref) < detector.reference_flights:
                 ref.append(float(v))
             hist.append(z_self[f])
             del hist[:-keep]

@@ -123,9 +123,7 @@ def _self_referenced(detector: FaultDetector, z: np.ndarray, names: Sequence[str
     extra = None if evidence is None else detector.evidence_extra(
         np.asarray(evidence, dtype=np.float64).reshape(z.shape), names)
     return self_referenced_sequence(z, detector.within_std_[idx], detector.between_std_[idx],
-                                    detector.reference_flights, extra,
-                                    guard=detector.reference_guard,
-                                    directions=detector.directions_of(names))
+                                    detector.reference_flights, extra)
 
 
 def _window_statistics(detector: FaultDetector, z_self: np.ndarray, names: Sequence[str]

@@ -31,7 +31,6 @@ import numpy as np
 
 __all__ = [
     "MEDIAN_VARIANCE_FACTOR",
-    "admitted",
     "median_n_eff",
     "offset_components",
     "reference_posterior",
@@ -113,79 +112,29 @@ def reference_posterior(ref: np.ndarray, n: np.ndarray, sigma: np.ndarray,
     return u_hat, np.sqrt(s2 + var_u)
 
 
-def admitted(z_self: float, direction: int, guard: float) -> bool:
-    """Whether a flight's self-referenced residual may enter its actuator's reference once
-    the reference holds a flight: no further than ``guard`` along its fault's ``direction``
-    (either way when it is 0). The first valid flight always enters: judged against the fleet
-    alone, an actuator whose own offset lies far out would otherwise never get a reference."""
-    along = abs(z_self) if direction == 0 else direction * z_self
-    return bool(along <= guard)
-
-
 def self_referenced_sequence(z: np.ndarray, sigma: np.ndarray, tau: np.ndarray,
                              reference_flights: int,
-                             extra_variance: np.ndarray | None = None, *,
-                             guard: float = math.inf,
-                             directions: np.ndarray | None = None) -> np.ndarray:
+                             extra_variance: np.ndarray | None = None) -> np.ndarray:
     """Self-referenced residuals of a flight sequence (n_flights, n_features), each flight
-    against the median of the first ``reference_flights`` valid residuals *before* it that
-    were :func:`admitted` (``guard`` along ``directions``, per feature, default 0);
+    against the median of the first ``reference_flights`` valid residuals *before* it;
     ``extra_variance`` (same shape) adds to each flight's scatter. NaN stays NaN."""
     z = np.asarray(z, dtype=np.float64)
     z = z[:, np.newaxis] if z.ndim == 1 else z
     extra = np.zeros(z.shape) if extra_variance is None else np.asarray(
         extra_variance, dtype=np.float64).reshape(z.shape)
-    d = np.zeros(z.shape[1]) if directions is None else np.asarray(directions)
     out = np.full(z.shape, np.nan)
     for j in range(z.shape[1]):
         col = z[:, j]
         ok = np.flatnonzero(np.isfinite(col))
-        if math.isinf(guard):
-            ref, n_before = _reference_before(col, ok, reference_flights)
-        else:
-            ref, n_before = _guarded_reference_before(col, ok, reference_flights, sigma[j],
-                                                      tau[j], extra[:, j], guard, int(d[j]))
+        first = col[ok[:reference_flights]]
+        # reference median and count seen by each flight (flights before it only)
+        n_before = np.minimum(np.searchsorted(ok, np.arange(col.size)), reference_flights)
+        medians = np.array([np.median(first[:k]) if k else 0.0
+                            for k in range(min(reference_flights, first.size) + 1)])
+        ref = medians[n_before]
         u_hat, sd = reference_posterior(ref, n_before, sigma[j], tau[j])
         out[:, j] = (col - u_hat) / np.sqrt(sd**2 + extra[:, j])
     return out
-
-
-def _reference_before(col: np.ndarray, ok: np.ndarray, reference_flights: int
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """The reference median and count each flight of ``col`` is judged against: its first
-    ``reference_flights`` valid values before the flight."""
-    first = col[ok[:reference_flights]]
-    n_before = np.minimum(np.searchsorted(ok, np.arange(col.size)), reference_flights)
-    medians = np.array([np.median(first[:k]) if k else 0.0
-                        for k in range(min(reference_flights, first.size) + 1)])
-    return medians[n_before], n_before
-
-
-def _guarded_reference_before(col: np.ndarray, ok: np.ndarray, reference_flights: int,
-                              sigma: float, tau: float, extra: np.ndarray, guard: float,
-                              direction: int) -> tuple[np.ndarray, np.ndarray]:
-    """As :func:`_reference_before`, with only :func:`admitted` flights entering: walked
-    flight by flight while the reference fills (each admission depends on the reference
-    before it), then the full reference for every later flight."""
-    admitted_values: list[float] = []
-    ref = np.zeros(col.size)
-    n_before = np.zeros(col.size, dtype=np.int64)
-    pos = 0
-    while pos < ok.size and len(admitted_values) < reference_flights:
-        i, n = ok[pos], len(admitted_values)
-        med = float(np.median(admitted_values)) if n else 0.0
-        ref[i], n_before[i] = med, n
-        u_hat, sd = reference_posterior(np.array(med), np.array(n), np.asarray(sigma),
-                                        np.asarray(tau))
-        z_self = (col[i] - float(u_hat)) / math.sqrt(float(sd) ** 2 + extra[i])
-        if n == 0 or admitted(z_self, direction, guard):
-            admitted_values.append(float(col[i]))
-        pos += 1
-    if pos < ok.size:  # full: every later flight against the whole reference
-        later = ok[pos:]
-        ref[later] = float(np.median(admitted_values))
-        n_before[later] = len(admitted_values)
-    return ref, n_before
 
 
 def offset_components(healthy_sequences: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
