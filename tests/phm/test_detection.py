@@ -357,7 +357,7 @@ def test_tuned_defaults_live_in_the_configs_and_serialise_as_before() -> None:
     three = {"F_TTS": 3, "F_DMD": 3, "F_MTEL": 3, "F_MTWEAR": 3, "F_REWEAR": 3}
     want = {"format": "ema-detector/2", "windows": [1, 3, 8], "alarm_confidence": 0.98,
             "band_floor": 3.0, "false_alarm_rate": 3e-5, "scale_quantile": 0.99,
-            "directions": grows, "pool_positions": True, "pool_surfaces": False,
+            "directions": grows, "pool_positions": True, "surface_split_ratio": 1.5,
             "min_windows": three, "reference_flights": 6, "window_clip": 6.0, "median_from": 8,
             "fleet_referenced": ["F_REWEAR"]}
     assert {k: doc[k] for k in want} == want
@@ -504,20 +504,24 @@ def test_partner_held_leaves_each_drive_its_own_evidence() -> None:
 def test_a_surface_whose_feature_scatters_more_gets_its_own_population() -> None:
     """The wingtip's screw-gap estimate scatters 2.5 times the winglet drives' (its own load
     spectrum presses the flanks differently): pooled with them, its flights are judged on a
-    scatter they do not have; one population per surface gives each its own, and keeps the
-    two winglet drives together."""
+    scatter they do not have; fitted per surface, each has its own, and the two winglet drives
+    stay together. A feature whose surfaces agree stays pooled."""
     rng = np.random.default_rng(41)
-    names = ["WL1.F_MTWEAR", "WL2.F_MTWEAR", "WT.F_MTWEAR"]
-    scale = np.array([0.1, 0.1, 0.25])
-    seqs = [rng.standard_normal((150, 3)) * scale + rng.normal(0.0, 1.0, 3) for _ in range(10)]
-    pooled = FaultDetector(pool_surfaces=True).fit(seqs, names)
+    names = ["WL1.F_MTWEAR", "WL2.F_MTWEAR", "WT.F_MTWEAR", "WL1.F_DMD", "WL2.F_DMD",
+             "WT.F_DMD"]
+    scale = np.array([0.1, 0.1, 0.25, 0.2, 0.2, 0.22])
+    seqs = [rng.standard_normal((150, 6)) * scale + rng.normal(0.0, 1.0, 6) for _ in range(10)]
+    pooled = FaultDetector(surface_split_ratio=float("inf")).fit(seqs, names)
     apart = FaultDetector().fit(seqs, names)
+    assert pooled.surface_split_ == [] and apart.surface_split_ == ["F_MTWEAR"]
     assert pooled.within_std_[0] == pooled.within_std_[2]
     assert apart.within_std_[0] == apart.within_std_[1]
     assert apart.within_std_[2] == pytest.approx(0.25, rel=0.1)
     assert apart.within_std_[0] == pytest.approx(0.1, rel=0.1)
+    assert apart.within_std_[3] == apart.within_std_[5]  # F_DMD: the surfaces agree
     wt = [apart.self_referenced(q)[6:, 2] for q in seqs]
     assert np.std(np.concatenate(wt)) == pytest.approx(1.0, abs=0.1)
     wt_pooled = [pooled.self_referenced(q)[6:, 2] for q in seqs]
     assert np.std(np.concatenate(wt_pooled)) > 1.3
-    assert FaultDetector.from_dict(apart.to_dict()).pool_surfaces is False
+    back = FaultDetector.from_dict(apart.to_dict())
+    assert back.surface_split_ == ["F_MTWEAR"] and back.surface_split_ratio == 1.5

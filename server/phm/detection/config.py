@@ -52,14 +52,16 @@ class DetectionConfig:
         Generic feature -> +1 (the fault makes it grow), -1 (fall), 0 (either) [-]: every
         feature grows with its fault, so the test is one-sided.
     pool_positions:
-        One band per generic feature (per surface, below), its scale measured on its
-        positions' healthy flights together: more healthy flights behind each band, the same
-        physics on each drive.
-    pool_surfaces:
-        With ``pool_positions``, the wingtip's flights pooled with the winglet drives' as well;
-        ``False``: one population per generic feature and surface (the two winglet drives
-        together, the wingtip alone): a feature's scatter follows its surface's loads (the
-        wingtip's screw-gap estimate scatters about 2.7 times the winglet drives').
+        One band per generic feature (per surface where they differ, below), its scale
+        measured on those positions' healthy flights together: more healthy flights behind
+        each band, the same physics on each drive.
+    surface_split_ratio:
+        With ``pool_positions``, a generic feature is fitted per surface (the two winglet
+        drives together, the wingtip alone) when one surface's within-unit scatter on the
+        healthy design flights exceeds the other's by more than this factor [-]; otherwise
+        every position together. The wingtip's screw-gap estimate scatters about 2.9 times
+        the winglet drives' (its bands were the winglets'); the other features agree within
+        12 %. ``inf``: always pooled.
     min_windows:
         Generic feature -> shortest window allowed to raise an alarm [flight]: 3 for the five
         progressive faults' features (they build up over hundreds of flights, while single
@@ -90,7 +92,7 @@ class DetectionConfig:
     directions: Mapping[str, int] = field(
         default_factory=lambda: MappingProxyType(dict.fromkeys(GENERIC_FEATURES, 1)))
     pool_positions: bool = True
-    pool_surfaces: bool = False
+    surface_split_ratio: float = 1.5
     min_windows: Mapping[str, int] = field(
         default_factory=lambda: MappingProxyType({OWN_FEATURE[m]: 3 for m in PROGRESSIVE}))
     reference_flights: int = 6

@@ -54,12 +54,33 @@ DETECTOR_FORMAT = "ema-detector/2"
 _DETECTOR_FORMATS = (DETECTOR_FORMAT, "ema-detector/1")
 
 
-def _generic_groups(names: Sequence[str], surfaces: bool = True) -> list[list[int]]:
-    """Column indices of each generic feature (``WL1.F_TTS``, ``WT.F_TTS`` -> one group);
-    with ``surfaces`` False, of each generic feature on each surface (``WL1.F_TTS`` and
-    ``WL2.F_TTS`` one group, ``WT.F_TTS`` another)."""
-    key = [(generic_feature(n), surfaces or is_winglet(unit_of(n))) for n in names]
+def _generic_groups(names: Sequence[str], split: Sequence[str] = ()) -> list[list[int]]:
+    """Column indices of each generic feature (``WL1.F_TTS``, ``WT.F_TTS`` -> one group); a
+    generic feature in ``split`` gives one group per surface (``WL1.F_MTWEAR`` and
+    ``WL2.F_MTWEAR`` one, ``WT.F_MTWEAR`` another)."""
+    key = [(g, g not in split or is_winglet(unit_of(n)))
+           for n, g in ((n, generic_feature(n)) for n in names)]
     return [[i for i, x in enumerate(key) if x == k] for k in dict.fromkeys(key)]
+
+
+def _surfaces_apart(names: Sequence[str], seqs: Sequence[np.ndarray], ratio: float
+                    ) -> list[str]:
+    """Generic features whose within-unit scatter on one surface exceeds the other's by more
+    than ``ratio`` on these healthy sequences (each surface's positions together)."""
+    if not math.isfinite(ratio):
+        return []
+    sigma, _ = offset_components(seqs)
+    apart = []
+    for idx in _generic_groups(names):
+        by_surface: dict[bool, list[float]] = {}
+        for i in idx:
+            by_surface.setdefault(is_winglet(unit_of(names[i])), []).append(sigma[i] ** 2)
+        if len(by_surface) < 2:
+            continue
+        scatter = [math.sqrt(float(np.mean(v))) for v in by_surface.values()]
+        if max(scatter) > ratio * min(scatter):
+            apart.append(generic_feature(names[idx[0]]))
+    return apart
 
 
 class FaultDetector:
@@ -79,7 +100,7 @@ class FaultDetector:
                  scale_quantile: float = DETECTION_DEFAULTS.scale_quantile,
                  directions: Mapping[str, int] | None = None,
                  pool_positions: bool = DETECTION_DEFAULTS.pool_positions,
-                 pool_surfaces: bool = DETECTION_DEFAULTS.pool_surfaces,
+                 surface_split_ratio: float = DETECTION_DEFAULTS.surface_split_ratio,
                  min_windows: Mapping[str, int] | None = None,
                  reference_flights: int = DETECTION_DEFAULTS.reference_flights,
                  window_clip: float = DETECTION_DEFAULTS.window_clip,
@@ -101,7 +122,11 @@ class FaultDetector:
         self.directions = dict(DETECTION_DEFAULTS.directions if directions is None
                                else directions)
         self.pool_positions = bool(pool_positions)
-        self.pool_surfaces = bool(pool_surfaces)
+        if not surface_split_ratio >= 1.0:
+            raise ValueError("surface_split_ratio must be at least 1 (inf: never split)")
+        self.surface_split_ratio = float(surface_split_ratio)
+        #: generic features fitted per surface (set by :meth:`fit`)
+        self.surface_split_: list[str] = []
         self.min_windows = dict(DETECTION_DEFAULTS.min_windows if min_windows is None
                                 else min_windows)
         if reference_flights < 0:
@@ -121,7 +146,7 @@ class FaultDetector:
                    band_floor=config.band_floor, false_alarm_rate=config.false_alarm_rate,
                    scale_quantile=config.scale_quantile,
                    directions=config.directions, pool_positions=config.pool_positions,
-                   pool_surfaces=config.pool_surfaces,
+                   surface_split_ratio=config.surface_split_ratio,
                    min_windows=config.min_windows, reference_flights=config.reference_flights,
                    window_clip=config.window_clip, median_from=config.median_from,
                    fleet_referenced=config.fleet_referenced)
@@ -137,7 +162,7 @@ class FaultDetector:
             false_alarm_rate=self.false_alarm_rate,  # type: ignore[arg-type]
             scale_quantile=self.scale_quantile,
             directions=MappingProxyType(dict(self.directions)),
-            pool_positions=self.pool_positions, pool_surfaces=self.pool_surfaces,
+            pool_positions=self.pool_positions, surface_split_ratio=self.surface_split_ratio,
             min_windows=MappingProxyType(dict(self.min_windows)),
             reference_flights=self.reference_flights, window_clip=self.window_clip,
             median_from=self.median_from, fleet_referenced=self.fleet_referenced)
@@ -191,6 +216,8 @@ class FaultDetector:
                 for q in healthy_sequences]
         weights = (None if evidence is None else
                    [np.asarray(e, dtype=np.float64).reshape(-1, len(names)) for e in evidence])
+        self.surface_split_ = (_surfaces_apart(names, seqs, self.surface_split_ratio)
+                               if self.pool_positions else [])
         share = np.zeros(len(names))
         if weights is not None and self.reference_flights > 0:
             share = evidence_shares(seqs, weights, self._pools(names))
@@ -230,10 +257,10 @@ class FaultDetector:
         return self
 
     def _pools(self, names: Sequence[str]) -> list[list[int]]:
-        """Column indices fitted as one population (``pool_positions``, ``pool_surfaces``)."""
+        """Column indices fitted as one population (``pool_positions``, ``surface_split_``)."""
         if not self.pool_positions:
             return [[i] for i in range(len(names))]
-        return _generic_groups(names, self.pool_surfaces)
+        return _generic_groups(names, self.surface_split_)
 
     def _scale_of(self, s: np.ndarray, two_sided: bool) -> float:
         """Normal scale of healthy judged statistics: their ``scale_quantile`` quantile (Weibull
@@ -320,7 +347,9 @@ class FaultDetector:
                 "alarm_confidence": self.alarm_confidence, "band_floor": self.band_floor,
                 "false_alarm_rate": self.false_alarm_rate,
                 "scale_quantile": self.scale_quantile, "directions": dict(self.directions),
-                "pool_positions": self.pool_positions, "pool_surfaces": self.pool_surfaces,
+                "pool_positions": self.pool_positions,
+                "surface_split_ratio": (self.surface_split_ratio
+                                        if math.isfinite(self.surface_split_ratio) else None),
                 "min_windows": dict(self.min_windows),
                 "reference_flights": self.reference_flights,
                 "window_clip": self.window_clip if math.isfinite(self.window_clip) else None,
@@ -329,6 +358,7 @@ class FaultDetector:
                 "within_std": self.within_std_.tolist(),
                 "between_std": self.between_std_.tolist(),
                 "evidence_variance": self.evidence_variance_.tolist(),
+                "surface_split": list(self.surface_split_),
                 "feature_names": list(self.feature_names_),
                 "band": self.band_.tolist(),
                 "healthy_scale": [[v if math.isfinite(v) else None for v in row]
@@ -351,13 +381,15 @@ class FaultDetector:
                   directions={k: int(v) for k, v in d.get("directions", {}).items()},
                   pool_positions=bool(d.get("pool_positions", False)),
                   # a document without it pooled every position of a generic feature
-                  pool_surfaces=bool(d.get("pool_surfaces", True)),
+                  surface_split_ratio=math.inf if d.get("surface_split_ratio") is None
+                  else float(d["surface_split_ratio"]),
                   min_windows={k: int(v) for k, v in d.get("min_windows", {}).items()},
                   reference_flights=int(d.get("reference_flights", 0)),
                   window_clip=math.inf if d.get("window_clip") is None
                   else float(d["window_clip"]),
                   median_from=int(d.get("median_from", 0)),
                   fleet_referenced=tuple(d.get("fleet_referenced", ())))
+        det.surface_split_ = list(d.get("surface_split", []))
         det.feature_names_ = list(d["feature_names"])
         n = len(det.feature_names_)
         det.within_std_ = np.asarray(d.get("within_std", np.ones(n)), dtype=np.float64)
