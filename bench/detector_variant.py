@@ -1,7 +1,7 @@
 """A model with its detector refitted under other hyper-parameters, for choosing them on design
 seeds without training the whole chain again::
 
-    python bench/detector_variant.py DESIGN_DIR MODEL_JSON OUT_JSON --set pool_surfaces=false
+    python bench/detector_variant.py DESIGN_DIR MODEL_JSON OUT_JSON --set surface_split_ratio=inf
 
 The baselines, classifier, prognosis and sensor model are MODEL_JSON's; only the detector is
 fitted again on DESIGN_DIR's healthy flights (the design MODEL_JSON was trained on) with
