@@ -59,9 +59,8 @@ class DetectionConfig:
         With ``pool_positions``, a generic feature is fitted per surface (the two winglet
         drives together, the wingtip alone) when one surface's within-unit scatter on the
         healthy design flights exceeds the other's by more than this factor [-]; otherwise
-        every position together. The wingtip's screw-gap estimate scatters about 2.9 times
-        the winglet drives' (its bands were the winglets'); the other features agree within
-        12 %. ``inf``: always pooled.
+        every position together (on the shipped design: ``F_MTWEAR`` alone, docs/TUNING.md).
+        ``inf``: always pooled.
     min_windows:
         Generic feature -> shortest window allowed to raise an alarm [flight]: 3 for the five
         progressive faults' features (they build up over hundreds of flights, while single
