@@ -58,8 +58,8 @@ def _generic_groups(names: Sequence[str], split: Sequence[str] = ()) -> list[lis
     """Column indices of each generic feature (``WL1.F_TTS``, ``WT.F_TTS`` -> one group); a
     generic feature in ``split`` gives one group per surface (``WL1.F_MTWEAR`` and
     ``WL2.F_MTWEAR`` one, ``WT.F_MTWEAR`` another)."""
-    key = [(g, g not in split or is_winglet(unit_of(n)))
-           for n, g in ((n, generic_feature(n)) for n in names)]
+    gen = [generic_feature(n) for n in names]
+    key = [(g, g not in split or is_winglet(unit_of(n))) for n, g in zip(names, gen, strict=True)]
     return [[i for i, x in enumerate(key) if x == k] for k in dict.fromkeys(key)]
 
 
