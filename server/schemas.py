@@ -739,6 +739,15 @@ class HealthRecordRead(BaseModel):
     class_probabilities: dict[str, float | None] | None
 
 
+class RateHypothesisRead(BaseModel):
+    """The leading rate hypothesis of a prediction (``RulDistribution.hypothesis``)."""
+
+    name: str = Field(description="fast, medium, slow, ...: the band of fault-to-failure spans")
+    spans: str = Field(description="the band in words, e.g. '30-100 flights'")
+    weight: float = Field(description="its posterior weight [0, 1]")
+    weights: dict[str, float] = Field(description="every hypothesis's weight by name")
+
+
 class RulDistributionRead(BaseModel):
     """The particle filter's RUL distribution document (``RulDistribution.to_dict``)."""
 
@@ -757,6 +766,9 @@ class RulDistributionRead(BaseModel):
     severity_std: float
     most_probable: float | None = None
     hours_per_flight: float | None = None
+    hypothesis: RateHypothesisRead | None = Field(
+        default=None, description="with a bank of rate hypotheses: the leading one (the "
+        "fault's speed the measurements favour) and every hypothesis's weight")
 
 
 class PrognosisRead(BaseModel):

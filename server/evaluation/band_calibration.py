@@ -60,7 +60,8 @@ def _record(flight: Mapping[str, Any]) -> CalibrationRecord | None:
     if not all(lv in quantiles for lv in _LEVELS):
         return None
     return CalibrationRecord(quantiles, float(doc.get("rate_ratio", math.nan)),
-                             float(flight["true_rul"]))
+                             float(flight["true_rul"]),
+                             (doc.get("hypothesis") or {}).get("name"))
 
 
 def calibration_records(traces: Iterable[Mapping[str, Any]], per_run: int
@@ -109,8 +110,11 @@ def calibrate_model(model_doc: dict[str, Any], traces: Sequence[Mapping[str, Any
         if len(recs) < min_group:
             report[mode] = {"records": len(recs), "fitted": False}
             continue
+        prognoser = model.measurement[mode].prognoser
+        bank = prognoser.rate_hypotheses if prognoser is not None else ()
         layer = replace(fit_band_calibration(recs, edges=edges, min_group=min_group,
-                                             n_runs=runs.get(mode, 0)),
+                                             n_runs=runs.get(mode, 0),
+                                             hypotheses=tuple(h.name for h in bank)),
                         notes={"replays": [dict(r) for r in replays], "per_run": per_run})
         payload["measurement"][mode]["band_calibration"] = layer.to_dict()
         report[mode] = {"records": len(recs), "runs": runs.get(mode, 0), "fitted": True,

@@ -48,6 +48,7 @@ from .detection_model import fit_detection
 from .features import FlightFeatures
 from .prognosis import MeasurementModel, PrognoserConfig
 from .prognosis.degradation import MIN_LEVEL_GAP
+from .prognosis.hypotheses import RateHypothesis, band_names, fit_rate_hypotheses
 from .season import SeasonalClimate, StressClock, day_of_year
 from .sensor_health import fit_sensor_model
 
@@ -97,34 +98,28 @@ class TrainingConfig:
     #: [-] prior probability that a fault's rate lies off the design's range: the weight of
     #: the rate prior's tail components (``PrognoserConfig.rate_prior_tail``)
     rate_prior_tail: float = 0.2
+    #: [flights] the bank of rate hypotheses (``PrognoserConfig.rate_hypotheses``): the edges
+    #: of its bands of fault-to-failure spans over the test station's envelope, ascending
+    #: (30/100/300/1000: fast, medium, slow); empty: the tail mixture of ``rate_prior_tail``
+    rate_band_edges: tuple[float, ...] = ()
+    #: [-] each band's rate prior sd is its moments' times this (:mod:`.prognosis.hypotheses`)
+    hypothesis_inflation: float = 1.0
     #: the long-term prediction's severity random walk: "filter", the filter's process noise;
     #: "design", the design runs' own flight-to-flight scatter about their fitted laws
     prediction_noise: str = "filter"
-    #: how a mode's filter learns the rate: "rls", the paper's RLS on the log-level with the
-    #: mixture prior; "joint", each particle carries its own rate
-    #: (``PrognoserConfig.joint_rate``). On the calibration design runs (seed 3, 20 runs of
-    #: 30-1000 flights) the RLS held the 90 % bands in 0.85-1.00 of the predictions against
-    #: the joint filter's 0.72-0.88, with PH and RA as good or better on every mode
-    #: (docs/TUNING.md)
-    rate_filter: str = "rls"
-    #: [1/sqrt(flight)] the joint filter's severity random walk: the rate, not the walk,
-    #: follows a fault faster or slower than the prior (0.01, the RLS filter's, let the
-    #: walk absorb the misfit and left the rate unidentified: docs/TUNING.md)
-    joint_process_noise: float = 0.003
     #: [flights] the online guard's forecast horizon (0: no guard)
     guard_horizon: int = 10
 
     def __post_init__(self) -> None:
-        if self.rate_filter not in ("joint", "rls"):
-            raise ValueError(f"rate_filter must be 'joint' or 'rls', got {self.rate_filter!r}")
         if self.prediction_noise not in ("filter", "design"):
             raise ValueError(f"prediction_noise must be 'filter' or 'design', got "
                              f"{self.prediction_noise!r}")
         for name in ("rate_prior_inflation", "rate_spread", "slow_rate_margin",
-                     "fast_rate_margin"):
+                     "fast_rate_margin", "hypothesis_inflation"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        band_names(self.rate_band_edges)  # refuses edges that make no bands
         for name in ("slow_rate_margin", "fast_rate_margin"):
             if getattr(self, name) < 1.0:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -298,7 +293,8 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     """
     betas = np.asarray(training.stress_betas)
     offsets = np.asarray(training.growth_offsets)
-    runs = [_run_clocks(p, climate, ref_c, betas) for p in _fault_runs(campaign, mode, surface)]
+    patterns = _fault_runs(campaign, mode, surface)
+    runs = [_run_clocks(p, climate, ref_c, betas) for p in patterns]
     if len(runs) < 2:
         return None
     misfit = np.zeros((betas.size, offsets.size))
@@ -322,18 +318,23 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     sign = 1.0 if c > 0 else -1.0  # r < 0 for a saturating shape: dh/dk = r (h + c) > 0
     r0 = sign * float(max(sign * np.median(rates), 1e-6))
     r_std = training.rate_prior_inflation * float(max(np.std(rates, ddof=1), 0.1 * abs(r0)))
-    # the joint filter's prior is on ln|r|: the runs' log-spread, not inflated (the design
-    # spans the test station's envelope; the guard and the calibration layer cover the rest)
-    r_log_std = float(max(np.std(np.log(np.maximum(np.abs(rates), 1e-9)), ddof=1), 0.2))
     mid = rates * (0.5 + c)
     noise = _increment_noise(runs, int(jb), c, rates)
     bounds = (max(float(mid.min()) / training.slow_rate_margin, 1e-5),
               max(float(mid.max()) * training.fast_rate_margin, 2e-5))
-    return {"growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c,
-            "rate": r0, "rate_std": r_std, "rate_log_std": r_log_std, "n_runs": len(runs),
-            "mid_rate_bounds": list(bounds), "increment_noise": noise,
-            "misfit_flight_clock": float(misfit[0].min() / len(runs)),
-            "misfit": float(misfit[jb, jc] / len(runs))}
+    law: dict[str, Any] = {
+        "growth_offset": c, "stress_beta_per_k": beta, "stress_ref_c": ref_c, "rate": r0,
+        "rate_std": r_std, "n_runs": len(runs), "mid_rate_bounds": list(bounds),
+        "increment_noise": noise, "misfit_flight_clock": float(misfit[0].min() / len(runs)),
+        "misfit": float(misfit[jb, jc] / len(runs))}
+    if training.rate_band_edges:
+        spans = [float(p.failure_flight - p.onset_flight) for p in patterns
+                 if p.failure_flight is not None and p.onset_flight is not None]
+        if len(spans) == len(rates):
+            law["hypotheses"] = [h.to_dict() for h in fit_rate_hypotheses(
+                rates.tolist(), spans, band_names(training.rate_band_edges),
+                inflation=training.hypothesis_inflation)]
+    return law
 
 
 def _increment_noise(runs: list[tuple[np.ndarray, np.ndarray]], jb: int, c: float,
@@ -360,13 +361,11 @@ def _level_config(base: PrognoserConfig, law: dict[str, Any], training: Training
                      initial_theta=(0.0, law["rate"]), initial_rate_std=law["rate_std"],
                      rls_forgetting=training.level_forgetting,
                      rate_bounds=tuple(law["mid_rate_bounds"]),
-                     rate_prior_tail=training.rate_prior_tail,
+                     rate_prior_tail=0.0 if law.get("hypotheses") else training.rate_prior_tail,
+                     rate_hypotheses=tuple(RateHypothesis.from_dict(h)
+                                           for h in law.get("hypotheses") or ()),
                      prediction_noise_std=_prediction_noise(law, training),
                      guard_horizon=training.guard_horizon)
-    if training.rate_filter == "joint":
-        config = replace(config, joint_rate=True, rate_prior_tail=0.0,
-                         rate_prior_log_std=law.get("rate_log_std"),
-                         process_noise_std=training.joint_process_noise)
     return config
 
 

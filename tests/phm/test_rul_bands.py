@@ -1,4 +1,4 @@
-"""The rate as a filtered state, the online guard and the bands' calibration layer."""
+"""The online guard and the bands' calibration layer."""
 
 from __future__ import annotations
 
@@ -21,7 +21,6 @@ C, R0 = 0.3, 0.0045  # the prior's law: about 290 flights from severity 0.05 to 
 BASE = PrognoserConfig(rate_basis="exponential", growth_offset=C, initial_theta=(0.0, R0),
                        initial_rate_std=0.35 * R0, rate_bounds=(2e-4, 0.1),
                        rls_forgetting=0.995)
-JOINT = replace(BASE, joint_rate=True, rate_prior_log_std=1.0, process_noise_std=0.003)
 NOISE = 0.05
 MODEL = MeasurementModel.identity(NOISE)
 
@@ -55,67 +54,43 @@ def _coverage(preds: list[tuple[float, dict[float, float]]], lo: float, hi: floa
     return float(np.mean([q[lo] <= t <= q[hi] for t, q in preds]))
 
 
-def test_the_joint_filter_finds_a_rate_four_times_the_prior():
-    pf = ParticleFilterPrognoser(JOINT, MODEL)
-    ratios = []
-    for seed in range(3):
-        state, _ = _run(JOINT, 4.0, seed)
-        ratios.append(pf.predict(state).rate_ratio)
-    # the prior puts a rate 4 times its centre at 1.4 sd: the measurements moved it there
-    assert all(2.5 < r < 6.5 for r in ratios), ratios
-
-
-def test_the_joint_filter_holds_its_bands_in_range_and_on_a_fast_fault():
-    for speed in (1.0, 4.0):
-        preds = [p for seed in range(4) for p in _run(JOINT, speed, seed)[1]]
-        assert 0.8 <= _coverage(preds, 0.05, 0.95) <= 1.0, speed
-        assert 0.3 <= _coverage(preds, 0.25, 0.75) <= 0.85, speed
-
-
-def test_a_joint_state_round_trips_bit_exactly():
-    config = replace(JOINT, guard_horizon=5)
+def test_a_guarded_state_round_trips_bit_exactly():
+    config = replace(BASE, guard_horizon=5)
     pf = ParticleFilterPrognoser(config, MODEL)
     state = pf.initial_state(config, MODEL, 3)
     for k, z in enumerate((0.1, 0.12, 0.11, 0.15, 0.16, 0.18, 0.2)):
         state = pf.update(state, z, k)
     again = PrognoserState.from_json(state.to_json())
     a, b = pf.update(state, 0.22, 9), pf.update(again, 0.22, 9)
-    assert np.array_equal(a.log_rates, b.log_rates) and np.array_equal(a.severity, b.severity)
+    assert np.array_equal(a.theta, b.theta) and np.array_equal(a.severity, b.severity)
     assert a.guard == b.guard and a.guard is not None and a.guard.pending
     assert pf.predict(a).quantiles == pf.predict(b).quantiles
 
 
-def test_documents_without_the_new_fields_read_and_write_as_before():
+def test_documents_without_the_guard_read_and_write_as_before():
     doc = BASE.to_dict()
-    for key in ("joint_rate", "rate_prior_log_std", "rate_kernel_shrinkage", "guard_horizon",
-                "guard_gain", "guard_miss_rate"):
+    for key in ("guard_horizon", "guard_gain", "guard_miss_rate"):
         assert key not in doc
     assert PrognoserConfig.from_dict(doc) == BASE
-    assert PrognoserConfig.from_dict(JOINT.to_dict()) == JOINT
+    with pytest.raises(ValueError, match="guard_horizon"):
+        replace(BASE, guard_horizon=-1)
 
 
-def test_a_state_of_the_other_kind_of_filter_is_stale():
+def test_the_retired_joint_filter_is_refused_with_its_reason():
+    """Its config fields and its states (a rate per particle) name the retirement."""
     from server.phm.prognosis import StaleStateError
 
-    rls_state = ParticleFilterPrognoser.initial_state(BASE, MODEL, 1)
-    with pytest.raises(StaleStateError):
-        # same digest is impossible (the configs differ), but the check is the rate's
-        ParticleFilterPrognoser(JOINT, MODEL).update(
-            replace(rls_state, config_digest=ParticleFilterPrognoser(JOINT, MODEL).digest),
-            0.1, 0)
-
-
-def test_joint_rate_needs_the_exponential_law():
-    with pytest.raises(ValueError, match="joint_rate"):
-        PrognoserConfig(joint_rate=True)
-    with pytest.raises(ValueError, match="guard_horizon"):
-        replace(JOINT, guard_horizon=-1)
+    with pytest.raises(ValueError, match="retired"):
+        PrognoserConfig.from_dict({**BASE.to_dict(), "joint_rate": True})
+    state = ParticleFilterPrognoser.initial_state(BASE, MODEL, 1).to_dict()
+    with pytest.raises(StaleStateError, match="retired"):
+        PrognoserState.from_dict({**state, "log_rates": [0.0] * BASE.n_particles})
 
 
 def test_the_guard_widens_a_band_whose_forecasts_miss():
-    # a prior far too sure of a rate 5 times too slow, and a kernel that cannot move it
-    # fast enough: the filter's band misses; the guard sees its forecasts miss and widens
-    caged = replace(JOINT, rate_prior_log_std=0.05, rate_kernel_shrinkage=0.999,
+    # a prior far too sure of a rate 5 times too slow, and an RLS that never forgets it: the
+    # filter's band misses; the guard sees its forecasts miss and widens
+    caged = replace(BASE, initial_rate_std=0.02 * R0, rls_forgetting=1.0,
                     process_noise_std=0.001)
     guarded = replace(caged, guard_horizon=8)
     bare = [p for seed in range(3) for p in _run(caged, 5.0, seed)[1]]
@@ -127,7 +102,7 @@ def test_the_guard_widens_a_band_whose_forecasts_miss():
 
 
 def test_the_guard_stays_quiet_where_the_filter_is_right():
-    state, _ = _run(replace(JOINT, guard_horizon=8), 1.0, 0)
+    state, _ = _run(replace(BASE, guard_horizon=8), 1.0, 0)
     assert state.guard is not None and state.guard.missed <= 0.25 * state.guard.scored
 
 

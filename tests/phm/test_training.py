@@ -219,3 +219,36 @@ def test_training_can_learn_the_prediction_noise_from_the_design_runs(design_cam
                 mode].config_for(position).process_noise_std
         assert cfg.prediction_noise_std in {law["increment_noise"]} | {
             s["increment_noise"] for s in law.get("by_surface", {}).values()}, mode
+
+
+def test_training_with_rate_bands_gives_each_exponential_mode_a_bank_of_hypotheses(
+        design_campaign_dir, trained_model) -> None:
+    """With ``rate_band_edges`` every mode tuned on the log-level gets one hypothesis per band,
+    fastest first, its rates falling as the spans grow, and no tail mixture; the report
+    carries them; the polynomial modes and the default model have none."""
+    from dataclasses import replace
+
+    from server.phm.training import TRAINING, train_phm_model
+
+    campaign = load_campaign(design_campaign_dir, jobs=2)
+    banked, report = train_phm_model(
+        campaign, seed=0, training=replace(TRAINING, rate_band_edges=(30.0, 100.0, 300.0,
+                                                                      1000.0)))
+    assert "rate_hypotheses" not in json.dumps(trained_model[0])
+    exponential = 0
+    for mode, spec in banked.measurement.items():
+        for position in ("WL1", "WT"):
+            cfg = spec.config_for(position)
+            if cfg.rate_basis != "exponential":
+                assert cfg.rate_hypotheses == (), mode
+                continue
+            exponential += 1
+            bank = cfg.rate_hypotheses
+            assert [h.name for h in bank] == ["fast", "medium", "slow"], mode
+            assert cfg.rate_prior_tail == 0.0
+            rates = [abs(h.rate) for h in bank]
+            assert rates[0] > rates[1] > rates[2], mode
+        law = report["measurement"][mode]["degradation_prior"]
+        if spec.config_for("WT").rate_basis == "exponential" and "hypotheses" in (law or {}):
+            assert [h["name"] for h in law["hypotheses"]] == ["fast", "medium", "slow"]
+    assert exponential > 0

@@ -12,7 +12,15 @@ from fastapi.testclient import TestClient
 from sqlalchemy import event, select
 
 from server.db import session_scope
-from server.models import Actuator, ActuatorState, Aircraft, Alarm, Flight, Injection
+from server.models import (
+    Actuator,
+    ActuatorState,
+    Aircraft,
+    Alarm,
+    Flight,
+    Injection,
+    Prognosis,
+)
 from server.web.routes import csrf_token
 from tests.signin import sign_in as sign_in_form
 from tests.web.seed import add_alarm, seed_results
@@ -111,6 +119,31 @@ def test_the_header_names_the_open_alarms_mode_even_without_a_prognosis(
     header = page[page.index('id="fault-mode"'):page.index("</dd>", page.index('id="fault-mode"'))]
     assert ">BDO</abbr>" in header
     assert 'id="median-rul">–</dd>' in page  # no RUL: a dash, not "- flights"
+
+
+def test_the_leading_rate_hypothesis_is_shown_beside_the_band(app, client, keys, seeded
+                                                               ) -> None:  # type: ignore[no-untyped-def]
+    """A prediction of a bank of rate hypotheses names the fault's speed and its weight on
+    the actuator page and in the API; one without a bank shows no such line."""
+    sign_in(client, keys["viewer"])
+    assert 'id="rul-hypothesis"' not in client.get(f"/actuators/{seeded.actuator_id}").text
+    lead = {"name": "fast", "spans": "30-100 flights", "weight": 0.8,
+            "weights": {"fast": 0.8, "medium": 0.15, "slow": 0.05}}
+    with session_scope(app.state.session_factory) as session:
+        latest = session.scalars(select(Prognosis).where(
+            Prognosis.actuator_id == seeded.actuator_id).order_by(
+            Prognosis.flight_index.desc())).first()
+        assert latest is not None
+        latest.distribution = {**latest.distribution, "hypothesis": lead}
+    page = client.get(f"/actuators/{seeded.actuator_id}").text
+    start = page.index('id="rul-hypothesis"')
+    line = page[start:page.index("</dd>", start)]
+    assert "fast fault, 0.80" in line and "30-100 flights" in line
+    assert "medium 0.15" in line  # every hypothesis's weight in its title
+    got = client.get(f"/api/v1/actuators/{seeded.actuator_id}/prognoses",
+                     headers={"Authorization": f"Bearer {keys['viewer']}"}).json()
+    named = [p["distribution"]["hypothesis"] for p in got]
+    assert named.count(lead) == 1 and named.count(None) == len(got) - 1
 
 
 def test_actuator_page_embeds_figures_with_data(client, keys, seeded) -> None:

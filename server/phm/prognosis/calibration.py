@@ -17,10 +17,12 @@ without widening its upper end, a too cautious one's ends move in. The median mo
 median of its group's log errors, log(1 + y) - log(1 + median): the point estimate of a
 filter that is systematically optimistic in a group is corrected there too.
 
-Groups use only what is known when the prediction is made: the fault mode, and the filter's
-rate relative to the design prior (:func:`.joint.rate_ratio`; ``RulDistribution.rate_ratio``)
-binned at ``edges``: a fault faster than the design runs is miscalibrated differently from one
-in range. A group with fewer than ``min_group`` scores uses the mode's pooled margin.
+Groups use only what is known when the prediction is made: the fault mode, and either the
+leading hypothesis of a bank of rate hypotheses (:mod:`.hypotheses`; ``RulDistribution.
+hypothesis``), or the filter's rate relative to the design prior
+(``RulDistribution.rate_ratio``) binned at ``edges``: a fault faster than the design runs is
+miscalibrated differently from one in range. A group with fewer than ``min_group`` scores uses
+the mode's pooled margin.
 """
 
 from __future__ import annotations
@@ -46,17 +48,19 @@ BAND_LEVELS = {0.5: (0.25, 0.75), 0.9: (0.05, 0.95)}
 
 @dataclass(frozen=True)
 class CalibrationRecord:
-    """One replayed prediction: its band quantiles {level: RUL}, the filter's rate ratio and
-    the true RUL [flights]."""
+    """One replayed prediction: its band quantiles {level: RUL}, the filter's rate ratio, the
+    true RUL [flights] and the leading rate hypothesis (None without a bank)."""
 
     quantiles: Mapping[float, float]
     rate_ratio: float
     true_rul: float
+    hypothesis: str | None = None
 
 
 @dataclass(frozen=True)
 class BandCalibration:
-    """The layer of one fault mode: the rate-ratio bin ``edges`` (ascending), each group's
+    """The layer of one fault mode: its groups (the rate hypotheses by name when
+    ``hypotheses`` is set, else the rate-ratio bins of ``edges``, ascending), each group's
     margins {coverage: (Q_lo, Q_hi)} (log units) and size, and the pooled margins."""
 
     edges: tuple[float, ...]
@@ -70,21 +74,30 @@ class BandCalibration:
     n_records: int = 0
     n_runs: int = 0
     notes: dict[str, Any] = field(default_factory=dict)
+    hypotheses: tuple[str, ...] = ()
 
-    def group_of(self, rate_ratio: float) -> int:
+    @property
+    def n_groups(self) -> int:
+        return len(self.hypotheses) if self.hypotheses else len(self.edges) + 1
+
+    def group_of(self, rate_ratio: float, hypothesis: str | None = None) -> int:
+        """The group of a prediction (-1: none, the pooled margins)."""
+        if self.hypotheses:
+            return self.hypotheses.index(hypothesis) if hypothesis in self.hypotheses else -1
         if not math.isfinite(rate_ratio):
             return -1
         return int(np.searchsorted(np.asarray(self.edges), rate_ratio, side="right"))
 
-    def margins_for(self, rate_ratio: float) -> tuple[int, Margins, float]:
+    def margins_for(self, rate_ratio: float, hypothesis: str | None = None
+                    ) -> tuple[int, Margins, float]:
         """(group, margins, median shift) of a prediction; group -1 is the pooled fallback."""
-        g = self.group_of(rate_ratio)
+        g = self.group_of(rate_ratio, hypothesis)
         if g < 0 or self.counts[g] < self.min_group:
             return -1, self.pooled, self.pooled_shift
         return g, self.margins[g], self.shifts[g]
 
     def apply(self, dist: RulDistribution) -> RulDistribution:
-        group, margins, shift = self.margins_for(dist.rate_ratio)
+        group, margins, shift = self.margins_for(dist.rate_ratio, _leading(dist))
         out = widen(dist, margins, median_shift=shift)
         return replace(out, adjustment={**(dist.adjustment or {}), "conformal_group": group,
                                         "conformal_margins": {c: list(m) for c, m in
@@ -92,12 +105,15 @@ class BandCalibration:
                                         "median_shift": shift})
 
     def to_dict(self) -> dict[str, Any]:
-        return {"format": _FORMAT, "edges": list(self.edges),
-                "margins": [_margins_out(m) for m in self.margins],
-                "counts": list(self.counts), "pooled": _margins_out(self.pooled),
-                "shifts": list(self.shifts), "pooled_shift": self.pooled_shift,
-                "min_group": self.min_group, "n_records": self.n_records,
-                "n_runs": self.n_runs, "notes": self.notes}
+        out = {"format": _FORMAT, "edges": list(self.edges),
+               "margins": [_margins_out(m) for m in self.margins],
+               "counts": list(self.counts), "pooled": _margins_out(self.pooled),
+               "shifts": list(self.shifts), "pooled_shift": self.pooled_shift,
+               "min_group": self.min_group, "n_records": self.n_records,
+               "n_runs": self.n_runs, "notes": self.notes}
+        if self.hypotheses:  # absent otherwise: documents read as before
+            out["hypotheses"] = list(self.hypotheses)
+        return out
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> BandCalibration:
@@ -107,14 +123,17 @@ class BandCalibration:
         margins = tuple(_margins_in(m) for m in d["margins"])
         counts = tuple(int(c) for c in d["counts"])
         shifts = tuple(float(v) for v in d["shifts"])
-        if list(edges) != sorted(edges) or len(margins) != len(edges) + 1 \
+        hypotheses = tuple(str(h) for h in d.get("hypotheses") or ())
+        groups = len(hypotheses) if hypotheses else len(edges) + 1
+        if list(edges) != sorted(edges) or len(margins) != groups \
                 or len(counts) != len(margins) or len(shifts) != len(margins) \
                 or not all(math.isfinite(v) for v in (*shifts, float(d["pooled_shift"]))):
-            raise ValueError("band calibration: edges must ascend with one group more, "
-                             "each group with its margins and a finite shift")
+            raise ValueError("band calibration: one group per hypothesis, or edges ascending "
+                             "with one group more; each group with its margins and a finite "
+                             "shift")
         return cls(edges, margins, counts, _margins_in(d["pooled"]), shifts,
                    float(d["pooled_shift"]), int(d["min_group"]), int(d.get("n_records", 0)),
-                   int(d.get("n_runs", 0)), dict(d.get("notes") or {}))
+                   int(d.get("n_runs", 0)), dict(d.get("notes") or {}), hypotheses)
 
 
 def _margins_out(m: Margins) -> list[list[float]]:
@@ -157,25 +176,31 @@ def _margin(scores: np.ndarray, level: float) -> float:
 
 def fit_band_calibration(records: Iterable[CalibrationRecord], *,
                          edges: tuple[float, ...] = (0.5, 2.0), min_group: int = 30,
-                         n_runs: int = 0) -> BandCalibration:
+                         n_runs: int = 0, hypotheses: tuple[str, ...] = ()
+                         ) -> BandCalibration:
     """The layer of one mode from its replayed predictions (each band's quantiles finite
-    below, the truth finite)."""
+    below, the truth finite), grouped by leading hypothesis when ``hypotheses`` names a
+    bank's, else by rate ratio at ``edges``."""
     recs = [r for r in records if math.isfinite(r.true_rul) and r.true_rul >= 0]
     if not recs:
         raise ValueError("no replayed prediction to calibrate on")
-    edges = tuple(sorted(float(e) for e in edges))
+    edges = () if hypotheses else tuple(sorted(float(e) for e in edges))
     pooled = {c: _band_margins(recs, c) for c in BAND_LEVELS}
     layer = BandCalibration(edges, (), (), pooled, (), _median_shift(recs), min_group,
-                            len(recs), n_runs)
-    groups: list[list[CalibrationRecord]] = [[] for _ in range(len(edges) + 1)]
+                            len(recs), n_runs, hypotheses=tuple(hypotheses))
+    groups: list[list[CalibrationRecord]] = [[] for _ in range(layer.n_groups)]
     for r in recs:
-        g = layer.group_of(r.rate_ratio)
+        g = layer.group_of(r.rate_ratio, r.hypothesis)
         if g >= 0:
             groups[g].append(r)
     margins = tuple({c: _band_margins(g, c) for c in BAND_LEVELS} if g else dict(pooled)
                     for g in groups)
     shifts = tuple(_median_shift(g) if g else layer.pooled_shift for g in groups)
     return replace(layer, margins=margins, counts=tuple(len(g) for g in groups), shifts=shifts)
+
+
+def _leading(dist: RulDistribution) -> str | None:
+    return None if dist.hypothesis is None else dist.hypothesis.get("name")
 
 
 def widen(dist: RulDistribution, margins: Margins, *, median_shift: float = 0.0

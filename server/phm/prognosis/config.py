@@ -19,6 +19,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .hypotheses import RateHypothesis
 from .laws import LAWS, DegradationLaw, ExponentialLaw, law_for
 
 __all__ = ["RATE_BASES", "PrognoserConfig", "RateBasis"]
@@ -132,16 +133,12 @@ class PrognoserConfig:
         the rate within a few flights instead of fighting a light-tailed prior. Left out of
         the config document when 0, so documents and states made before it read back
         unchanged.
-    joint_rate:
-        If True (``"exponential"`` law only), every particle carries its own rate and the
-        rate is filtered with the severity (:mod:`.joint`); the RLS and its mixture prior
-        are not used. The RUL spread is then the particles' spread of severity and rate.
-    rate_prior_log_std:
-        Prior standard deviation of ln|r| of a joint-rate filter [-]; None: the relative
-        spread ``initial_rate_std / |r0|`` (at least 0.35).
-    rate_kernel_shrinkage:
-        Liu-West shrinkage a of the rate kernel [-], in (0, 1): the jitter is
-        sqrt(1 - a^2) of the cloud's log-rate spread. Default 0.98.
+    rate_hypotheses:
+        The bank of rate hypotheses (:mod:`.hypotheses`), ``"exponential"`` law only: one
+        rate prior per band of fault-to-failure spans, each with its prior weight, each tuned
+        by its own RLS and weighted by its predictive likelihood (:mod:`.mixture`); the RUL
+        distribution names the leading one. Empty: ``rate_prior_tail`` decides. Left out of
+        the config document when empty.
     guard_horizon:
         Flights ahead of the online guard's feature forecasts (:mod:`.guard`); 0: no guard.
     guard_gain:
@@ -151,7 +148,7 @@ class PrognoserConfig:
         Share of forecasts the guard expects to miss (its forecast interval is the central
         1 - this) [-]. Default 0.1.
 
-    The six fields above are left out of the config document at their defaults, so documents
+    The three fields above are left out of the config document at their defaults, so documents
     and states made before them read back unchanged.
     """
 
@@ -178,9 +175,7 @@ class PrognoserConfig:
     rate_bounds: tuple[float, float] | None = None
     prediction_noise_std: float | None = None
     rate_prior_tail: float = 0.0
-    joint_rate: bool = False
-    rate_prior_log_std: float | None = None
-    rate_kernel_shrinkage: float = 0.98
+    rate_hypotheses: tuple[RateHypothesis, ...] = ()
     guard_horizon: int = 0
     guard_gain: float = 0.1
     guard_miss_rate: float = 0.1
@@ -248,22 +243,36 @@ class PrognoserConfig:
             raise ValueError("rate_prior_tail needs rate_basis 'exponential', got "
                              f"{self.rate_basis!r}")
         object.__setattr__(self, "rate_prior_tail", float(tail))
-        self._check_joint_and_guard()
+        self._check_hypotheses()
+        self._check_guard()
         if self._version != _CONFIG_VERSION:
             raise ValueError(f"unsupported config version {self._version}")
 
-    def _check_joint_and_guard(self) -> None:
-        if not isinstance(self.joint_rate, bool):
-            raise ValueError("joint_rate must be a bool")
-        if self.joint_rate and self.rate_basis != "exponential":
-            raise ValueError("joint_rate needs rate_basis 'exponential', got "
+    def _check_hypotheses(self) -> None:
+        bank = tuple(RateHypothesis.from_dict(h) if isinstance(h, dict) else h
+                     for h in self.rate_hypotheses)
+        if not all(isinstance(h, RateHypothesis) for h in bank):
+            raise ValueError("rate_hypotheses must be RateHypothesis entries")
+        if bank and self.rate_basis != "exponential":
+            raise ValueError("rate_hypotheses need rate_basis 'exponential', got "
                              f"{self.rate_basis!r}")
-        if self.rate_prior_log_std is not None:
-            _positive("rate_prior_log_std", self.rate_prior_log_std)
-        if not (isinstance(self.rate_kernel_shrinkage, int | float)
-                and 0.0 < self.rate_kernel_shrinkage < 1.0):
-            raise ValueError("rate_kernel_shrinkage must be in (0, 1), got "
-                             f"{self.rate_kernel_shrinkage!r}")
+        if bank and self.rate_prior_tail > 0.0:
+            raise ValueError("rate_hypotheses replace rate_prior_tail: set one of them")
+        if len({h.name for h in bank}) != len(bank):
+            raise ValueError("rate_hypotheses need distinct names")
+        if any(math.copysign(1.0, h.rate) != math.copysign(1.0, self.growth_offset)
+               for h in bank):
+            raise ValueError("every rate hypothesis's rate has the sign of growth_offset "
+                             "(dh/dk = r (h + c) > 0)")
+        object.__setattr__(self, "rate_hypotheses", bank)
+
+    @property
+    def rate_mixture(self) -> bool:
+        """Whether the rate prior is a mixture (a bank of hypotheses, or the tail's scaled
+        copies) tuned one RLS per component."""
+        return bool(self.rate_hypotheses) or self.rate_prior_tail > 0
+
+    def _check_guard(self) -> None:
         object.__setattr__(self, "guard_horizon", _whole("guard_horizon", self.guard_horizon))
         if not 0 <= self.guard_horizon <= 100:
             raise ValueError(f"guard_horizon must be in 0..100 flights, got {self.guard_horizon}")
@@ -271,13 +280,6 @@ class PrognoserConfig:
         if not (isinstance(self.guard_miss_rate, int | float)
                 and 0.0 < self.guard_miss_rate < 0.5):
             raise ValueError(f"guard_miss_rate must be in (0, 0.5), got {self.guard_miss_rate!r}")
-
-    @property
-    def rate_log_std(self) -> float:
-        """Prior standard deviation of ln|r| of a joint-rate filter [-]."""
-        if self.rate_prior_log_std is not None:
-            return self.rate_prior_log_std
-        return max(self.rate_prior_std / abs(self.theta0[1]), 0.35)
 
     @property
     def law(self) -> DegradationLaw:
@@ -318,6 +320,10 @@ class PrognoserConfig:
             del data["prediction_noise_std"]
         if self.rate_prior_tail == 0.0:
             del data["rate_prior_tail"]
+        if self.rate_hypotheses:
+            data["rate_hypotheses"] = [h.to_dict() for h in self.rate_hypotheses]
+        else:
+            del data["rate_hypotheses"]
         for name, default in _LEFT_OUT_AT_DEFAULT.items():
             if data[name] == default:
                 del data[name]
@@ -335,11 +341,17 @@ class PrognoserConfig:
         data.pop("kind", None)
         known = {f for f in cls.__dataclass_fields__ if not f.startswith("_")}
         unknown = set(data) - known
+        if unknown & _RETIRED:
+            raise ValueError(f"config fields {sorted(unknown & _RETIRED)} belong to the joint "
+                             "state-parameter filter, retired (docs/PROGNOSIS.md): train the "
+                             "model again")
         if unknown:
             raise ValueError(f"unknown config fields {sorted(unknown)}")
         for key in ("initial_theta", "quantile_levels", "pof_horizons_flights", "rate_bounds"):
             if data.get(key) is not None:
                 data[key] = tuple(data[key])
+        data["rate_hypotheses"] = tuple(RateHypothesis.from_dict(h)
+                                        for h in data.get("rate_hypotheses") or ())
         return cls(**data)
 
     @classmethod
@@ -349,8 +361,10 @@ class PrognoserConfig:
 
 #: fields written to the config document only when they differ from these defaults
 _LEFT_OUT_AT_DEFAULT: dict[str, Any] = {
-    "joint_rate": False, "rate_prior_log_std": None, "rate_kernel_shrinkage": 0.98,
     "guard_horizon": 0, "guard_gain": 0.1, "guard_miss_rate": 0.1}
+
+#: fields of the retired joint state-parameter filter; a document that sets any is refused
+_RETIRED = frozenset({"joint_rate", "rate_prior_log_std", "rate_kernel_shrinkage"})
 
 
 def _positive(name: str, value: float) -> None:

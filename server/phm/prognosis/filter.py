@@ -40,11 +40,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from . import joint
 from .calibration import widen
 from .config import PrognoserConfig
 from .degradation import bound_mid_rate, growth_rate, rls_update
 from .guard import GuardState, forecast, score
+from .hypotheses import leading_hypothesis
 from .measurement import MeasurementModel
 from .mixture import RateMixture
 from .predictor import RulDistribution, propagate_to_threshold, summarise_rul
@@ -118,11 +118,8 @@ class PrognoserState:
     config_digest:
         Short hash of the config and measurement model the state belongs to.
     mixture:
-        The components of a mixture rate prior (``PrognoserConfig.rate_prior_tail`` > 0),
-        else None.
-    log_rates:
-        ln|r| of every particle, shape (N,), when the filter carries the rate
-        (``PrognoserConfig.joint_rate``, :mod:`.joint`); else None.
+        The components of a mixture rate prior (a bank of ``PrognoserConfig.rate_hypotheses``
+        or ``rate_prior_tail`` > 0), else None.
     guard:
         The online guard's forecasts and widening (``PrognoserConfig.guard_horizon`` > 0,
         :mod:`.guard`); else None.
@@ -144,7 +141,6 @@ class PrognoserState:
     hours_total: float = 0.0
     hours_flights: int = 0
     mixture: RateMixture | None = None
-    log_rates: NDArray[np.float64] | None = None
     guard: GuardState | None = None
     version: int = field(default=_STATE_VERSION)
 
@@ -185,8 +181,6 @@ class PrognoserState:
         }
         if self.mixture is not None:  # absent otherwise: states without one read as before
             out["mixture"] = self.mixture.to_dict()
-        if self.log_rates is not None:
-            out["log_rates"] = self.log_rates.tolist()
         if self.guard is not None:
             out["guard"] = self.guard.to_dict()
         return out
@@ -205,10 +199,9 @@ class PrognoserState:
         log_weights = np.asarray(data["log_weights"], dtype=float)
         if severity.ndim != 1 or severity.shape != log_weights.shape:
             raise ValueError("severity and log_weights must be 1-D of equal length")
-        log_rates = None if data.get("log_rates") is None \
-            else np.asarray(data["log_rates"], dtype=float)
-        if log_rates is not None and log_rates.shape != severity.shape:
-            raise ValueError("log_rates must have one value per particle")
+        if data.get("log_rates") is not None:
+            raise StaleStateError("a joint state-parameter filter's state: that filter was "
+                                  "retired (docs/PROGNOSIS.md); the unit's filter restarts")
         return cls(
             severity=severity,
             log_weights=log_weights,
@@ -227,7 +220,6 @@ class PrognoserState:
             hours_flights=int(data["hours_flights"]),
             mixture=None if data.get("mixture") is None
             else RateMixture.from_dict(data["mixture"]),
-            log_rates=log_rates,
             guard=None if data.get("guard") is None else GuardState.from_dict(data["guard"]),
         )
 
@@ -240,7 +232,7 @@ class PrognoserState:
         meta = self.to_dict()
         arrays = {
             k: np.asarray(meta.pop(k), dtype=float)
-            for k in ("severity", "log_weights", "theta", "cov", "log_rates") if k in meta
+            for k in ("severity", "log_weights", "theta", "cov") if k in meta
         }
         # numpy's stub reads **arrays as possibly its allow_pickle flag; the keys are fixed above
         np.savez(path, meta=np.array(json.dumps(meta)), **arrays)  # type: ignore[arg-type]
@@ -250,7 +242,7 @@ class PrognoserState:
         with np.load(path, allow_pickle=False) as npz:
             meta = json.loads(str(npz["meta"]))
             for k in ("severity", "log_weights", "theta", "cov", "log_rates"):
-                if k in npz:
+                if k in npz:  # log_rates: a retired joint filter's, refused by from_dict
                     meta[k] = npz[k]
         return cls.from_dict(meta)
 
@@ -314,8 +306,7 @@ class ParticleFilterPrognoser:
         self.measurement_model = measurement_model
         self.law = config.law
         self.digest = _digest(config, measurement_model)
-        self._prior_mixture = (self.law.prior_mixture(config)
-                               if config.rate_prior_tail > 0 and not config.joint_rate else None)
+        self._prior_mixture = self.law.prior_mixture(config) if config.rate_mixture else None
 
     @classmethod
     def initial_state(
@@ -333,13 +324,10 @@ class ParticleFilterPrognoser:
         law = config.law
         cov, resid_var = law.prior(config)
         theta = np.asarray(config.theta0, dtype=float)
-        mixture = (law.prior_mixture(config)
-                   if config.rate_prior_tail > 0 and not config.joint_rate else None)
+        mixture = law.prior_mixture(config) if config.rate_mixture else None
         if mixture is not None:
             theta, cov = mixture.moments()
-        log_rates = joint.prior_log_rates(config, rng) if config.joint_rate else None
         return PrognoserState(
-            log_rates=log_rates,
             guard=GuardState() if config.guard_horizon > 0 else None,
             severity=severity,
             log_weights=np.full(n, -math.log(n)),
@@ -356,8 +344,6 @@ class ParticleFilterPrognoser:
             raise StaleStateError("state belongs to another config or measurement model")
         if state.severity.size != self.config.n_particles:
             raise StaleStateError("state has the wrong number of particles")
-        if (state.log_rates is not None) != self.config.joint_rate:
-            raise StaleStateError("state and config disagree on whether the rate is filtered")
 
     def update(
         self,
@@ -408,8 +394,7 @@ class ParticleFilterPrognoser:
                 mixture = RateMixture(np.array([t for t, _ in firsts]),
                                       np.array([c for _, c in firsts]), mixture.log_weights)
                 theta, cov = mixture.moments()
-            guard = self._forecast(state.guard, k, h, state.log_rates, theta,
-                                   np.full(n, 1.0 / n), rng)
+            guard = self._forecast(state.guard, k, h, theta, np.full(n, 1.0 / n), rng)
             return replace(
                 state,
                 severity=h,
@@ -438,7 +423,7 @@ class ParticleFilterPrognoser:
         # the law is bounded where it is used (propagation, prediction), not inside the RLS:
         # a rescaled RLS estimate feeds back into the regression and drifts
         h = state.severity + dk * growth_rate(
-            state.severity, self._particle_law(state.log_rates, state.theta), cfg.min_rate)
+            state.severity, self._law(state.theta), cfg.min_rate)
         h += (cfg.process_noise_std * math.sqrt(dk)) * rng.standard_normal(n)
         np.maximum(h, 0.0, out=h)
         # 2. weight (log domain, max subtracted before exponentiating)
@@ -452,23 +437,14 @@ class ParticleFilterPrognoser:
         estimate = float(np.dot(w, h))
         # 3. resample only when ESS < threshold * N
         resampled = ess < cfg.resample_threshold * n
-        log_rates = state.log_rates
         if resampled:
             idx = systematic_resample(w, rng)
             h = h[idx]
             log_w = np.full(n, -math.log(n))
             w = np.full(n, 1.0 / n)
-            if log_rates is not None:
-                log_rates = log_rates[idx]
-        # 4. tune the degradation model: the rates' kernel move, or one RLS step on the
-        # law's measurement
-        if log_rates is not None:
-            log_rates = joint.liu_west(log_rates, w, cfg.rate_kernel_shrinkage, rng)
-            theta = np.array([0.0, float(np.dot(w, joint.signed_rates(cfg, log_rates)))])
-            cov, resid_var, mixture = state.cov, state.resid_var, None
-        else:
-            theta, cov, resid_var, mixture = self._tune(state, estimate, z, dk)
-        guard = self._forecast(guard, k, h, log_rates, theta, w, rng,
+        # 4. tune the degradation model: one RLS step on the law's measurement
+        theta, cov, resid_var, mixture = self._tune(state, estimate, z, dk)
+        guard = self._forecast(guard, k, h, theta, w, rng,
                                clock_rate=dk / (k - state.flight_index))
         return PrognoserState(
             severity=h,
@@ -487,38 +463,25 @@ class ParticleFilterPrognoser:
             hours_total=hours_total,
             hours_flights=hours_flights,
             mixture=mixture,
-            log_rates=log_rates,
             guard=guard,
         )
 
     def _rate_ratio(self, state: PrognoserState) -> float:
-        """The filter's rate over its prior's centre (the calibration layer's group key): the
-        particles' for a joint filter, the RLS estimate's for the exponential law; nan for
-        the polynomial laws, whose rate depends on the severity."""
-        if state.log_rates is not None:
-            return joint.rate_ratio(self.config, state.log_rates, state.weights)
+        """The RLS estimate's rate over its prior's centre (the calibration layer's group key
+        without a bank of hypotheses) for the exponential law; nan for the polynomial laws,
+        whose rate depends on the severity."""
         if self.config.rate_basis != "exponential":
             return math.nan
         ratio = float(state.theta[1]) / self.config.theta0[1]
         return ratio if ratio > 0 else math.nan
 
-    def _particle_law(self, log_rates: NDArray[np.float64] | None, theta: NDArray[np.float64]
-                      ) -> NDArray[np.float64]:
-        """Growth-rate coefficients to propagate with: each particle's own (N, p) when the
-        filter carries the rate, else the tuned law's (p,); within ``config.rate_bounds``."""
-        if log_rates is None:
-            return self._law(theta)
-        return bound_mid_rate(joint.coefficients(self.config, log_rates),
-                              self.config.rate_bounds)
-
     def _forecast(self, guard: GuardState | None, flight: int, severity: NDArray[np.float64],
-                  log_rates: NDArray[np.float64] | None, theta: NDArray[np.float64],
-                  weights: NDArray[np.float64], rng: np.random.Generator,
-                  clock_rate: float = 1.0) -> GuardState | None:
+                  theta: NDArray[np.float64], weights: NDArray[np.float64],
+                  rng: np.random.Generator, clock_rate: float = 1.0) -> GuardState | None:
         """The guard with this update's feature forecast added (None without a guard)."""
         if guard is None:
             return None
-        return forecast(guard, flight, severity, self._particle_law(log_rates, theta), weights,
+        return forecast(guard, flight, severity, self._law(theta), weights,
                         self.measurement_model, self.config, rng, clock_rate)
 
     def _tune(self, state: PrognoserState, estimate: float, z: float, dk: float
@@ -576,8 +539,7 @@ class ParticleFilterPrognoser:
         bit_gen = getattr(np.random, state.rng_state["bit_generator"])()
         bit_gen.state = state.rng_state
         rng = np.random.Generator(bit_gen.jumped())
-        theta = (self.parameter_samples(state, rng) if state.log_rates is None
-                 else self._particle_law(state.log_rates, state.theta))
+        theta = self.parameter_samples(state, rng)
         if stress_curve is None:
             rul = propagate_to_threshold(state.severity, theta, self.config, rng,
                                          threshold=threshold)
@@ -609,6 +571,9 @@ class ParticleFilterPrognoser:
         ratio = self._rate_ratio(state)
         if math.isfinite(ratio):
             dist = replace(dist, rate_ratio=ratio)
+        if self.config.rate_hypotheses and state.mixture is not None:
+            dist = replace(dist, hypothesis=leading_hypothesis(self.config.rate_hypotheses,
+                                                               state.mixture.weights))
         guard = state.guard
         if guard is not None and (guard.widening_fast > 0.0 or guard.widening_slow > 0.0):
             dist = replace(widen(dist, guard.margins()), adjustment={

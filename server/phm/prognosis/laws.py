@@ -296,11 +296,20 @@ class ExponentialLaw:
                                                  config.rls_forgetting))
 
     def prior_mixture(self, config: PrognoserConfig) -> RateMixture:
-        """The rate prior as a mixture (``config.rate_prior_tail`` > 0): the normal of
-        :meth:`prior` with weight 1 - tail, and that normal with its mean and standard
-        deviation scaled by each of ``CONSTANTS.rate_tail_factors``, sharing the tail."""
+        """The rate prior as a mixture: with ``config.rate_hypotheses``, one component per
+        hypothesis (its rate prior and weight); else (``config.rate_prior_tail`` > 0) the
+        normal of :meth:`prior` with weight 1 - tail, and that normal with its mean and
+        standard deviation scaled by each of ``CONSTANTS.rate_tail_factors``, sharing the
+        tail."""
         cov0, _ = self.prior(config)
         a0, r0 = config.theta0
+        bank = config.rate_hypotheses
+        if bank:
+            cov = np.repeat(cov0[np.newaxis], len(bank), axis=0)
+            cov[:, 1, 1] = [h.rate_std**2 for h in bank]
+            weights = np.array([h.weight for h in bank])
+            theta = np.column_stack([np.full(len(bank), a0), [h.rate for h in bank]])
+            return RateMixture(theta, cov, np.log(weights / weights.sum()))
         factors = np.array((1.0,) + CONSTANTS.rate_tail_factors)
         tail = config.rate_prior_tail
         weights = np.r_[1.0 - tail, np.full(factors.size - 1, tail / (factors.size - 1))]

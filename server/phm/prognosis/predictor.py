@@ -64,8 +64,11 @@ class RulDistribution:
     samples, weights:
         Particle RULs [flight] and their normalised weights (kept in memory; optional in JSON).
     rate_ratio:
-        The filter's rate over its prior's centre (joint-rate filters: :mod:`.joint`), the
+        The filter's rate over its prior's centre (the RLS estimate's), the
         calibration layer's group key; nan when the filter does not carry its rate.
+    hypothesis:
+        With a bank of rate hypotheses (:mod:`.hypotheses`): the leading one's name, its spans
+        in words and its weight, and every hypothesis's weight by name; else None.
     adjustment:
         What moved the band from the particles' quantiles (the online guard's widening, the
         calibration layer's group and margins, :mod:`.calibration`), or None: the quantiles
@@ -87,6 +90,7 @@ class RulDistribution:
     weights: NDArray[np.float64] = field(default_factory=lambda: np.empty(0), repr=False)
     rate_ratio: float = math.nan
     adjustment: dict[str, Any] | None = None
+    hypothesis: dict[str, Any] | None = None
 
     @property
     def median(self) -> float:
@@ -147,6 +151,8 @@ class RulDistribution:
             data["rate_ratio"] = self.rate_ratio
         if self.adjustment is not None:
             data["adjustment"] = _json_safe(self.adjustment)
+        if self.hypothesis is not None:
+            data["hypothesis"] = _json_safe(self.hypothesis)
         if include_samples:
             data["samples"] = [_finite_or_none(v) for v in self.samples.tolist()]
             data["weights"] = self.weights.tolist()
@@ -180,6 +186,7 @@ class RulDistribution:
             weights=np.asarray(data.get("weights") or [], dtype=float),
             rate_ratio=float(data.get("rate_ratio", math.nan)),
             adjustment=data.get("adjustment"),
+            hypothesis=data.get("hypothesis"),
         )
 
     @classmethod
