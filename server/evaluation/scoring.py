@@ -328,6 +328,7 @@ def pattern_prognosis(trace: Mapping[str, Any], *, alpha: float = ALPHA, lam: fl
          "q05": rul_quantile(doc, 0.05), "q25": rul_quantile(doc, 0.25),
          "q75": rul_quantile(doc, 0.75), "q95": rul_quantile(doc, 0.95),
          "mode_used": by_index[int(i)]["fault_mode"],
+         "hypothesis": ((doc or {}).get("hypothesis") or {}).get("name"),
          "in_cone": bool(metrics.alpha_bounds_hit(m, t, alpha=alpha)) if math.isfinite(m)
          else False, "in_50": bool(h50), "in_90": bool(h90)}
         for i, t, m, doc, h50, h90 in zip(chosen, true, est, docs, in50, in90, strict=True)]

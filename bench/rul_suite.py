@@ -1,0 +1,136 @@
+"""The RUL speed-group suite: verification campaigns of unseen aircraft whose faults fail at
+every speed the test station accepts, streamed once (features kept), scored per model in
+minutes.
+
+    python bench/rul_suite.py stream --root /work/campaigns/suite --per-mode 10 --workers 2
+    python bench/rul_suite.py score --root /work/campaigns/suite --model MODEL.json \\
+        --in-range /work/campaigns/prot/verification --out docs/results/rul_suite.json
+
+Each group is a quick-scale verification campaign (60 s recordings, as the demo flies), every
+flight rendered, ``--per-mode`` patterns per fault mode, its own seed (none of them a design
+seed), the expected fault-to-failure spans drawn uniformly from the group's range:
+
+=============  ======  ==============  ==================================================
+group          seed    spans [flights] what it stands for
+=============  ======  ==============  ==================================================
+very fast      31      30-60           the envelope's fast edge
+fast           32      50-150          faster than the paper's protocol
+slow           33      400-1000        slower than it
+station        34      40-200          the spans a test-station operator asks for
+station 60     35      60              the demo's 60-flight injections
+=============  ======  ==============  ==================================================
+
+The paper's protocol in range (25 patterns per mode, 170-360 flights, 120 s recordings) is
+the ``hmsm protocol`` run's verification campaign, given with ``--in-range``. The station
+groups are campaigns with the station's spans, not steered to an exact failure flight as a
+live injection is (``bench/station_rul.py`` flies those, without keeping features).
+
+``score`` runs ``hmsm evaluate`` with ``--model`` on every streamed group (its evaluation kept
+under ``ROOT/scores/<model stem>/``, reused when present) and prints and writes the group x
+mode table of :mod:`rul_speed_groups` (coverage, truth below the band, widths, PH, RA).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from rul_speed_groups import group_figures, markdown  # noqa: E402
+
+
+@dataclass(frozen=True)
+class Group:
+    name: str
+    seed: int
+    spans: tuple[float, float]
+
+    @property
+    def slug(self) -> str:
+        return self.name.replace(" ", "-")
+
+
+GROUPS = (Group("very fast", 31, (30.0, 60.0)), Group("fast", 32, (50.0, 150.0)),
+          Group("slow", 33, (400.0, 1000.0)), Group("station", 34, (40.0, 200.0)),
+          Group("station 60", 35, (60.0, 60.0)))
+
+
+def _chosen(names: str | None) -> list[Group]:
+    if not names:
+        return list(GROUPS)
+    wanted = [n.strip() for n in names.split(",")]
+    known = {g.name: g for g in GROUPS}
+    unknown = [n for n in wanted if n not in known]
+    if unknown:
+        raise SystemExit(f"unknown groups {unknown}; known: {sorted(known)}")
+    return [known[n] for n in wanted]
+
+
+def stream(root: Path, groups: list[Group], per_mode: int, workers: int) -> None:
+    """Each group's campaign under ``root/<slug>`` (resumed where a run stopped)."""
+    for g in groups:
+        lo, hi = g.spans
+        cmd = ["sim-worker", "campaign", "--kind", "verification", "--scale", "quick",
+               "--seed", str(g.seed), "--span-range", f"{lo:g},{hi:g}", "--render-every", "1",
+               "--per-mode", str(per_mode), "--workers", str(workers), "--no-progress",
+               "--out", str(root / g.slug)]
+        print(f"[{g.name}] {' '.join(cmd)}", flush=True)
+        subprocess.run(cmd, check=True)
+
+
+def score(root: Path, groups: list[Group], model: Path, in_range: Path | None, jobs: int
+          ) -> dict[str, dict]:
+    """The group x mode figures of ``model`` on every streamed group."""
+    out_root = root / "scores" / model.stem
+    targets = [(g.name, root / g.slug) for g in groups if (root / g.slug).exists()]
+    if in_range is not None:
+        targets.insert(0, ("in range", in_range))
+    figures = {}
+    for name, campaign in targets:
+        out = out_root / name.replace(" ", "-")
+        if not (out / "summary.json").exists():
+            subprocess.run(["hmsm", "evaluate", "--campaign", str(campaign), "--model-json",
+                            str(model), "--out", str(out), "--jobs", str(jobs), "--no-latest",
+                            "--no-progress", "--timing-flights", "0"], check=True)
+        figures[name] = group_figures(out)
+    return figures
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("stream", help="stream the groups' campaigns")
+    s.add_argument("--root", type=Path, required=True)
+    s.add_argument("--groups", default=None, help="comma-separated group names (default all)")
+    s.add_argument("--per-mode", type=int, default=10)
+    s.add_argument("--workers", type=int, default=2)
+    c = sub.add_parser("score", help="score a model on the streamed groups")
+    c.add_argument("--root", type=Path, required=True)
+    c.add_argument("--groups", default=None)
+    c.add_argument("--model", type=Path, required=True)
+    c.add_argument("--in-range", type=Path, default=None,
+                   help="the protocol run's verification campaign (the in-range group)")
+    c.add_argument("--jobs", type=int, default=2)
+    c.add_argument("--out", type=Path, default=None, help="JSON file to write")
+    args = ap.parse_args(argv)
+    groups = _chosen(args.groups)
+    if args.command == "stream":
+        if args.per_mode < 1:
+            ap.error("--per-mode must be at least 1")
+        stream(args.root, groups, args.per_mode, args.workers)
+        return 0
+    figures = score(args.root, groups, args.model, args.in_range, args.jobs)
+    print(markdown(figures))
+    if args.out:
+        args.out.write_text(json.dumps({"model": str(args.model), "groups": figures},
+                                       indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
