@@ -5,6 +5,9 @@ minutes.
     python bench/rul_suite.py stream --root /work/campaigns/suite --per-mode 10 --workers 2
     python bench/rul_suite.py score --root /work/campaigns/suite --model MODEL.json \\
         --in-range /work/campaigns/prot/verification --out docs/results/rul_suite.json
+    python bench/rul_suite.py calibration-stream --root /work/campaigns/cal --per-mode 20
+    python bench/rul_suite.py calibrate --root /work/campaigns/cal --model UNCALIBRATED.json \\
+        --out CALIBRATED.json
 
 Each group is a quick-scale verification campaign (60 s recordings, as the demo flies), every
 flight rendered, ``--per-mode`` patterns per fault mode, its own seed (none of them a design
@@ -24,6 +27,14 @@ The paper's protocol in range (25 patterns per mode, 170-360 flights, 120 s reco
 the ``hmsm protocol`` run's verification campaign, given with ``--in-range``. The station
 groups are campaigns with the station's spans, not steered to an exact failure flight as a
 live injection is (``bench/station_rul.py`` flies those, without keeping features).
+
+The calibration layer of a model with a bank of rate hypotheses is conditional on the mode
+and the leading hypothesis, so it wants design runs in every band: ``calibration-stream``
+flies one quick-scale design campaign per band (seeds 4, 5 and 6, none of them the training
+seed, spans log-uniform over 30-100, 100-300 and 300-1000 flights as the bank's moments
+assume, every third flight rendered) and
+``calibrate`` replays them with the uncalibrated model and runs ``hmsm calibrate`` on all
+three.
 
 ``score`` runs ``hmsm evaluate`` with ``--model`` on every streamed group (its evaluation kept
 under ``ROOT/scores/<model stem>/``, reused when present) and prints and writes the group x
@@ -58,6 +69,10 @@ class Group:
 GROUPS = (Group("very fast", 31, (30.0, 60.0)), Group("fast", 32, (50.0, 150.0)),
           Group("slow", 33, (400.0, 1000.0)), Group("station", 34, (40.0, 200.0)),
           Group("station 60", 35, (60.0, 60.0)))
+#: the calibration designs, one per band of the bank (``TrainingConfig.rate_band_edges``)
+CALIBRATION = (Group("cal fast", 4, (30.0, 100.0)), Group("cal medium", 5, (100.0, 300.0)),
+               Group("cal slow", 6, (300.0, 1000.0)))
+CALIBRATION_RENDER_EVERY = 3
 
 
 def _chosen(names: str | None) -> list[Group]:
@@ -71,16 +86,28 @@ def _chosen(names: str | None) -> list[Group]:
     return [known[n] for n in wanted]
 
 
-def stream(root: Path, groups: list[Group], per_mode: int, workers: int) -> None:
+def stream(root: Path, groups: list[Group], per_mode: int, workers: int,
+           kind: str = "verification", render_every: int = 1, span_draw: str = "uniform"
+           ) -> None:
     """Each group's campaign under ``root/<slug>`` (resumed where a run stopped)."""
     for g in groups:
         lo, hi = g.spans
-        cmd = ["sim-worker", "campaign", "--kind", "verification", "--scale", "quick",
-               "--seed", str(g.seed), "--span-range", f"{lo:g},{hi:g}", "--render-every", "1",
+        cmd = ["sim-worker", "campaign", "--kind", kind, "--scale", "quick",
+               "--seed", str(g.seed), "--span-range", f"{lo:g},{hi:g}",
+               "--render-every", str(render_every), "--span-draw", span_draw,
                "--per-mode", str(per_mode), "--workers", str(workers), "--no-progress",
                "--out", str(root / g.slug)]
         print(f"[{g.name}] {' '.join(cmd)}", flush=True)
         subprocess.run(cmd, check=True)
+
+
+def _evaluated(campaign: Path, model: Path, out: Path, jobs: int) -> Path:
+    """``hmsm evaluate`` of ``model`` on ``campaign`` into ``out`` (kept and reused)."""
+    if not (out / "summary.json").exists():
+        subprocess.run(["hmsm", "evaluate", "--campaign", str(campaign), "--model-json",
+                        str(model), "--out", str(out), "--jobs", str(jobs), "--no-latest",
+                        "--no-progress", "--timing-flights", "0"], check=True)
+    return out
 
 
 def score(root: Path, groups: list[Group], model: Path, in_range: Path | None, jobs: int
@@ -90,15 +117,19 @@ def score(root: Path, groups: list[Group], model: Path, in_range: Path | None, j
     targets = [(g.name, root / g.slug) for g in groups if (root / g.slug).exists()]
     if in_range is not None:
         targets.insert(0, ("in range", in_range))
-    figures = {}
-    for name, campaign in targets:
-        out = out_root / name.replace(" ", "-")
-        if not (out / "summary.json").exists():
-            subprocess.run(["hmsm", "evaluate", "--campaign", str(campaign), "--model-json",
-                            str(model), "--out", str(out), "--jobs", str(jobs), "--no-latest",
-                            "--no-progress", "--timing-flights", "0"], check=True)
-        figures[name] = group_figures(out)
-    return figures
+    return {name: group_figures(_evaluated(campaign, model, out_root / name.replace(" ", "-"),
+                                           jobs))
+            for name, campaign in targets}
+
+
+def calibrate(root: Path, model: Path, out: Path, jobs: int) -> None:
+    """The uncalibrated ``model`` replayed on every calibration design, then calibrated."""
+    evals = [_evaluated(root / g.slug, model, root / "scores" / model.stem / g.slug, jobs)
+             for g in CALIBRATION]
+    cmd = ["hmsm", "calibrate", "--model-json", str(model), "--out", str(out)]
+    for e in evals:
+        cmd += ["--evaluation", str(e)]
+    subprocess.run(cmd, check=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -117,11 +148,28 @@ def main(argv: list[str] | None = None) -> int:
                    help="the protocol run's verification campaign (the in-range group)")
     c.add_argument("--jobs", type=int, default=2)
     c.add_argument("--out", type=Path, default=None, help="JSON file to write")
+    cs = sub.add_parser("calibration-stream", help="stream the calibration designs, one per "
+                        "band of the bank")
+    cs.add_argument("--root", type=Path, required=True)
+    cs.add_argument("--per-mode", type=int, default=20)
+    cs.add_argument("--workers", type=int, default=2)
+    cb = sub.add_parser("calibrate", help="replay the calibration designs and calibrate")
+    cb.add_argument("--root", type=Path, required=True)
+    cb.add_argument("--model", type=Path, required=True, help="the uncalibrated model")
+    cb.add_argument("--out", type=Path, required=True, help="the calibrated model to write")
+    cb.add_argument("--jobs", type=int, default=2)
     args = ap.parse_args(argv)
+    if args.command in ("stream", "calibration-stream") and args.per_mode < 1:
+        ap.error("--per-mode must be at least 1")
+    if args.command == "calibration-stream":
+        stream(args.root, list(CALIBRATION), args.per_mode, args.workers, kind="design",
+               render_every=CALIBRATION_RENDER_EVERY, span_draw="log")
+        return 0
+    if args.command == "calibrate":
+        calibrate(args.root, args.model, args.out, args.jobs)
+        return 0
     groups = _chosen(args.groups)
     if args.command == "stream":
-        if args.per_mode < 1:
-            ap.error("--per-mode must be at least 1")
         stream(args.root, groups, args.per_mode, args.workers)
         return 0
     figures = score(args.root, groups, args.model, args.in_range, args.jobs)
