@@ -249,6 +249,7 @@ class PrognoserConfig:
             raise ValueError(f"unsupported config version {self._version}")
 
     def _check_hypotheses(self) -> None:
+        # a document's entries arrive as dicts (from_dict): read here, in one place
         bank = tuple(RateHypothesis.from_dict(h) if isinstance(h, dict) else h
                      for h in self.rate_hypotheses)
         if not all(isinstance(h, RateHypothesis) for h in bank):
@@ -350,8 +351,7 @@ class PrognoserConfig:
         for key in ("initial_theta", "quantile_levels", "pof_horizons_flights", "rate_bounds"):
             if data.get(key) is not None:
                 data[key] = tuple(data[key])
-        data["rate_hypotheses"] = tuple(RateHypothesis.from_dict(h)
-                                        for h in data.get("rate_hypotheses") or ())
+        data["rate_hypotheses"] = tuple(data.get("rate_hypotheses") or ())  # dicts: read below
         return cls(**data)
 
     @classmethod
