@@ -92,11 +92,12 @@ def stream(root: Path, groups: list[Group], per_mode: int, workers: int,
     """Each group's campaign under ``root/<slug>`` (resumed where a run stopped)."""
     for g in groups:
         lo, hi = g.spans
-        cmd = ["sim-worker", "campaign", "--kind", kind, "--scale", "quick",
+        # features kept, a flight log only now and then (a whole group's logs are tens of GB)
+        cmd = ["hmsm", "campaign", "--kind", kind, "--scale", "quick",
                "--seed", str(g.seed), "--span-range", f"{lo:g},{hi:g}",
                "--render-every", str(render_every), "--span-draw", span_draw,
-               "--per-mode", str(per_mode), "--workers", str(workers), "--no-progress",
-               "--out", str(root / g.slug)]
+               "--patterns-per-mode", str(per_mode), "--workers", str(workers),
+               "--no-progress", "--out", str(root / g.slug)]
         print(f"[{g.name}] {' '.join(cmd)}", flush=True)
         subprocess.run(cmd, check=True)
 

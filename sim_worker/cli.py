@@ -130,6 +130,10 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
                       help="fly every healthy pattern but only the first N patterns of each "
                       "fault mode (0: the healthy ones alone), the same flights as in the "
                       "whole campaign")
+    camp.add_argument("--patterns-per-mode", type=int, default=None, metavar="N",
+                      help="plan N fault patterns per mode instead of the scale's (a campaign "
+                      "of its own: its patterns are seeded differently); --per-mode then "
+                      "flies the first of them")
     camp.add_argument("--recordings", default=None, metavar="S[,S...]",
                       help="recording lengths [s] every rendered flight draws its own from, "
                       "e.g. 120 (every flight 120 s) or 60,90,120,180,240,300 (a fleet mixing "
@@ -214,7 +218,8 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None,
                             span_draw=args.span_draw,
                             sink=sink, executor=executor,  # type: ignore[arg-type]
                             per_mode=args.per_mode,
-                            recordings_s=parse_recordings(args.recordings))
+                            recordings_s=parse_recordings(args.recordings),
+                            patterns_per_mode=args.patterns_per_mode)
 
 
 def parse_recordings(text: str | None) -> tuple[float, ...] | None:

@@ -103,14 +103,18 @@ def _healthy_length(cfg: ScaleConfig, seed: int, code: int, j: int) -> int:
     return int(np.random.default_rng(_seed(seed, code, 3000 + j)).integers(lo, hi + 1))
 
 
-def plan_campaign(kind: str, seed: int, scale: str, *,
-                  per_mode: int | None = None) -> list[PatternSpec]:
+def plan_campaign(kind: str, seed: int, scale: str, *, per_mode: int | None = None,
+                  patterns_per_mode: int | None = None) -> list[PatternSpec]:
     """All patterns of the campaign, in manifest order. ``per_mode``: every healthy pattern
     but only the first ``per_mode`` patterns of each fault mode (0: the healthy ones alone),
-    each numbered and seeded as in the whole campaign, so they fly the same flights."""
+    each numbered and seeded as in the whole campaign, so they fly the same flights.
+    ``patterns_per_mode`` plans that many fault patterns per mode instead of the scale's (a
+    campaign of its own: the patterns are numbered, and so seeded, differently)."""
     if kind not in _KIND_CODE:
         raise ValueError(f"kind must be one of {sorted(_KIND_CODE)}")
     cfg = SCALES[scale][kind]
+    if patterns_per_mode is not None:
+        cfg = replace(cfg, patterns_per_mode=patterns_per_mode)
     code = _KIND_CODE[kind]
     specs: list[PatternSpec] = []
     n_air = len(FLEET_BASES)

@@ -138,7 +138,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
                  sink: FlightSink | None = None,
                  executor: Executor | None = None,
                  per_mode: int | None = None,
-                 recordings_s: Iterable[float] | None = None) -> dict[str, Any]:
+                 recordings_s: Iterable[float] | None = None,
+                 patterns_per_mode: int | None = None) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
@@ -167,6 +168,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
     ``per_mode`` flies every healthy pattern and only the first ``per_mode`` patterns of each
     fault mode (0: the healthy ones alone, for false alarms over long healthy lives), the
     same flights as in the whole campaign.
+    ``patterns_per_mode`` plans that many fault patterns per mode instead of the scale's
+    (numbered and seeded as a campaign of its own; ``per_mode`` then takes the first of them).
     ``recordings_s`` overrides the scale's recording lengths: every rendered flight draws its
     own from them (one value: every flight that long); a scale that varies them, and its
     test-station condition blocks, records each flight's under ``"recording_s"`` and
@@ -189,7 +192,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
                                  or per_mode < 0):
         raise ValueError(f"per_mode must be a count of patterns (>= 0), got {per_mode!r}")
     faults = canonical_sensor_faults(sensor_faults)
-    cfg = scale_config(scale, kind, render_every, span_flights, span_draw, recordings_s)
+    cfg = scale_config(scale, kind, render_every, span_flights, span_draw, recordings_s,
+                       patterns_per_mode)
     sink = sink if sink is not None else ParquetSink()
     from tqdm import tqdm
 
@@ -207,7 +211,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
     if finished is not None:
         return finished
     warm_up()  # compile (or load the cache) once before forking workers
-    specs = plan_campaign(kind, seed, scale, per_mode=per_mode)
+    specs = plan_campaign(kind, seed, scale, per_mode=per_mode,
+                          patterns_per_mode=cfg.patterns_per_mode)
     fleet = fleet_for(kind, seed, **options)
     store = _Progress(out, settings)
     results = {s.number: r for s in specs if (r := store.done(s)) is not None}
@@ -257,7 +262,8 @@ def snapshot_campaign(out_dir: str | Path | CampaignStore, snap_dir: str | Path 
                               for k, v in settings["config"].items()}
     cfg = ScaleConfig(**fields)
     specs = plan_campaign(settings["kind"], settings["seed"], settings["scale"],
-                          per_mode=settings.get("per_mode"))
+                          per_mode=settings.get("per_mode"),
+                          patterns_per_mode=cfg.patterns_per_mode)
     store = _Progress(out, settings)
     done = [r for s in specs if (r := store.done(s)) is not None]
     fleet = fleet_for(settings["kind"], settings["seed"],

@@ -130,11 +130,23 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
 }
 
 
+#: the most fault patterns per mode a campaign plans (``--patterns-per-mode``): 99 keeps the
+#: patterns' two-digit ids
+MAX_PATTERNS_PER_MODE = 99
+
+
 def scale_config(scale: str, kind: str, render_every: int | None,
                  span_flights: tuple[float, float] | None,
                  span_draw: str | None = None,
-                 recordings_s: Iterable[float] | None = None) -> ScaleConfig:
+                 recordings_s: Iterable[float] | None = None,
+                 patterns_per_mode: int | None = None) -> ScaleConfig:
     cfg = SCALES[scale][kind]
+    if patterns_per_mode is not None:
+        if isinstance(patterns_per_mode, bool) or not isinstance(patterns_per_mode, int) \
+                or not 1 <= patterns_per_mode <= MAX_PATTERNS_PER_MODE:
+            raise ValueError(f"patterns per mode must be an int in 1..{MAX_PATTERNS_PER_MODE}, "
+                             f"got {patterns_per_mode!r}")
+        cfg = replace(cfg, patterns_per_mode=patterns_per_mode)
     if recordings_s is not None:
         lengths = tuple(float(v) for v in recordings_s)
         if not lengths or not all(math.isfinite(v) and 10.0 <= v <= 600.0 for v in lengths):

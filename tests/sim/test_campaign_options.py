@@ -324,3 +324,25 @@ def test_a_part_of_a_campaign_runs_to_its_manifest(tmp_path) -> None:
     want = [s.id for s in plan_campaign("verification", 1, "ci", per_mode=1)]
     assert [p["id"] for p in manifest["patterns"]] == want
     assert {p["mode"] for p in manifest["patterns"]} == {"healthy", *MODES}
+
+
+def test_a_campaign_can_plan_more_fault_patterns_per_mode_than_its_scale() -> None:
+    """``--patterns-per-mode`` plans that many patterns of every fault mode (the speed-group
+    suite needs 10-20 where the quick scale has 3-6); ``per_mode`` still takes the first."""
+    from collections import Counter
+
+    from sim_worker.campaign.scales import scale_config
+
+    plan = plan_campaign("verification", 1, "ci", patterns_per_mode=5)
+    counts = Counter(s.mode for s in plan if s.mode != "healthy")
+    assert counts == {m: 5 for m in MODES}
+    assert len({s.seed for s in plan}) == len(plan)
+    first = plan_campaign("verification", 1, "ci", patterns_per_mode=5, per_mode=2)
+    assert Counter(s.mode for s in first if s.mode != "healthy") == {m: 2 for m in MODES}
+    assert scale_config("ci", "design", None, None, patterns_per_mode=7).patterns_per_mode == 7
+    for bad in (0, 100, True, 2.0):
+        with pytest.raises(ValueError, match="patterns per mode"):
+            scale_config("ci", "design", None, None, patterns_per_mode=bad)  # type: ignore[arg-type]
+    args = build_parser().parse_args(["campaign", "--kind", "design", "--out", "x",
+                                      "--patterns-per-mode", "12"])
+    assert args.patterns_per_mode == 12
