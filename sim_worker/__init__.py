@@ -22,8 +22,8 @@ Public API (what the service's sim worker calls)::
   ``reference`` :class:`ActuatorSummary` (e.g. ``reference_summary(aircraft, position, ...)``) to
   calibrate their random rate; ``FaultState(mode, position, severity, threshold, rate)`` can also
   be built directly (e.g. an operator injecting a given severity).
-* ``simulate_flight(aircraft, faults, flight_index, rng, *, flight_id=None, started_at=None,
-  duration_s=120.0) -> (FlightLog, FlightSummary)``: ``faults`` one :class:`FaultState` or a
+* ``simulate_flight(aircraft, fault, flight_index, rng, *, flight_id=None, started_at=None,
+  duration_s=120.0) -> (FlightLog, FlightSummary)``: ``fault`` one :class:`FaultState` or a
   tuple of concurrent ones (each on its position; one of each mode per position). All draws
   come from ``rng`` (seed it per aircraft and flight); the same seed gives the same bytes. A
   batch of one of:

@@ -138,15 +138,15 @@ class KernelInputs:
     seeds: np.ndarray  # (3,) uint64, non-zero
 
 
-def kernel_inputs(aircraft: Aircraft, faults: Faults, scenario: Scenario,
+def kernel_inputs(aircraft: Aircraft, fault: Faults, scenario: Scenario,
                   rng: np.random.Generator, *, t0_winding_c: float | None = None,
                   active: tuple[str, ...] = POSITIONS) -> KernelInputs:
-    """Pack ``scenario`` with ``faults`` (one, or several: each on its position, two on one
-    actuator both applied, :func:`~.faults.merged_entries`) for the kernel, and draw the
-    sensor-noise seeds from ``rng``; the drives not in ``active`` are in standby (each surface
-    needs an active one)."""
+    """Pack ``scenario`` with ``fault`` (one fault, or a tuple of concurrent ones: each on its
+    position, two on one actuator both applied, :func:`~.faults.merged_entries`) for the
+    kernel, and draw the sensor-noise seeds from ``rng``; the drives not in ``active`` are in
+    standby (each surface needs an active one)."""
     t0 = float(scenario.t_amb[0] + 3.0) if t0_winding_c is None else t0_winding_c
-    faults = as_faults(faults)  # checked once for every position
+    faults = as_faults(fault)  # checked once for every position
     for s in set(SURFACE_OF.values()):
         if not any(SURFACE_OF[p] == s for p in active):
             raise ValueError(f"active={active!r} leaves surface {_SURFACES[s].name} undriven")
@@ -162,12 +162,13 @@ def kernel_inputs(aircraft: Aircraft, faults: Faults, scenario: Scenario,
     return KernelInputs(scenario=scenario, params=par, surfaces=spar, seeds=seeds)
 
 
-def run_scenario(aircraft: Aircraft, faults: Faults, scenario: Scenario,
+def run_scenario(aircraft: Aircraft, fault: Faults, scenario: Scenario,
                  rng: np.random.Generator, *, t0_winding_c: float | None = None,
                  active: tuple[str, ...] = POSITIONS) -> SimResult:
-    """Simulate ``scenario`` at 12 kHz with ``faults`` on their positions (kernel call); the
-    drives not in ``active`` are in standby (each surface needs an active one)."""
-    return run_kernel(kernel_inputs(aircraft, faults, scenario, rng, t0_winding_c=t0_winding_c,
+    """Simulate ``scenario`` at 12 kHz with ``fault`` (one, or a tuple of concurrent ones) on
+    its position (kernel call); the drives not in ``active`` are in standby (each surface
+    needs an active one)."""
+    return run_kernel(kernel_inputs(aircraft, fault, scenario, rng, t0_winding_c=t0_winding_c,
                                     active=active))
 
 
@@ -241,7 +242,7 @@ def _summary_from_acc(acc: np.ndarray, cond: FlightConditions, duration_s: float
 
 def simulate_flight(
     aircraft: Aircraft,
-    faults: Faults,
+    fault: Faults,
     flight_index: int,
     rng: np.random.Generator,
     *,
@@ -251,13 +252,13 @@ def simulate_flight(
     winglet_mode: WingletMode = DEFAULT_WINGLET_MODE,
     conditions: Conditions = NO_CONDITIONS,
 ) -> tuple[FlightLog, FlightSummary]:
-    """Simulate one flight with ``faults`` (one, or several at once) and return its download
-    (format v1) and what the actuators did;
+    """Simulate one flight with ``fault`` (one, or a tuple of concurrent ones) and return its
+    download (format v1) and what the actuators did;
     under active-standby the log's metadata names the flight's active channels. The test
     station's ``conditions`` move its physics (:mod:`.conditions`), not its metadata. A batch
     of one of :func:`simulate_flights`."""
     return simulate_flights([FlightSpec(
-        aircraft, faults, flight_index, rng, flight_id=flight_id, started_at=started_at,
+        aircraft, fault, flight_index, rng, flight_id=flight_id, started_at=started_at,
         duration_s=duration_s, winglet_mode=winglet_mode, conditions=conditions)])[0]
 
 
@@ -265,11 +266,11 @@ def simulate_flight(
 class FlightSpec:
     """One flight to simulate: the arguments of :func:`simulate_flight`. ``rng`` is the
     flight's own (seeded per aircraft and flight): its draws are made in a lone flight's
-    order, whatever flies beside it. ``faults``: one fault (``healthy()`` for none) or a
+    order, whatever flies beside it. ``fault``: one fault (``healthy()`` for none) or a
     tuple of concurrent ones."""
 
     aircraft: Aircraft
-    faults: Faults
+    fault: Faults
     flight_index: int
     rng: np.random.Generator
     flight_id: str | None = None
@@ -329,7 +330,7 @@ def _prepare(spec: FlightSpec) -> _Prepared:
                               duration_s=spec.duration_s,
                               cruise_temp_c=CRUISE_TEMP_C + spec.conditions.ambient_offset_k)
     active = active_channels(spec.winglet_mode, spec.flight_index)
-    return _Prepared(spec, cond, active, kernel_inputs(spec.aircraft, spec.faults, scenario,
+    return _Prepared(spec, cond, active, kernel_inputs(spec.aircraft, spec.fault, scenario,
                                                        spec.rng, active=active))
 
 

@@ -72,7 +72,7 @@ class Combination:
     progressive modes each position can take) and the position pairs its patterns cycle
     over (the same position twice: two modes on one actuator)."""
 
-    name: str
+    name: str  # the manifest's "mode" of its patterns (their ids write "+" as "_")
     modes: tuple[str, str] | None
     positions: tuple[tuple[str, str], ...]
 
@@ -207,30 +207,32 @@ def _plan_concurrent(cfg: ScaleConfig, seed: int, code: int, per_mode: int | Non
     specs: list[PatternSpec] = []
     n = cfg.patterns_per_mode if per_mode is None else min(per_mode, cfg.patterns_per_mode)
     for c_i, combo in enumerate(COMBINATIONS):
-        for j in range(cfg.patterns_per_mode):
+        for j in range(n):  # each pattern's draws its own: a part flies the whole's flights
             number = c_i * cfg.patterns_per_mode + j
-            pattern_seed = _seed(seed, code, 1000 + number)
             faults = _concurrent_faults(combo, j, cfg, np.random.default_rng(
                 _seed(seed, code, 2000 + number)))
-            if j < n:
-                specs.append(PatternSpec(
-                    f"C-{combo.name}-{j + 1:02d}", number, (j * 3 + c_i) % len(FLEET_BASES),
-                    combo.name, None, 0, faults[0].onset, pattern_seed,
-                    day_offset=37.0 * number % 365, faults=faults))
+            specs.append(PatternSpec(
+                f"C-{combo.name.replace('+', '_')}-{j + 1:02d}",  # no "+" in flight codes
+                number, (j * 3 + c_i) % len(FLEET_BASES), combo.name, None, 0,
+                faults[0].onset, _seed(seed, code, 1000 + number),
+                day_offset=37.0 * number % 365, faults=faults))
     return specs
 
 
 def _concurrent_faults(combo: Combination, j: int, cfg: ScaleConfig,
                        rng: np.random.Generator) -> tuple[PlannedFault, PlannedFault]:
     """The two faults of the ``j``-th pattern of ``combo``: its positions (cycled), the order
-    of its modes (alternating once every pair was flown), drawn modes where the kind leaves
+    of its faults (alternating), drawn modes where the kind leaves
     them open, each span by the scale's law and the second onset a drawn gap later."""
     pair = combo.positions[j % len(combo.positions)]
     if combo.modes is None:
         modes = tuple(str(rng.choice([m for m in PROGRESSIVE if p in PLACES[m]])) for p in pair)
     else:
         modes = combo.modes
-    order = (0, 1) if (j // len(combo.positions)) % 2 == 0 else (1, 0)
+    # the order alternates pattern by pattern; over an even number of pairs it also steps
+    # once a round, so that every pair is flown in both orders (6 patterns cover 3 pairs)
+    pairs = len(combo.positions)
+    order = (0, 1) if (j + (j // pairs if pairs % 2 == 0 else 0)) % 2 == 0 else (1, 0)
     spans = [draw_span(rng, cfg.span_flights, cfg.span_draw) for _ in order]
     gap = max(1, round(float(rng.uniform(*ONSET_GAP)) * spans[0]))
     first, second = order
