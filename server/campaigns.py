@@ -54,8 +54,8 @@ from server.phm.signal_quality import QualityConfig
 from server.phm.training import train_phm_model
 
 __all__ = ["CAMPAIGN_FORMAT", "FEATURE_CACHE", "CampaignError", "FeatureSink", "campaign_store",
-           "read_manifest", "decode_log", "checked_log", "read_started_at", "load_campaign",
-           "train_from_directory"]
+           "read_manifest", "single_fault", "decode_log", "checked_log", "read_started_at",
+           "load_campaign", "train_from_directory"]
 
 CAMPAIGN_FORMAT = "ema-campaign/1"
 FEATURE_CACHE = "phm_features.json"
@@ -92,6 +92,19 @@ def read_manifest(directory: Location) -> dict[str, Any]:
     if not isinstance(manifest, dict) or manifest.get("format") != CAMPAIGN_FORMAT:
         raise CampaignError(f"{root}: not an {CAMPAIGN_FORMAT} manifest")
     return manifest
+
+
+def single_fault(manifest: Mapping[str, Any], where: str, use: str) -> None:
+    """Refuse (:class:`CampaignError`) a concurrent-fault campaign (``manifest``, at ``where``)
+    for ``use``: training and scoring read one fault per pattern, a single mode, position and
+    true RUL; a pattern with two faults needs per-fault detection, multi-mode classification
+    and per-fault RUL scoring, which they do not have."""
+    if manifest.get("kind") == "concurrent":
+        raise CampaignError(
+            f"{where} is a concurrent-fault campaign (two faults per pattern); {use} reads "
+            "single-fault campaigns (design or verification) only: scoring concurrent faults "
+            "needs per-fault detection, multi-mode classification and per-fault RUL scoring, "
+            "which are not implemented")
 
 
 def decode_log(data: bytes, name: str) -> FlightLog:
@@ -285,6 +298,7 @@ def train_from_directory(design_dir: Location, *, seed: int = 0,
     """Read a design campaign (features computed or taken from the cache) and train the
     chain on it (:func:`server.phm.training.train_phm_model`); the report gains the
     campaign's directory and the time spent on features."""
+    single_fault(read_manifest(design_dir), str(design_dir), "training")
     if progress is not None:
         progress("features", 0.0)
     t0 = time.perf_counter()

@@ -503,7 +503,8 @@ class Injection(StationItem, Base):
     """A fault injected by a test-station operator into a simulated aircraft's actuator."""
 
     __tablename__ = "injections"
-    __table_args__ = (_one_live("injections", "aircraft_id"),)  # one fault at a time
+    # concurrent faults: one live injection per mode of each actuator
+    __table_args__ = (_one_live("injections", "aircraft_id", "position", "fault_mode"),)
 
     position: Mapped[str] = mapped_column(String(8))
     fault_mode: Mapped[str] = mapped_column(String(16))

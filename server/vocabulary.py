@@ -56,7 +56,7 @@ SENSOR_OF_SIGNAL: dict[str, str] = {"ia": "current", "ib": "current", "ic": "cur
                                     "theta": "resolver", "x": "lvdt"}
 SENSORS: tuple[str, ...] = tuple(dict.fromkeys(SENSOR_OF_SIGNAL.values()))
 
-#: the seven fault modes (paper section 4.2), one at a time per actuator
+#: the seven fault modes (paper section 4.2); an actuator carries at most one fault of each
 FAULT_MODES: tuple[str, ...] = ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR", "REWEAR")
 #: modes that progress from onset to a failure threshold (the prognosis runs on these)
 PROGRESSIVE: tuple[str, ...] = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
@@ -155,7 +155,7 @@ class StationStatus(StrEnum):
 
 #: the states in which a test-station item is live: a pending one starts on its onset flight,
 #: an active one is being flown. The database holds one live item per slot by a partial unique
-#: index (server/models.py, migration 0013)
+#: index (server/models.py, migrations 0013 and 0017)
 STATION_LIVE: tuple[str, ...] = (StationStatus.PENDING.value, StationStatus.ACTIVE.value)
 
 

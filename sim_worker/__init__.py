@@ -23,13 +23,16 @@ Public API (what the service's sim worker calls)::
   calibrate their random rate; ``FaultState(mode, position, severity, threshold, rate)`` can also
   be built directly (e.g. an operator injecting a given severity).
 * ``simulate_flight(aircraft, fault, flight_index, rng, *, flight_id=None, started_at=None,
-  duration_s=120.0) -> (FlightLog, FlightSummary)``. All draws come from ``rng`` (seed it per
-  aircraft and flight); the same seed gives the same bytes. A batch of one of:
+  duration_s=120.0) -> (FlightLog, FlightSummary)``: ``fault`` one :class:`FaultState` or a
+  tuple of concurrent ones (each on its position; one of each mode per position). All draws
+  come from ``rng`` (seed it per aircraft and flight); the same seed gives the same bytes. A
+  batch of one of:
 * ``simulate_flights(specs: Sequence[FlightSpec], *, lanes=8) -> list[(FlightLog,
   FlightSummary)]``: several independent flights (``FlightSpec`` holds ``simulate_flight``'s
   arguments, each with its own ``rng``) simulated ``lanes`` at once in the kernel's SIMD lanes,
   in the order of ``specs``, each bit for bit what ``simulate_flight`` gives for it alone.
-* ``advance_fault(fault, summary, rng) -> FaultState``: one flight of progression.
+* ``advance_fault(fault, summary, rng) -> FaultState``: one flight of progression (of each
+  concurrent fault by itself, from the same summary).
 * ``estimate_summary(aircraft, flight_index, rng, ...) -> FlightSummary``: what a flight would
   do, without the 12 kHz run (for flights that are not rendered; each winglet drive in its
   role).

@@ -1,6 +1,6 @@
 """``sim-worker`` console script: subcommands of the simulated half-wing.
 
-``sim-worker campaign --kind design|verification --out DIR --seed N --scale SCALE``
+``sim-worker campaign --kind design|verification|concurrent --out DIR --seed N --scale SCALE``
 writes a campaign of flight logs and its manifest (see :mod:`sim_worker.campaign`), to a
 directory or to ``s3://bucket/prefix`` (credentials from the AWS_* environment variables, a
 store other than AWS S3 at ``HMSM_S3_ENDPOINT_URL``);
@@ -28,7 +28,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="sim-worker",
                                      description="Simulated half-wing of the EMA HMSM.")
     sub = parser.add_subparsers(dest="command", required=True)
-    camp = sub.add_parser("campaign", help="write a design or verification campaign")
+    camp = sub.add_parser("campaign", help="write a design, verification or concurrent-fault "
+                          "campaign")
     add_campaign_arguments(camp)
     camp.set_defaults(func=_cmd_campaign)
 
@@ -94,9 +95,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """The options of a campaign run (``sim-worker campaign`` and ``hmsm campaign``)."""
-    from .campaign import SCALES
+    from .campaign import KINDS, SCALES
 
-    camp.add_argument("--kind", choices=("design", "verification"), required=True)
+    camp.add_argument("--kind", choices=KINDS, required=True,
+                      help="design, verification, or concurrent (two faults at once per "
+                      "pattern: scales ci and quick)")
     camp.add_argument("--out", required=True, help="output directory, or s3://bucket/prefix "
                       "(AWS_* credentials; endpoint $HMSM_S3_ENDPOINT_URL); run again with the "
                       "same options to resume an interrupted campaign")
@@ -128,8 +131,8 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
                       "log-uniformly (default: the scale's; log for designs)")
     camp.add_argument("--per-mode", type=int, default=None, metavar="N",
                       help="fly every healthy pattern but only the first N patterns of each "
-                      "fault mode (0: the healthy ones alone), the same flights as in the "
-                      "whole campaign")
+                      "fault mode (0: the healthy ones alone; concurrent: of each combination "
+                      "kind), the same flights as in the whole campaign")
     camp.add_argument("--patterns-per-mode", type=int, default=None, metavar="N",
                       help="plan N fault patterns per mode instead of the scale's (a campaign "
                       "of its own: its patterns are seeded differently); --per-mode then "

@@ -1,6 +1,6 @@
 """The seven fault modes: severity, failure threshold, physical entry point and progression law.
 
-Severity units (one fault at a time, on one actuator position):
+Severity units (per fault, on one actuator position):
 
 ============  =========================================  ============  ==========  ===========
 mode          severity                                   threshold     onset       progression
@@ -29,6 +29,21 @@ campaigns), or log-uniform over the test station's envelope of 30-1000 flights (
 campaigns, ``ENVELOPE_FLIGHTS``); actual spans spread further with season and usage. On the
 active-standby winglet tab each drive carries what its role gives it, worn or not, so a worn
 drive's wear is driven by the work it does in its role.
+
+Concurrent faults. A flight may carry several faults (:data:`Faults`): on different actuators,
+or of different modes on one actuator. Each mode enters the kernel's parameter row at its own
+entries (:func:`fault_entries`: winding, magnets, air gap, inverter leg, screw friction, screw
+play, rod-end play), so two faults on one actuator are both sets of entries applied at once
+(:func:`merged_entries`); the physics couples them through the signals (a greased-up screw
+loads a worn screw harder, a hotter winding ages a shorted one faster), not through the entries.
+Two faults of the same mode on one position have no meaning (one severity per mode) and are
+refused. Each fault progresses by its own law and rate from the same flight summary
+(:func:`advance_fault`, one call per fault, each with its own random stream).
+
+Failure: when any fault on an actuator reaches its threshold the actuator has failed; it is
+replaced after that flight (its failure flight, flown with every fault it carries), and every
+fault on it ends there. A second fault on that actuator never reached its own threshold: it is
+censored, its failure flight unknown (its true RUL ``None``). Faults on other actuators fly on.
 """
 
 from __future__ import annotations
@@ -38,7 +53,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from server.vocabulary import ABRUPT, FAULT_MODES, PROGRESSIVE
+from server.vocabulary import ABRUPT, FAULT_MODES, POSITIONS, PROGRESSIVE
 
 __all__ = [
     "MODES",
@@ -56,6 +71,11 @@ __all__ = [
     "new_fault",
     "advance_fault",
     "fault_entries",
+    "merged_entries",
+    "as_faults",
+    "Faults",
+    "draw_span",
+    "expected_span",
     "driver",
     "reference_driver",
     "life_integral",
@@ -129,8 +149,32 @@ class FaultState:
         return self.mode in PROGRESSIVE and self.severity >= (self.threshold or math.inf)
 
 
+#: what a flight carries: one fault (``healthy()`` for none), or several at once
+Faults = FaultState | tuple[FaultState, ...]
+
+
 def healthy() -> FaultState:
     return FaultState(mode="healthy", position=None, severity=0.0, threshold=None)
+
+
+def as_faults(faults: Faults) -> tuple[FaultState, ...]:
+    """The faults a flight carries, as a tuple (the healthy placeholder dropped), checked: each
+    of a known mode on a position of the half-wing, no mode twice on one position."""
+    if isinstance(faults, FaultState):
+        faults = (faults,)
+    out = tuple(f for f in faults if f.mode != "healthy")
+    seen: set[tuple[str, str]] = set()
+    for f in out:
+        if f.mode not in MODES:
+            raise ValueError(f"unknown fault mode {f.mode!r}")
+        if f.position not in POSITIONS:
+            raise ValueError(f"a {f.mode} fault needs a position among {POSITIONS}, "
+                             f"got {f.position!r}")
+        if (f.mode, f.position) in seen:
+            raise ValueError(f"two {f.mode} faults on {f.position}: one actuator has one "
+                             f"severity per mode")
+        seen.add((f.mode, f.position))
+    return out
 
 
 def driver(mode: str, s: ActuatorSummary, block_hours: float) -> float:
@@ -203,13 +247,13 @@ def new_fault(mode: str, position: str, rng: np.random.Generator, *,
         return FaultState(mode, position, 1.0, thr)
     if reference is None:
         raise ValueError("progressive modes need a reference flight summary to set the rate")
-    span = _draw_span(rng, span_range, span_draw) if span_flights is None \
+    span = draw_span(rng, span_range, span_draw) if span_flights is None \
         else float(span_flights)
     rate = life_integral(_ONSET_NORM, _GROWTH_C[mode]) / (span * reference_driver(mode, reference))
     return FaultState(mode, position, _ONSET_NORM * thr, thr, rate=rate)
 
 
-def _draw_span(rng: np.random.Generator, span_range: tuple[float, float], draw: str) -> float:
+def draw_span(rng: np.random.Generator, span_range: tuple[float, float], draw: str) -> float:
     """One expected span from its range; one uniform draw either way."""
     if draw == "uniform":
         return float(rng.uniform(*span_range))
@@ -217,6 +261,14 @@ def _draw_span(rng: np.random.Generator, span_range: tuple[float, float], draw: 
         lo, hi = span_range
         return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
     raise ValueError(f"span_draw must be one of {SPAN_DRAWS}, got {draw!r}")
+
+
+def expected_span(state: FaultState, reference: ActuatorSummary) -> float:
+    """Flights a progressive fault takes from its severity now to failure at the ``reference``
+    flight's conditions (what its rate was drawn for, :func:`new_fault`)."""
+    if state.rate <= 0.0:
+        raise ValueError(f"{state.mode} on {state.position} does not progress")
+    return life_to_go(state) / (state.rate * reference_driver(state.mode, reference))
 
 
 def advance_fault(state: FaultState, summary: FlightSummary, rng: np.random.Generator
@@ -253,3 +305,17 @@ def fault_entries(state: FaultState, position: str) -> dict[str, float]:
     if state.mode == "REWEAR":
         return {"rod_end_backlash_m": s}
     raise ValueError(state.mode)
+
+
+def merged_entries(faults: Faults, position: str) -> dict[str, float]:
+    """Model entries of every fault on the actuator at ``position``: each mode's own entries
+    (:func:`fault_entries`), which no two modes share; the faults are checked as
+    :func:`as_faults` does."""
+    merged: dict[str, float] = {}
+    for state in as_faults(faults):
+        entries = fault_entries(state, position)
+        if merged.keys() & entries.keys():  # a new mode writing another's entries: a bug
+            raise ValueError(f"{state.mode} shares parameter entries with another mode on "
+                             f"{position}: {sorted(merged.keys() & entries.keys())}")
+        merged |= entries
+    return merged

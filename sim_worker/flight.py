@@ -19,7 +19,7 @@ from server.flightlog import NOMINAL_SAMPLE_RATE_HZ, FlightLog, FlightMetadata
 from server.vocabulary import POSITIONS
 
 from .conditions import NO_CONDITIONS, Conditions
-from .faults import ActuatorSummary, FaultState, FlightSummary, fault_entries
+from .faults import ActuatorSummary, Faults, FlightSummary, as_faults, merged_entries
 from .fleet import (
     DEFAULT_WINGLET_MODE,
     SURFACE_OF,
@@ -138,20 +138,22 @@ class KernelInputs:
     seeds: np.ndarray  # (3,) uint64, non-zero
 
 
-def kernel_inputs(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
+def kernel_inputs(aircraft: Aircraft, fault: Faults, scenario: Scenario,
                   rng: np.random.Generator, *, t0_winding_c: float | None = None,
                   active: tuple[str, ...] = POSITIONS) -> KernelInputs:
-    """Pack ``scenario`` with ``fault`` on its position for the kernel, and draw the sensor-noise
-    seeds from ``rng``; the drives not in ``active`` are in standby (each surface needs an
-    active one)."""
+    """Pack ``scenario`` with ``fault`` (one fault, or a tuple of concurrent ones: each on its
+    position, two on one actuator both applied, :func:`~.faults.merged_entries`) for the
+    kernel, and draw the sensor-noise seeds from ``rng``; the drives not in ``active`` are in
+    standby (each surface needs an active one)."""
     t0 = float(scenario.t_amb[0] + 3.0) if t0_winding_c is None else t0_winding_c
+    faults = as_faults(fault)  # checked once for every position
     for s in set(SURFACE_OF.values()):
         if not any(SURFACE_OF[p] == s for p in active):
             raise ValueError(f"active={active!r} leaves surface {_SURFACES[s].name} undriven")
     par = np.stack([
         pack_ema(aircraft.ema[pos], aircraft.nominal, surface=SURFACE_OF[pos],
                  arm_m=_SURFACES[SURFACE_OF[pos]].arm_m, offsets=aircraft.offsets[pos],
-                 faults=fault_entries(fault, pos), t0_winding_c=t0,
+                 faults=merged_entries(faults, pos), t0_winding_c=t0,
                  standby=pos not in active)
         for pos in POSITIONS
     ])
@@ -160,11 +162,12 @@ def kernel_inputs(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
     return KernelInputs(scenario=scenario, params=par, surfaces=spar, seeds=seeds)
 
 
-def run_scenario(aircraft: Aircraft, fault: FaultState, scenario: Scenario,
+def run_scenario(aircraft: Aircraft, fault: Faults, scenario: Scenario,
                  rng: np.random.Generator, *, t0_winding_c: float | None = None,
                  active: tuple[str, ...] = POSITIONS) -> SimResult:
-    """Simulate ``scenario`` at 12 kHz with ``fault`` on its position (kernel call); the
-    drives not in ``active`` are in standby (each surface needs an active one)."""
+    """Simulate ``scenario`` at 12 kHz with ``fault`` (one, or a tuple of concurrent ones) on
+    its position (kernel call); the drives not in ``active`` are in standby (each surface
+    needs an active one)."""
     return run_kernel(kernel_inputs(aircraft, fault, scenario, rng, t0_winding_c=t0_winding_c,
                                     active=active))
 
@@ -239,7 +242,7 @@ def _summary_from_acc(acc: np.ndarray, cond: FlightConditions, duration_s: float
 
 def simulate_flight(
     aircraft: Aircraft,
-    fault: FaultState,
+    fault: Faults,
     flight_index: int,
     rng: np.random.Generator,
     *,
@@ -249,7 +252,8 @@ def simulate_flight(
     winglet_mode: WingletMode = DEFAULT_WINGLET_MODE,
     conditions: Conditions = NO_CONDITIONS,
 ) -> tuple[FlightLog, FlightSummary]:
-    """Simulate one flight and return its download (format v1) and what the actuators did;
+    """Simulate one flight with ``fault`` (one, or a tuple of concurrent ones) and return its
+    download (format v1) and what the actuators did;
     under active-standby the log's metadata names the flight's active channels. The test
     station's ``conditions`` move its physics (:mod:`.conditions`), not its metadata. A batch
     of one of :func:`simulate_flights`."""
@@ -262,10 +266,11 @@ def simulate_flight(
 class FlightSpec:
     """One flight to simulate: the arguments of :func:`simulate_flight`. ``rng`` is the
     flight's own (seeded per aircraft and flight): its draws are made in a lone flight's
-    order, whatever flies beside it."""
+    order, whatever flies beside it. ``fault``: one fault (``healthy()`` for none) or a
+    tuple of concurrent ones."""
 
     aircraft: Aircraft
-    fault: FaultState
+    fault: Faults
     flight_index: int
     rng: np.random.Generator
     flight_id: str | None = None

@@ -4,28 +4,32 @@ every flight over REST and report ground truth (``sim-worker run``).
 Per aircraft and flight number ``n`` (flight id ``<tail>-F<n:05d>``), three requests:
 
 1. ``GET /test-station/plan?aircraft=&flight=n``: the aircraft (its installed units) and what
-   the test station has on flight ``n``: the live fault injection (taken up at its onset; a
-   cancelled injection or a replaced actuator clears the fault), the sensor injections and
-   the conditions;
-2. simulate flight ``n`` (its sensor injections in the sensor models the loops close on, its
-   conditions in its scenario and thermal model), then advance the fault by its law from what
-   the flight did, steered to fail at the planned flight (:mod:`.steering`: the operator's
-   time to failure, or one drawn by the campaigns' law, counted from the flight the fault
-   started on); ``PUT /test-station/flights/<flight id>``: every item's truth on the flight
-   at once (the fault's severity as the flight began, its planned failure flight, and at the
-   threshold the flight it fails from: the service marks the injection and the unit failed
-   and back-fills the true RUL of every reported flight, only known in hindsight; each sensor
-   injection's and condition's applied value, :data:`APPLIED`) -- idempotent, skipped when
-   nothing is on the flight;
+   the test station has on flight ``n``: the live fault injections (each taken up at its
+   onset; a cancelled injection or a replaced actuator clears its fault), the sensor
+   injections and the conditions;
+2. simulate flight ``n`` with every live injection's fault on board (concurrent faults: on
+   other actuators, or other modes on one; its sensor injections in the sensor models the
+   loops close on, its conditions in its scenario and thermal model), then advance each fault
+   by its own law from what the flight did, each steered to fail at its planned flight
+   (:mod:`.steering`: the operator's time to failure, or one drawn by the campaigns' law,
+   counted from the flight the fault started on) on its own random stream;
+   ``PUT /test-station/flights/<flight id>``: every item's truth on the flight at once (each
+   fault's severity as the flight began, its planned failure flight, and at the threshold the
+   flight it fails from: the service marks that injection and the unit failed and back-fills
+   the true RUL of every flight it reported, only known in hindsight; each sensor injection's
+   and condition's applied value, :data:`APPLIED`) -- idempotent, skipped when nothing is on
+   the flight;
 3. upload it -- idempotent: the same seed gives the same bytes, and the service answers 200
    for bytes it already has.
 
 **A failed drive grounds its aircraft.** A flight-control actuator at failure is a no-go item:
 from the flight the drive fails from the aircraft does not fly (``fly`` returns ``"grounded"``,
 nothing is uploaded or reported) until the failed unit is replaced (its serial changes on the
-service, which then holds a healthy unit and has ended the injection). The fault is never
-healed while the unit is installed: not when its injection is no longer live (a failed
-injection is not), not on a restart (the service's actuator says ``failed_at_flight``).
+service, which then holds a healthy unit and has ended every injection on it: a second fault
+on that unit is cancelled, its RUL never known). A failure ends that injection only: a fault
+on another actuator flies on once the aircraft flies again. The fault is never healed while
+the unit is installed: not when its injection is no longer live (a failed injection is not),
+not on a restart (the service's actuator says ``failed_at_flight``).
 
 Every request is retried with exponential backoff until it succeeds, so an API outage delays
 flights but never loses or duplicates one. On restart the worker resumes after the last flight
@@ -40,7 +44,7 @@ import logging
 import re
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import httpx
@@ -49,7 +53,7 @@ import numpy as np
 from server.flightlog import write_parquet
 
 from .conditions import from_api as conditions_from_api
-from .faults import FaultState, FlightSummary, advance_fault, healthy
+from .faults import FaultState, FlightSummary, advance_fault
 from .fleet import FLEET_BASES, Aircraft, build_aircraft
 from .flight import flight_start, reference_summary, simulate_flight
 from .sensors import SensorInjection, degrade
@@ -140,15 +144,35 @@ def fleet_plan(n_aircraft: int, seed: int, prefix: str = "SIM") -> list[Aircraft
 
 
 @dataclass
+class FaultRun:
+    """One fault injection as the runner flies it: its fault now, its plan, and the flight its
+    drive fails from once it reached the threshold."""
+
+    injection_id: int
+    fault: FaultState
+    #: a progressive injection's plan (None for abrupt faults)
+    plan: SteeredFault | None = None
+    failed_at: int | None = None
+
+
+@dataclass
 class AircraftRun:
     aircraft: Aircraft
     index: int
     next_flight: int
-    fault: FaultState
-    injection_id: int | None = None
-    failed_at: int | None = None
-    #: a progressive injection's plan (None for abrupt faults and healthy flight)
-    plan: SteeredFault | None = None
+    #: the injections it flies, by id, in the order it took them up: concurrent faults
+    injections: dict[int, FaultRun] = field(default_factory=dict)
+
+    @property
+    def faults(self) -> tuple[FaultState, ...]:
+        """The faults on board, in the order their injections were taken up."""
+        return tuple(r.fault for r in self.injections.values())
+
+    @property
+    def failed_at(self) -> int | None:
+        """The earliest flight a drive of the aircraft fails from (None: none failed)."""
+        return min((r.failed_at for r in self.injections.values() if r.failed_at is not None),
+                   default=None)
 
 
 class SimFleetRunner:
@@ -164,7 +188,7 @@ class SimFleetRunner:
         self.duration_s = duration_s
         self.interval_s = 60.0 / rate_per_min
         self.sleep = sleep
-        self.runs = [AircraftRun(a, i, 1, healthy()) for i, a in
+        self.runs = [AircraftRun(a, i, 1) for i, a in
                      enumerate(fleet_plan(n_aircraft, seed, prefix))]
 
     # -- set-up and recovery ------------------------------------------------------------------
@@ -187,10 +211,11 @@ class SimFleetRunner:
         installed = {p: a["serial"] for p, a in aircraft_doc["actuators"].items()}
         if installed != run.aircraft.serials:
             changed = {p for p, s in installed.items() if run.aircraft.serials.get(p) != s}
-            if run.fault.position in changed:
-                log.info("%s: actuator %s replaced; its fault is gone", run.aircraft.tail,
-                         run.fault.position)
-                self._clear(run)
+            for inj_id, held in list(run.injections.items()):
+                if held.fault.position in changed:
+                    log.info("%s: actuator %s replaced; its %s is gone", run.aircraft.tail,
+                             held.fault.position, held.fault.mode)
+                    del run.injections[inj_id]
             run.aircraft = replace(run.aircraft, serials=installed)
 
     def _resume(self, run: AircraftRun) -> None:
@@ -210,20 +235,23 @@ class SimFleetRunner:
         # a flight's truth is reported before its upload: the next flight may be one reported
         # and not uploaded, flown again from the same state (harmless)
         run.next_flight = last + 1
-        faults = self._plan(run)["injections"]
-        if not faults or faults[0]["status"] == "pending":
+        for injection in self._plan(run)["injections"]:
+            if injection["status"] != "pending":
+                self._resume_injection(run, injection)
+
+    def _resume_injection(self, run: AircraftRun, injection: dict[str, Any]) -> None:
+        """Take up an injection flown before a restart, at the severity of its last truth."""
+        truth = self.api.request(
+            "GET", f"/test-station/injections/{injection['id']}/ground-truth").json()
+        if not truth:
             return
-        fault = faults[0]
-        truth = self.api.request("GET", f"/test-station/injections/{fault['id']}/ground-truth"
-                                 ).json()
-        if truth:
-            # the driver history is not stored: the plan restarts from its prior
-            self._start(run, fault, int(truth[0]["flight_number"]))
-            run.fault = replace(run.fault, severity=float(truth[-1]["severity"]))
-            if run.plan is not None:
-                run.plan = replace(run.plan, state=run.fault)
-            if fault.get("failure_flight") is not None:
-                run.failed_at = int(fault["failure_flight"])
+        # the driver history is not stored: the plan restarts from its prior
+        held = self._start(run, injection, int(truth[0]["flight_number"]))
+        held.fault = replace(held.fault, severity=float(truth[-1]["severity"]))
+        if held.plan is not None:
+            held.plan = replace(held.plan, state=held.fault)
+        if injection.get("failure_flight") is not None:
+            held.failed_at = int(injection["failure_flight"])
 
     def _plan(self, run: AircraftRun) -> dict[str, Any]:
         """What the service has on the aircraft for its next flight: the aircraft (installed
@@ -233,7 +261,8 @@ class SimFleetRunner:
 
     # -- injections ---------------------------------------------------------------------------
 
-    def _start(self, run: AircraftRun, injection: dict[str, Any], start_flight: int) -> None:
+    def _start(self, run: AircraftRun, injection: dict[str, Any], start_flight: int
+               ) -> FaultRun:
         """Take up the injection's fault, started at ``start_flight``; the same on every
         restart (seeded by its id). A progressive fault is planned to fail ``span`` flights
         after its start: the operator's time to failure, or drawn as campaigns draw it."""
@@ -243,32 +272,29 @@ class SimFleetRunner:
         reference = reference_summary(run.aircraft, injection["position"],
                                       duration_s=self.duration_s,
                                       seed=(self.seed, 12, run.index))
-        run.fault, run.plan = plan_fault(
+        fault, plan = plan_fault(
             injection["fault_mode"], injection["position"], rng, reference=reference,
             start_flight=start_flight, span_flights=injection["time_to_failure_flights"],
             severity_norm=injection.get("severity"), base=run.aircraft.base)
-        run.injection_id = int(injection["id"])
-        run.failed_at = None
+        held = run.injections[int(injection["id"])] = FaultRun(int(injection["id"]), fault, plan)
+        return held
 
-    @staticmethod
-    def _clear(run: AircraftRun) -> None:
-        run.fault, run.injection_id, run.failed_at, run.plan = healthy(), None, None, None
-
-    def _sync_injection(self, run: AircraftRun, n: int, planned: list[dict[str, Any]]) -> None:
-        """Take up the fault the plan of flight ``n`` holds (a cancelled injection or a
-        replaced actuator has left it: the drive flies healthy)."""
-        if run.failed_at is not None:
-            return  # a failed drive keeps its fault until the unit is replaced
-        live = planned[0] if planned else None  # one fault at a time: the service holds it
-        if run.injection_id is not None and (live is None or live["id"] != run.injection_id):
-            log.info("%s: injection %s ended; flying healthy", run.aircraft.tail,
-                     run.injection_id)
-            self._clear(run)
-        if live is None or live["id"] == run.injection_id:
-            return
-        self._start(run, live, n)
-        log.info("%s: %s on %s from flight %d", run.aircraft.tail, run.fault.mode,
-                 run.fault.position, n)
+    def _sync_injections(self, run: AircraftRun, n: int, planned: list[dict[str, Any]]
+                         ) -> None:
+        """Take up the faults the plan of flight ``n`` holds, and drop those it no longer
+        holds (a cancelled injection: its drive flies on without that fault); a failed one is
+        kept until its unit is replaced."""
+        live = {int(doc["id"]): doc for doc in planned}
+        for inj_id, held in list(run.injections.items()):
+            if inj_id not in live and held.failed_at is None:
+                log.info("%s: injection %s ended; %s on %s is gone", run.aircraft.tail, inj_id,
+                         held.fault.mode, held.fault.position)
+                del run.injections[inj_id]
+        for inj_id, doc in live.items():
+            if inj_id not in run.injections:
+                held = self._start(run, doc, n)
+                log.info("%s: %s on %s from flight %d", run.aircraft.tail, held.fault.mode,
+                         held.fault.position, n)
 
     # -- one flight ---------------------------------------------------------------------------
 
@@ -282,7 +308,7 @@ class SimFleetRunner:
         """The documented rule: an aircraft with a failed drive installed does not fly (a
         drive failed from flight ``f`` still flew flight ``f - 1``)."""
         failures = [*self.failed_positions(aircraft_doc).values(),
-                    *([run.failed_at] if run.failed_at is not None else [])]
+                    *(r.failed_at for r in run.injections.values() if r.failed_at is not None)]
         return any(f <= n for f in failures)
 
     def fly(self, run: AircraftRun) -> str:
@@ -295,17 +321,19 @@ class SimFleetRunner:
         self._adopt_serials(run, plan["aircraft"])
         if self.grounded(run, plan["aircraft"], n):
             return "grounded"
-        self._sync_injection(run, n, plan["injections"])
+        self._sync_injections(run, n, plan["injections"])
         flight_id = f"{tail}-F{n:05d}"
         sensors = [SensorInjection.from_api(doc, n) for doc in plan["sensor_injections"]]
         rng = np.random.default_rng([self.seed, 13, run.index, n])
         flight_log, summary = simulate_flight(
-            degrade(run.aircraft, sensors, n), run.fault, n, rng, flight_id=flight_id,
+            degrade(run.aircraft, sensors, n), run.faults, n, rng, flight_id=flight_id,
             started_at=flight_start(n), duration_s=self.duration_s,
             conditions=conditions_from_api(plan["conditions"]))
-        flown = run.fault  # its truth on flight n is its state when the flight began
-        self._advance(run, summary, n)
-        truth = {"injections": self._fault_truth(run, flown, n), **{
+        # each fault's truth on flight n is its state when the flight began
+        flown = {inj_id: held.fault for inj_id, held in run.injections.items()}
+        for held in run.injections.values():
+            self._advance(run, held, summary, n)
+        truth = {"injections": self._fault_truths(run, flown, n), **{
             key: [{"id": int(doc["id"]), "applied": applied(doc, n, summary)}
                   for doc in plan[key]] for key, applied in APPLIED.items()}}
         if any(truth.values()):  # before the upload: a restart flies it again, harmlessly
@@ -321,34 +349,42 @@ class SimFleetRunner:
         run.next_flight = n + 1
         return outcome
 
-    def _advance(self, run: AircraftRun, summary: FlightSummary, n: int) -> None:
-        """The fault after flight ``n``, by its law from what the flight did; at the failure
-        threshold the drive is failed from the next flight."""
-        if run.injection_id is None or run.failed_at is not None:
+    def _advance(self, run: AircraftRun, held: FaultRun, summary: FlightSummary, n: int
+                 ) -> None:
+        """One injection's fault after flight ``n``, by its law from what the flight did, on
+        its own random stream (the other faults' draws do not move it); at the failure
+        threshold its drive is failed from the next flight."""
+        if held.failed_at is not None:
             return
-        rng = np.random.default_rng([self.seed, 14, run.index, n])
-        if run.plan is not None:
-            run.plan = steer_and_advance(run.plan, summary, n, rng)
-            run.fault = run.plan.state
+        rng = np.random.default_rng([self.seed, 14, run.index, n, held.injection_id])
+        if held.plan is not None:
+            held.plan = steer_and_advance(held.plan, summary, n, rng)
+            held.fault = held.plan.state
         else:
-            run.fault = advance_fault(run.fault, summary, rng)
-        if run.fault.failed:
-            run.failed_at = n + 1
+            held.fault = advance_fault(held.fault, summary, rng)
+        if held.fault.failed:
+            held.failed_at = n + 1
             log.info("%s: %s on %s reached failure at flight %d", run.aircraft.tail,
-                     run.fault.mode, run.fault.position, n + 1)
+                     held.fault.mode, held.fault.position, n + 1)
 
     @staticmethod
-    def _fault_truth(run: AircraftRun, flown: FaultState, n: int) -> list[dict[str, Any]]:
-        """The fault's truth on flight ``n`` (none without one): its state as the flight
-        began, its plan, and the flight it fails from once known (the service then gives
-        every reported flight its true RUL)."""
-        if run.injection_id is None:
-            return []
-        return [{"id": run.injection_id, "severity": float(flown.severity),
-                 "severity_norm": float(flown.severity_norm),
-                 "true_rul_flights": None if run.failed_at is None else max(run.failed_at - n, 0),
-                 "planned_failure_flight": None if run.plan is None else run.plan.target_flight,
-                 "failure_flight": run.failed_at}]
+    def _fault_truths(run: AircraftRun, flown: dict[int, FaultState], n: int
+                      ) -> list[dict[str, Any]]:
+        """Each fault's truth on flight ``n``: its state as the flight began (``flown``, by
+        injection id), its plan, and the flight it fails from once known (the service then
+        gives every flight it reported its true RUL)."""
+        truths = []
+        for inj_id, state in flown.items():
+            held = run.injections[inj_id]
+            truths.append({
+                "id": inj_id, "severity": float(state.severity),
+                "severity_norm": float(state.severity_norm),
+                "true_rul_flights": None if held.failed_at is None
+                else max(held.failed_at - n, 0),
+                "planned_failure_flight": None if held.plan is None
+                else held.plan.target_flight,
+                "failure_flight": held.failed_at})
+        return truths
 
     # -- the loop -----------------------------------------------------------------------------
 
@@ -376,7 +412,7 @@ class SimFleetRunner:
             grounded_in_a_row = 0
             flown += 1
             log.info("%s-F%05d %s (%s)", run.aircraft.tail, run.next_flight - 1, outcome,
-                     run.fault.mode if run.fault.mode != "healthy" else "healthy")
+                     ", ".join(f"{f.mode} on {f.position}" for f in run.faults) or "healthy")
             next_at += self.interval_s
             wait = next_at - time.monotonic()
             if wait > 0:

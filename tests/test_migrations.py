@@ -450,3 +450,59 @@ def test_alarm_and_model_statuses_held_to_the_vocabulary_from_0016(settings: Set
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
+
+
+def _fault(conn, id_: int, status: str, position: str, mode: str) -> None:  # type: ignore[no-untyped-def]
+    """A fault injection ``id_`` on aircraft 1."""
+    import sqlalchemy as sa
+
+    conn.execute(sa.text(
+        "INSERT INTO injections (id, aircraft_id, position, fault_mode, onset_flight, status, "
+        "created_by, created_at) VALUES (:id, 1, :position, :mode, 0, :status, 't', "
+        "CURRENT_TIMESTAMP)"), {"id": id_, "status": status, "position": position, "mode": mode})
+
+
+def test_concurrent_fault_injections_one_live_per_mode_of_an_actuator_from_0017(
+        settings: Settings) -> None:
+    """0017 lets an aircraft hold live injections on other actuators and of other modes on one
+    actuator, and the database still refuses a second live one of the same mode on the same
+    actuator; a downgrade to one per aircraft names the aircraft holding more and changes
+    nothing, and once all but one are cancelled it holds one per aircraft again."""
+    import pytest
+    import sqlalchemy as sa
+    from sqlalchemy.exc import IntegrityError
+
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0016")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
+        _fault(conn, 1, "active", "WT", "DMD")
+    with pytest.raises(IntegrityError), engine.begin() as conn:  # one per aircraft before
+        _fault(conn, 2, "pending", "WL1", "TTS")
+    upgrade(url)
+    with engine.begin() as conn:
+        _fault(conn, 2, "pending", "WT", "TTS")  # another mode on the same actuator
+        _fault(conn, 3, "active", "WL1", "DMD")  # the same mode on another actuator
+        _fault(conn, 4, "cancelled", "WT", "DMD")  # an ended one holds no slot
+    with pytest.raises(IntegrityError, match="uq_injections_live|UNIQUE"), \
+            engine.begin() as conn:
+        _fault(conn, 5, "pending", "WT", "DMD")
+
+    with pytest.raises(RuntimeError, match=r"more than one live injection on an aircraft "
+                       r"\(aircraft 1: 3\)"):
+        downgrade(url, "0016")
+    with engine.connect() as conn:
+        assert MigrationContext.configure(conn).get_current_revision() == head_revision()
+    with engine.begin() as conn:
+        conn.execute(sa.text("UPDATE injections SET status = 'cancelled' WHERE id IN (2, 3)"))
+    downgrade(url, "0016")
+    with pytest.raises(IntegrityError), engine.begin() as conn:
+        _fault(conn, 6, "pending", "WL2", "MTEL")
+    with engine.begin() as conn:
+        conn.execute(sa.text("DELETE FROM injections"))
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

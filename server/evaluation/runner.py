@@ -24,7 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from server.campaigns import Location, campaign_store, load_campaign, read_manifest
+from server.campaigns import (
+    Location,
+    campaign_store,
+    load_campaign,
+    read_manifest,
+    single_fault,
+)
 from server.phm.chain import MeasurementHook, PhmModel, analyze_flight
 from server.phm.dataset import Campaign, Pattern, reads_rod_ends_as_pair
 from server.vocabulary import POSITIONS
@@ -174,9 +180,11 @@ def evaluate_campaign(model: PhmModel, campaign_dir: Location, *, jobs: int = 1,
     ``timing_flights`` flights are re-read and their features recomputed (serially) to time
     feature extraction; 0 skips that measurement. ``point_estimate``: the RUL the prognostic
     metrics score, "median" or "mode". ``noise_free``: the prognosis sees noise-free own
-    features (an error budget, :func:`run_pattern`).
+    features (an error budget, :func:`run_pattern`). A concurrent-fault campaign is refused
+    (:func:`~server.campaigns.single_fault`).
     """
     root = campaign_store(campaign_dir)  # a directory or s3://bucket/prefix
+    single_fault(read_manifest(root), str(root), "the evaluation")
     camp = campaign or load_campaign(root, jobs=max(jobs, 1))
     traces, chain_timing = evaluate_patterns(model, camp.patterns, jobs=jobs, progress=progress,
                                              noise_free=noise_free)

@@ -242,7 +242,8 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
     injections, _ = station.list_(session=session, kind=station.FAULTS, tail=tail,
                                   status=None, limit=100, offset=0)
     # While a steered injection is live its true RUL is the test station's plan (the flights
-    # to its planned failure); at failure the sim worker back-fills the true one.
+    # to its planned failure); at failure the sim worker back-fills the true one. Concurrent
+    # faults on the unit: it fails at the first of them, so a flight's truth is the least.
     truth_by_code: dict[str, float] = {}
     planned = False
     for inj, _t in injections:
@@ -251,10 +252,13 @@ def actuator_view(*, session: Session, actuator_id: int, limit: int = 500) -> di
         live_plan = inj.planned_failure_flight if inj.status in STATION_LIVE else None
         for gt in station.list_truth(session=session, kind=station.FAULTS, item_id=inj.id):
             if gt.true_rul_flights is not None:
-                truth_by_code[gt.flight_code] = float(gt.true_rul_flights)
+                rul = float(gt.true_rul_flights)
             elif live_plan is not None:
-                truth_by_code[gt.flight_code] = float(max(live_plan - gt.flight_number, 0))
+                rul = float(max(live_plan - gt.flight_number, 0))
                 planned = True
+            else:
+                continue
+            truth_by_code[gt.flight_code] = min(rul, truth_by_code.get(gt.flight_code, rul))
     truth: dict[int, float] = {}
     if truth_by_code and progs:
         codes = flight_service.flight_codes(session=session,

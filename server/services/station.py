@@ -129,16 +129,18 @@ _NEVER_FAILS = (StationStatus.PENDING, StationStatus.ACTIVE, StationStatus.CANCE
 
 FAULTS = Kind(
     path="injections", key="injections", form="fault", noun="Injection", row=Injection,
-    truth=GroundTruth, truth_key="injection_id", slot=(), statuses=tuple(StationStatus),
-    spec=InjectionCreate, read=InjectionRead, truth_in=GroundTruthIn,
-    truth_read=GroundTruthRead, flown=FaultFlown,
+    truth=GroundTruth, truth_key="injection_id", slot=("position", "fault_mode"),
+    statuses=tuple(StationStatus), spec=InjectionCreate, read=InjectionRead,
+    truth_in=GroundTruthIn, truth_read=GroundTruthRead, flown=FaultFlown,
+    # faults fly concurrently, on other actuators or of other modes on one; a mode has one
+    # severity per actuator, so a second of the same mode there has no meaning
     taken=lambda tail, spec, live: Conflict(
-        f"Aircraft '{tail}' already has a live injection ({live.fault_mode} on "
-        f"{live.position}); the simulator runs one fault at a time.", code="injection_exists",
-        details={"injection_id": live.id}),
+        f"{tail} {spec.position} already has a live {spec.fault_mode} injection (injection "
+        f"{live.id}); an actuator carries one fault per mode: cancel it first.",
+        code="injection_exists", details={"injection_id": live.id}),
     raced=lambda tail, spec: Conflict(
-        f"Aircraft '{tail}' was given a live injection concurrently; the simulator runs one "
-        "fault at a time.", code="injection_exists"),
+        f"{tail} {spec.position} was given a live {spec.fault_mode} injection concurrently; "
+        "an actuator carries one fault per mode.", code="injection_exists"),
     check=station_faults.check, warnings=station_faults.create_warnings,
     on_flown=station_faults.on_flown, still_on=station_faults.failed_after)
 

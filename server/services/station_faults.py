@@ -2,10 +2,13 @@
 station.py): its mode's rules, the warning on a time to failure the model has not seen, the
 planned failure flight, and the failure itself.
 
-One live injection per aircraft (one fault at a time, as in the paper). A reported failure
+Faults fly concurrently: one live injection per mode of each actuator (its slot), so an
+aircraft may carry faults on several actuators and several modes on one. A reported failure
 makes the installed actuator at the position ``failed`` (a state, until it is replaced) and
-gives every flight the injection was reported on its true RUL (only known in hindsight);
-replacing the actuator ends the injection (``station.end_at``): the new unit is healthy.
+gives every flight the injection was reported on its true RUL (only known in hindsight); the
+failure ends that injection only. Replacing the actuator ends every injection on it
+(``station.end_at``): a second fault on the failed unit is cancelled with its RUL unknown
+(censored), and the new unit is healthy; injections on other actuators fly on.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Campaigns: design / verification sets of flight logs plus a manifest with the ground truth.
+"""Campaigns: design / verification / concurrent-fault sets of flight logs plus a manifest with
+the ground truth.
 
 Layout: ``DIR/manifest.json`` and ``DIR/flights/<tail>/<flight>.parquet``; DIR a local
 directory or an S3 prefix ``s3://bucket/prefix`` (``server.campaign_store.CampaignStore``),
@@ -20,6 +21,7 @@ The package, one job a module (the names other code uses are re-exported here):
 * :mod:`.planning`: the fleet, the patterns and their order, each flight's seed, recording
   length and conditions;
 * :mod:`.pattern`: running one pattern (fault-to-failure runs, the sinks of rendered flights);
+* :mod:`.concurrent`: a concurrent pattern's run (two faults at once) and its truth per fault;
 * :mod:`.run`: running a campaign (pool or executor, resuming, settings, manifest, snapshot).
 """
 
@@ -27,6 +29,8 @@ from __future__ import annotations
 
 from .pattern import FlightSink, ParquetSink, PatternTask, run_pattern
 from .planning import (
+    COMBINATIONS,
+    KINDS,
     PatternSpec,
     block_conditions,
     execution_order,
@@ -49,4 +53,5 @@ __all__ = ["ScaleConfig", "SCALES", "plan_campaign", "execution_order", "run_cam
            "snapshot_campaign", "run_pattern", "FORMAT",
            "SETTINGS_FILE", "FlightSink", "ParquetSink", "PatternTask", "SensorFault",
            "fleet_for", "PatternSpec", "STATION_ENVELOPE", "SENSOR_STUDY_PATTERNS",
-           "SENSOR_STUDY_NOISE", "SENSOR_STUDY_FLIGHTS", "block_conditions", "recording_s"]
+           "SENSOR_STUDY_NOISE", "SENSOR_STUDY_FLIGHTS", "block_conditions", "recording_s",
+           "KINDS", "COMBINATIONS"]

@@ -13,7 +13,8 @@ onset; only every ``render_every``-th flight after the onset (and the failure fl
 simulated at 12 kHz and given to the sink; the others use the quasi-static
 :func:`~sim_worker.flight.estimate_summary` of the same flight conditions (which agrees with
 the rendered flights on the wear drivers of either role), so a run's expected life does not
-depend on ``render_every``.
+depend on ``render_every``. A concurrent pattern (two faults at once) runs as
+:mod:`.concurrent` says, its manifest entry holding each fault's truth.
 """
 
 from __future__ import annotations
@@ -31,7 +32,15 @@ from server.flightlog import FlightLog, write_parquet
 from server.vocabulary import POSITIONS
 
 from ..conditions import NO_CONDITIONS
-from ..faults import A_PRIORI, FaultState, FlightSummary, advance_fault, healthy, new_fault
+from ..faults import (
+    A_PRIORI,
+    Faults,
+    FaultState,
+    FlightSummary,
+    advance_fault,
+    healthy,
+    new_fault,
+)
 from ..fleet import Aircraft
 from ..flight import (
     LANES,
@@ -41,6 +50,7 @@ from ..flight import (
     reference_summary,
     simulate_flights,
 )
+from .concurrent import ConcurrentRun, concurrent_run, fault_truths, pattern_faults
 from .planning import PatternSpec, block_conditions, fleet_for, flight_rng, recording_s
 from .scales import MAX_FLIGHTS, SENSOR_STUDY_NOISE, ScaleConfig
 from .sensor_faults import SensorFault, at_flight, with_sensor_noise
@@ -88,7 +98,7 @@ class ParquetSink:
         return None
 
 
-def _flight_spec(aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index: int,
+def _flight_spec(aircraft: Aircraft, spec: PatternSpec, fault: Faults, index: int,
                  cfg: ScaleConfig, sensor_faults: tuple[SensorFault, ...]) -> FlightSpec:
     return FlightSpec(at_flight(aircraft, sensor_faults, index), fault, index,
                       flight_rng(spec, index, 0), flight_id=f"{spec.id}-{index:04d}",
@@ -97,7 +107,7 @@ def _flight_spec(aircraft: Aircraft, spec: PatternSpec, fault: FaultState, index
                       conditions=block_conditions(cfg, spec, index))
 
 
-def _render(out: CampaignStore, aircraft: Aircraft, spec: PatternSpec, fault: FaultState,
+def _render(out: CampaignStore, aircraft: Aircraft, spec: PatternSpec, fault: Faults,
             index: int, cfg: ScaleConfig, sink: FlightSink,
             sensor_faults: tuple[SensorFault, ...] = ()
             ) -> Generator[FlightSpec, tuple[FlightLog, FlightSummary],
@@ -124,11 +134,26 @@ def _flight_entry(flight_id: str, rel: str | None, index: int, fault: FaultState
         "severity": float(fault.severity) if fault.mode != "healthy" else 0.0,
         "severity_norm": float(fault.severity_norm),
         "true_rul_flights": None if failure is None else int(failure - index),
+        **_flown(summary),
+    }
+
+
+def _flown(summary: Any) -> dict[str, Any]:
+    """What a rendered flight did: its block hours, ground temperature, actuator summaries."""
+    return {
         "block_hours": float(summary.block_hours),
         "ground_temp_c": _ground_temp(summary),
         "measured_summary": {p: {k: round(v, 6) for k, v in asdict(s).items()}
                              for p, s in summary.actuators.items()},
     }
+
+
+def _concurrent_flight_entry(flight_id: str, rel: str | None, index: int, summary: Any,
+                             run: ConcurrentRun, started_at: str) -> dict[str, Any]:
+    """A concurrent pattern's rendered flight: each fault's truth under ``faults`` (none on
+    a lead flight), no single-fault keys."""
+    return {"flight": flight_id, "index": index, "file": rel, "started_at": started_at,
+            **_flown(summary), "faults": fault_truths(run, index)}
 
 
 @dataclass(frozen=True)
@@ -203,25 +228,35 @@ def pattern_flights(task: PatternTask) -> PatternRun:
     if spec.sensor_study is not None:
         aircraft = with_sensor_noise(aircraft, [
             SensorFault(p, spec.sensor_study, "noise", SENSOR_STUDY_NOISE) for p in POSITIONS])
-    rendered: list[tuple[int, str, str | None, FaultState, Any]] = []
+    rendered: list[tuple[int, str, str | None, Faults, Any]] = []
     stored: dict[str, dict[str, Any]] = {}
     failure: int | None = None
 
     faults = tuple(task.options.get("sensor_faults", ()))
 
-    def render(fault: FaultState, index: int) -> _Rendered:
-        fid, rel, summ, data = yield from _render(out, aircraft, spec, fault, index, cfg, sink,
+    def render(fault: Faults, index: int, units: Aircraft = aircraft) -> _Rendered:
+        fid, rel, summ, data = yield from _render(out, units, spec, fault, index, cfg, sink,
                                                   faults)
         rendered.append((index, fid, rel, fault, summ))
         if data is not None:
             stored[fid] = data
         return summ
 
+    if spec.faults:
+        run = yield from concurrent_run(aircraft, spec, cfg, render)
+        return {"entry": {
+            "id": spec.id, "aircraft": aircraft.tail, "mode": spec.mode,
+            "faults": pattern_faults(run),
+            "flights": [_concurrent_flight_entry(
+                fid, rel, index, summ, run,
+                flight_start(index, day_offset=spec.day_offset).isoformat())
+                | _envelope_entry(cfg, spec, index) for index, fid, rel, _, summ in rendered]},
+            "stored": stored}
     if spec.mode == "healthy" or spec.mode in A_PRIORI:
         threshold = yield from _constant_run(spec, render)
     else:
         threshold, failure = yield from _fault_to_failure(aircraft, spec, cfg, render)
-    flights = [_flight_entry(fid, rel, index, f, summ, failure,
+    flights = [_flight_entry(fid, rel, index, _single(f), summ, failure,
                              flight_start(index, day_offset=spec.day_offset).isoformat())
                | _envelope_entry(cfg, spec, index)
                for index, fid, rel, f, summ in rendered]
@@ -239,6 +274,13 @@ def pattern_flights(task: PatternTask) -> PatternRun:
         },
         "stored": stored,
     }
+
+
+def _single(fault: Faults) -> FaultState:
+    """The fault a single-fault pattern flew on a flight (it flies one at a time)."""
+    if not isinstance(fault, FaultState):
+        raise TypeError("a single-fault pattern flies one fault a flight")
+    return fault
 
 
 def _envelope_entry(cfg: ScaleConfig, spec: PatternSpec, index: int) -> dict[str, Any]:

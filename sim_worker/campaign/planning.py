@@ -5,6 +5,14 @@ its random stream, recording length and test-station conditions.
 Every aircraft seed, pattern seed and flight seed derives from the campaign seed via
 ``numpy.random.SeedSequence`` with a fixed key (kind, aircraft, pattern, flight), never from
 the worker that runs it.
+
+A ``concurrent`` campaign flies two progressive faults on one aircraft per pattern, one
+pattern per :data:`COMBINATIONS` kind in turn: two modes of one actuator that share a signal
+path (MTWEAR+MTEL: the screw's friction and play; TTS+DMD: the winding's back-EMF and current;
+REWEAR+MTWEAR: the lost motion between motor and surface), or two actuators of one aircraft
+(the wingtip and a winglet drive; both winglet drives, active and standby in turn). The
+second fault starts a drawn number of flights after the first (:data:`ONSET_GAP` of the
+first's expected span), each fault with its own span drawn by the scale's span law.
 """
 
 from __future__ import annotations
@@ -19,21 +27,65 @@ import numpy as np
 from server.vocabulary import POSITIONS, SENSORS, WINGLET_PAIR
 
 from ..conditions import NO_CONDITIONS, Conditions
-from ..faults import A_PRIORI, MODES, PROGRESSIVE
+from ..faults import A_PRIORI, MODES, PROGRESSIVE, draw_span
 from ..fleet import FLEET_BASES, Aircraft, build_aircraft
 from .scales import (
-    SCALES,
     SENSOR_STUDY_FLIGHTS,
     SENSOR_STUDY_PATTERNS,
     STATION_ENVELOPE,
     ScaleConfig,
+    kind_config,
 )
 from .sensor_faults import SensorFault, canonical_sensor_faults, with_noise, with_sensor_noise
 
-__all__ = ["fleet_for", "PatternSpec", "plan_campaign", "execution_order", "flight_rng",
+__all__ = ["KINDS", "fleet_for", "PatternSpec", "PlannedFault", "Combination", "COMBINATIONS",
+           "ONSET_GAP", "PLACES", "plan_campaign", "execution_order", "flight_rng",
            "recording_s", "block_conditions"]
 
-_KIND_CODE = {"design": 1, "verification": 2}
+#: each kind's seed stream (a key of every seed it draws): kinds never share a seed
+_KIND_CODE = {"design": 1, "verification": 2, "concurrent": 3}
+#: the kinds of campaign
+KINDS: tuple[str, ...] = tuple(_KIND_CODE)
+_TAIL_PREFIX = {"design": "I-DSG", "verification": "I-VER", "concurrent": "I-CON"}
+#: where campaigns place each mode: a rod end's play is read against the partner drive's
+#: LVDT, so rod-end wear goes on a winglet drive (the wingtip's lone drive has no partner)
+PLACES: dict[str, tuple[str, ...]] = {m: (WINGLET_PAIR if m == "REWEAR" else POSITIONS)
+                                      for m in MODES}
+#: the second fault of a concurrent pattern starts this fraction of the first fault's expected
+#: span after it (drawn uniformly): both then progress together for most of the first's life
+ONSET_GAP = (0.1, 0.5)
+
+
+@dataclass(frozen=True)
+class PlannedFault:
+    """One fault of a concurrent pattern: where, from which flight, and its expected span."""
+
+    mode: str
+    position: str
+    onset: int
+    span_flights: float
+
+
+@dataclass(frozen=True)
+class Combination:
+    """A kind of concurrent pattern: its two modes (None: drawn per pattern among the
+    progressive modes each position can take) and the position pairs its patterns cycle
+    over (the same position twice: two modes on one actuator)."""
+
+    name: str  # the manifest's "mode" of its patterns (their ids write "+" as "_")
+    modes: tuple[str, str] | None
+    positions: tuple[tuple[str, str], ...]
+
+
+_SAME = tuple((p, p) for p in POSITIONS)
+#: the concurrent campaign's kinds of pattern, in manifest order
+COMBINATIONS: tuple[Combination, ...] = (
+    Combination("MTWEAR+MTEL", ("MTWEAR", "MTEL"), _SAME),
+    Combination("TTS+DMD", ("TTS", "DMD"), _SAME),
+    Combination("REWEAR+MTWEAR", ("REWEAR", "MTWEAR"), tuple((p, p) for p in WINGLET_PAIR)),
+    Combination("WT+WL", None, (("WT", "WL1"), ("WT", "WL2"))),
+    Combination("WL1+WL2", None, (WINGLET_PAIR,)),
+)
 
 
 def _seed(*key: int) -> int:
@@ -53,7 +105,7 @@ def fleet_for(kind: str, seed: int, *, bases: tuple[str, ...] | None = None,
     seeds depend on none of these.
     """
     code = _KIND_CODE[kind]
-    prefix = "I-DSG" if kind == "design" else "I-VER"
+    prefix = _TAIL_PREFIX[kind]
     order = FLEET_BASES if not bases else tuple(bases[i % len(bases)]
                                                  for i in range(len(FLEET_BASES)))
     fleet = [build_aircraft(f"{prefix}{i + 1:02d}", base, _seed(seed, code, i))
@@ -79,6 +131,8 @@ class PatternSpec:
     day_offset: float
     sensor_study: str | None = None  # the sensor flown noisier (design sensor study)
     twin: str | None = None  # the healthy pattern it repeats
+    #: a concurrent pattern's faults, by onset (``mode`` names its combination kind)
+    faults: tuple[PlannedFault, ...] = ()
 
 
 def _sensor_study(specs: list[PatternSpec], healthy_patterns: int) -> list[PatternSpec]:
@@ -108,14 +162,17 @@ def plan_campaign(kind: str, seed: int, scale: str, *, per_mode: int | None = No
     """All patterns of the campaign, in manifest order. ``per_mode``: every healthy pattern
     but only the first ``per_mode`` patterns of each fault mode (0: the healthy ones alone),
     each numbered and seeded as in the whole campaign, so they fly the same flights.
-    ``patterns_per_mode`` plans that many fault patterns per mode instead of the scale's (a
-    campaign of its own: the patterns are numbered, and so seeded, differently)."""
-    if kind not in _KIND_CODE:
-        raise ValueError(f"kind must be one of {sorted(_KIND_CODE)}")
-    cfg = SCALES[scale][kind]
+    ``patterns_per_mode`` plans that many fault patterns per mode (concurrent: per combination
+    kind) instead of the scale's (a campaign of its own: the patterns are numbered, and so
+    seeded, differently)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}")
+    cfg = kind_config(scale, kind)
     if patterns_per_mode is not None:
         cfg = replace(cfg, patterns_per_mode=patterns_per_mode)
     code = _KIND_CODE[kind]
+    if kind == "concurrent":
+        return _plan_concurrent(cfg, seed, code, per_mode)
     specs: list[PatternSpec] = []
     n_air = len(FLEET_BASES)
 
@@ -145,6 +202,47 @@ def plan_campaign(kind: str, seed: int, scale: str, *, per_mode: int | None = No
                                                                   per_mode == 0))
                  or (s.mode != "healthy" and int(s.id.rsplit("-", 1)[1]) <= per_mode)]
     return specs
+
+
+def _plan_concurrent(cfg: ScaleConfig, seed: int, code: int, per_mode: int | None
+                     ) -> list[PatternSpec]:
+    """The concurrent campaign's patterns: ``cfg.patterns_per_mode`` of each combination kind
+    (``per_mode``: the first that many), each on its aircraft and positions in turn, both
+    orders of its modes in turn."""
+    specs: list[PatternSpec] = []
+    n = cfg.patterns_per_mode if per_mode is None else min(per_mode, cfg.patterns_per_mode)
+    for c_i, combo in enumerate(COMBINATIONS):
+        for j in range(n):  # each pattern's draws its own: a part flies the whole's flights
+            number = c_i * cfg.patterns_per_mode + j
+            faults = _concurrent_faults(combo, j, cfg, np.random.default_rng(
+                _seed(seed, code, 2000 + number)))
+            specs.append(PatternSpec(
+                f"C-{combo.name.replace('+', '_')}-{j + 1:02d}",  # no "+" in flight codes
+                number, (j * 3 + c_i) % len(FLEET_BASES), combo.name, None, 0,
+                faults[0].onset, _seed(seed, code, 1000 + number),
+                day_offset=37.0 * number % 365, faults=faults))
+    return specs
+
+
+def _concurrent_faults(combo: Combination, j: int, cfg: ScaleConfig,
+                       rng: np.random.Generator) -> tuple[PlannedFault, PlannedFault]:
+    """The two faults of the ``j``-th pattern of ``combo``: its positions (cycled), the order
+    of its faults (alternating), drawn modes where the kind leaves
+    them open, each span by the scale's law and the second onset a drawn gap later."""
+    pair = combo.positions[j % len(combo.positions)]
+    if combo.modes is None:
+        modes = tuple(str(rng.choice([m for m in PROGRESSIVE if p in PLACES[m]])) for p in pair)
+    else:
+        modes = combo.modes
+    # the order alternates pattern by pattern; over an even number of pairs it also steps
+    # once a round, so that every pair is flown in both orders (6 patterns cover 3 pairs)
+    pairs = len(combo.positions)
+    order = (0, 1) if (j + (j // pairs if pairs % 2 == 0 else 0)) % 2 == 0 else (1, 0)
+    spans = [draw_span(rng, cfg.span_flights, cfg.span_draw) for _ in order]
+    gap = max(1, round(float(rng.uniform(*ONSET_GAP)) * spans[0]))
+    first, second = order
+    return (PlannedFault(modes[first], pair[first], cfg.lead_flights, spans[0]),
+            PlannedFault(modes[second], pair[second], cfg.lead_flights + gap, spans[1]))
 
 
 def execution_order(specs: list[PatternSpec]) -> list[PatternSpec]:

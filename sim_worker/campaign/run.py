@@ -19,7 +19,7 @@ from server.campaign_store import CampaignStore
 from ..fleet import BASES, DEFAULT_WINGLET_MODE, Aircraft, WingletMode
 from ..flight import LANES
 from .pattern import FlightSink, ParquetSink, PatternTask, iter_patterns, run_patterns
-from .planning import PatternSpec, execution_order, fleet_for, plan_campaign
+from .planning import KINDS, PatternSpec, execution_order, fleet_for, plan_campaign
 from .scales import SCALES, SENSOR_STUDY_NOISE, SENSOR_STUDY_PATTERNS, ScaleConfig, scale_config
 from .sensor_faults import SensorFault, canonical_sensor_faults
 
@@ -155,6 +155,18 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
     A design campaign ends with its sensor study: patterns with ``"sensor_study": {"sensor",
     "noise", "twin"}``, healthy, each the twin pattern again with one sensor noisier.
 
+    A concurrent campaign (``kind="concurrent"``, the ``ci`` and ``quick`` scales) flies two
+    faults per pattern (:data:`~.planning.COMBINATIONS`, ``per_mode`` patterns per
+    combination kind). Its pattern entries are ``{"id", "aircraft", "mode"`` (the combination
+    kind, e.g. ``"MTWEAR+MTEL"``), ``"faults": [{"mode", "position", "threshold",
+    "onset_flight", "span_flights", "expected_failure_flight", "started", "outcome"``
+    (failed, censored or unfinished), ``"end_flight", "failure_flight",
+    "severity_norm_at_end"}], "flights"}``, and each flight's entry, in place of the
+    single-fault ``severity``, ``severity_norm`` and ``true_rul_flights``, has ``"faults":
+    [{"mode", "position", "severity", "severity_norm", "true_rul_flights",
+    "failure_flight"}]`` (the faults on that flight; a censored fault's RUL and failure flight
+    are None). Its aircraft are its own (tails ``I-CON..``, seeds of their own).
+
     A flight's ``file`` is None when the sink kept no log of it (a streamed campaign keeps
     its features instead). ``sensor_faults`` (:class:`SensorFault` or their specs) degrade
     one sensor of one actuator on every aircraft, written as their specs
@@ -182,6 +194,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
     else on a local pool of ``workers`` processes; the output does not depend on either. An
     interrupted run resumes where it stopped when called again with the same arguments.
     """
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}")
     if scale not in SCALES:
         raise ValueError(f"scale must be one of {sorted(SCALES)}")
     if bases and not set(bases) <= set(BASES):

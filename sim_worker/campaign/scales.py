@@ -1,6 +1,7 @@
-"""The campaign scales: what a design or verification campaign of each scale flies
-(:class:`ScaleConfig`, :data:`SCALES`), the test station's envelope and the design's sensor
-study, and a scale with a run's overrides checked (:func:`scale_config`).
+"""The campaign scales: what a design, verification or concurrent campaign of each scale flies
+(:class:`ScaleConfig`, :data:`SCALES`; concurrent campaigns at the ``ci`` and ``quick`` scales),
+the test station's envelope and the design's sensor study, and a scale with a run's overrides
+checked (:func:`scale_config`).
 """
 
 from __future__ import annotations
@@ -11,8 +12,8 @@ from dataclasses import dataclass, replace
 
 from ..faults import ENVELOPE_FLIGHTS, SPAN_DRAWS, SPAN_FLIGHTS
 
-__all__ = ["ScaleConfig", "SCALES", "MAX_FLIGHTS", "STATION_ENVELOPE", "SENSOR_STUDY_PATTERNS",
-           "SENSOR_STUDY_NOISE", "SENSOR_STUDY_FLIGHTS", "scale_config"]
+__all__ = ["ScaleConfig", "SCALES", "kind_config", "MAX_FLIGHTS", "STATION_ENVELOPE",
+           "SENSOR_STUDY_PATTERNS", "SENSOR_STUDY_NOISE", "SENSOR_STUDY_FLIGHTS", "scale_config"]
 
 MAX_FLIGHTS = 2000  # a fault-to-failure run stops here at the latest
 _MAX_SPAN = 1500.0  # largest expected span a user may ask for [flights], under MAX_FLIGHTS
@@ -26,7 +27,8 @@ class ScaleConfig:
     #: length from (uniform integers, from the pattern's seed): the paper's healthy cycles
     #: ran as long as its degradation patterns (section 5.1)
     healthy_flights: int | tuple[int, int]
-    patterns_per_mode: int  # degradation patterns per fault mode
+    #: degradation patterns per fault mode (a concurrent campaign: per combination kind)
+    patterns_per_mode: int
     #: render every k-th flight of a fault-to-failure run; odd, so the rendered flights take
     #: both winglet roles (the active drive alternates by flight: an even step would read a
     #: faulty winglet drive in one role only, never its motor features or never its play)
@@ -77,6 +79,11 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
         "verification": ScaleConfig(duration_s=60.0, healthy_patterns=10, healthy_flights=25,
                                     patterns_per_mode=3, render_every=21, apriori_flights=6,
                                     apriori_onset=2),
+        # two faults at once on the verification's spans, every flight rendered (the ground
+        # truth of both faults is read flight by flight)
+        "concurrent": ScaleConfig(duration_s=60.0, healthy_patterns=0, healthy_flights=0,
+                                  patterns_per_mode=3, render_every=1, apriori_flights=0,
+                                  apriori_onset=0),
     },
     "paper": {
         "design": ScaleConfig(duration_s=120.0, healthy_patterns=10, healthy_flights=50,
@@ -126,6 +133,9 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
         "verification": ScaleConfig(duration_s=30.0, healthy_patterns=10, healthy_flights=6,
                                     patterns_per_mode=2, render_every=1, apriori_flights=4,
                                     apriori_onset=2, span_flights=(15.0, 30.0)),
+        "concurrent": ScaleConfig(duration_s=30.0, healthy_patterns=0, healthy_flights=0,
+                                  patterns_per_mode=2, render_every=1, apriori_flights=0,
+                                  apriori_onset=0, lead_flights=2, span_flights=(8.0, 14.0)),
     },
 }
 
@@ -135,12 +145,22 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
 MAX_PATTERNS_PER_MODE = 99
 
 
+def kind_config(scale: str, kind: str) -> ScaleConfig:
+    """The scale's campaign of ``kind``; a scale without one is refused, naming those with."""
+    if scale not in SCALES:
+        raise ValueError(f"scale must be one of {sorted(SCALES)}")
+    if kind not in SCALES[scale]:
+        raise ValueError(f"the {scale} scale has no {kind} campaign; scales with one: "
+                         f"{sorted(s for s, kinds in SCALES.items() if kind in kinds)}")
+    return SCALES[scale][kind]
+
+
 def scale_config(scale: str, kind: str, render_every: int | None,
                  span_flights: tuple[float, float] | None,
                  span_draw: str | None = None,
                  recordings_s: Iterable[float] | None = None,
                  patterns_per_mode: int | None = None) -> ScaleConfig:
-    cfg = SCALES[scale][kind]
+    cfg = kind_config(scale, kind)
     if patterns_per_mode is not None:
         if isinstance(patterns_per_mode, bool) or not isinstance(patterns_per_mode, int) \
                 or not 1 <= patterns_per_mode <= MAX_PATTERNS_PER_MODE:

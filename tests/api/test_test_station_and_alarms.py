@@ -23,8 +23,7 @@ def test_injection_lifecycle_and_roles(client: TestClient, keys: dict[str, str],
     assert r.status_code == 201, r.text
     inj = r.json()
     assert inj["status"] == "pending" and inj["created_by"] == "test-operator"
-    again = client.post("/api/v1/test-station/injections", json={**body, "position": "WT"},
-                        headers=op)
+    again = client.post("/api/v1/test-station/injections", json=body, headers=op)
     assert again.status_code == 409 and again.json()["error"]["code"] == "injection_exists"
 
     path = f"/api/v1/test-station/injections/{inj['id']}"

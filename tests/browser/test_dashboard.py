@@ -297,7 +297,7 @@ def test_test_station_injections_read_on_a_phone(live: Live, browser) -> None:  
     viewport once its row is scrolled into view, and it cancels (before: the table scrolled
     450 px in its box, status and cancel off-screen, rows about 300 px tall). The charts on a
     phone have no mode bar over their titles."""
-    for tail in live.tails:  # one live injection per aircraft: the first one free
+    for tail in live.tails:  # the first whose WL2 has no live MTWEAR (one per mode of a unit)
         r = httpx.post(f"{live.url}/api/v1/test-station/injections",
                        headers={"Authorization": f"Bearer {live.keys['operator']}"},
                        json={"aircraft": tail, "position": "WL2", "fault_mode": "MTWEAR",

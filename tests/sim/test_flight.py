@@ -74,10 +74,10 @@ def test_a_log_uniform_draw_spans_the_envelope_evenly_in_log():
     """Design campaigns draw spans log-uniformly over 30-1000 flights: as many runs below
     the geometric middle (173 flights) as above it, none outside the envelope."""
     from sim_worker.campaign import SCALES
-    from sim_worker.faults import ENVELOPE_FLIGHTS, _draw_span
+    from sim_worker.faults import ENVELOPE_FLIGHTS, draw_span
 
     rng = np.random.default_rng(0)
-    spans = np.array([_draw_span(rng, ENVELOPE_FLIGHTS, "log") for _ in range(4000)])
+    spans = np.array([draw_span(rng, ENVELOPE_FLIGHTS, "log") for _ in range(4000)])
     assert spans.min() >= 30.0 and spans.max() <= 1000.0
     assert 0.47 < np.mean(spans < np.sqrt(30.0 * 1000.0)) < 0.53
     # a uniform draw over the same range would put 7 % of its runs under 100 flights
@@ -87,7 +87,7 @@ def test_a_log_uniform_draw_spans_the_envelope_evenly_in_log():
         assert (cfg.span_flights, cfg.span_draw) == (ENVELOPE_FLIGHTS, "log")
         assert SCALES[scale]["verification"].span_draw == "uniform"
     with pytest.raises(ValueError, match="span_draw"):
-        _draw_span(rng, ENVELOPE_FLIGHTS, "normal")
+        draw_span(rng, ENVELOPE_FLIGHTS, "normal")
 
 
 def test_verification_fleet_is_disjoint_from_design():

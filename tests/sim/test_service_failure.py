@@ -50,10 +50,10 @@ def test_a_failed_drive_grounds_the_aircraft_and_never_heals(client: TestClient,
                 if c["position"] == "WT")
     assert (cell["status"], cell["failed_at_flight"]) == ("red", failure_flight)
 
-    fault, flown = run.fault, _flights(client, keys)
+    faults, flown = run.faults, _flights(client, keys)
     for _ in range(5):  # grounded: nothing flown, the fault kept at failure
         assert runner.fly(run) == "grounded"
-    assert run.fault == fault and fault.mode == "TTS" and fault.failed
+    assert run.faults == faults and [f.mode for f in faults] == ["TTS"] and faults[0].failed
     assert _flights(client, keys) == flown
 
     restarted = _runner(client, keys)  # a restart does not heal it either
@@ -65,6 +65,6 @@ def test_a_failed_drive_grounds_the_aircraft_and_never_heals(client: TestClient,
                     json={"new_serial": "WT-SPARE-1", "work_order": "WO-2026-0100"})
     assert r.status_code == 201, r.text
     assert restarted.fly(restarted.runs[0]) == "accepted"
-    assert restarted.runs[0].fault.mode == "healthy"
+    assert restarted.runs[0].faults == ()
     assert restarted.runs[0].aircraft.serials["WT"] == "WT-SPARE-1"
-    assert runner.fly(run) in ("accepted", "duplicate") and run.fault.mode == "healthy"
+    assert runner.fly(run) in ("accepted", "duplicate") and run.faults == ()

@@ -221,14 +221,19 @@ def test_operator_injects_and_sees_it_listed_errors_are_shown(client, keys, airc
         "onset_flight": "3", "time_to_failure_flights": "120"})
     assert r.status_code == 200 and 'id="injection-1"' in r.text and "MTWEAR" in r.text
     r = client.post("/test-station/injections", data={
-        "csrf": token, "aircraft": aircraft, "position": "WT", "fault_mode": "SE"})
-    assert r.status_code == 409 and "already has a live injection" in r.text
+        "csrf": token, "aircraft": aircraft, "position": "WL2", "fault_mode": "MTWEAR",
+        "onset_flight": "5"})
+    assert r.status_code == 409 and "already has a live MTWEAR injection" in r.text
     r = client.post("/test-station/injections", data={
         "csrf": token, "aircraft": aircraft, "position": "WT", "fault_mode": "SE",
         "time_to_failure_flights": "3"})
     assert r.status_code == 422
     with session_scope(client.app.state.session_factory) as s:
         assert len(s.scalars(select(Injection)).all()) == 1
+    # a second fault on another actuator flies concurrently: both listed
+    r = client.post("/test-station/injections", data={
+        "csrf": token, "aircraft": aircraft, "position": "WT", "fault_mode": "SE"})
+    assert r.status_code == 200 and 'id="injection-1"' in r.text and 'id="injection-2"' in r.text
 
 
 def test_admin_replaces_actuator_and_history_shows_previous(client, keys, seeded) -> None:
