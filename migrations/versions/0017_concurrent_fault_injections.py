@@ -2,7 +2,7 @@
 
 Revision ID: 0017
 Revises: 0016
-Create Date: 2026-12-07 09:00:00
+Create Date: 2026-12-06 16:00:00
 
 The simulator flies several faults at once: on other actuators of the aircraft, or other modes
 on one actuator. A fault injection's slot (0013: the aircraft) becomes the aircraft, position
