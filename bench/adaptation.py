@@ -37,7 +37,8 @@ from server.phm.training import TrainingConfig, train_phm_model  # noqa: E402
 
 def parse_variant(text: str) -> tuple[str, TrainingConfig]:
     """``NAME:FIELD=VALUE,...`` -> (NAME, TrainingConfig with those fields); the values are
-    numbers, tuples of numbers written ``a/b``, or the word a text field takes."""
+    numbers, tuples of numbers written ``a/b`` (nothing: the empty tuple), or the word a text
+    field takes."""
     name, _, body = text.partition(":")
     if not name:
         raise ValueError(f"variant {text!r}: NAME:FIELD=VALUE,... expected")
@@ -50,6 +51,9 @@ def parse_variant(text: str) -> tuple[str, TrainingConfig]:
                              f"{', '.join(sorted(fields))})")
         if isinstance(getattr(TrainingConfig, key, None), str):
             changes[key] = value
+            continue
+        if not value:  # an empty tuple, e.g. rate_band_edges= (no bank)
+            changes[key] = ()
             continue
         parts = [float(v) for v in value.split("/")]
         changes[key] = tuple(parts) if len(parts) > 1 else parts[0]

@@ -36,6 +36,10 @@ assume, every third flight rendered) and
 ``calibrate`` replays them with the uncalibrated model and runs ``hmsm calibrate`` on all
 three.
 
+The calibration designs are also the choice sets of the bank's settings (design seeds, not
+the training seed): ``score --groups "cal fast,cal medium,cal slow"`` scores a model on them
+uncalibrated, with the evaluations ``calibrate`` reuses.
+
 ``score`` runs ``hmsm evaluate`` with ``--model`` on every streamed group (its evaluation kept
 under ``ROOT/scores/<model stem>/``, reused when present) and prints and writes the group x
 mode table of :mod:`rul_speed_groups` (coverage, truth below the band, widths, PH, RA).
@@ -75,11 +79,11 @@ CALIBRATION = (Group("cal fast", 4, (30.0, 100.0)), Group("cal medium", 5, (100.
 CALIBRATION_RENDER_EVERY = 3
 
 
-def _chosen(names: str | None) -> list[Group]:
+def _chosen(names: str | None, among: tuple[Group, ...] = GROUPS) -> list[Group]:
     if not names:
         return list(GROUPS)
     wanted = [n.strip() for n in names.split(",")]
-    known = {g.name: g for g in GROUPS}
+    known = {g.name: g for g in among}
     unknown = [n for n in wanted if n not in known]
     if unknown:
         raise SystemExit(f"unknown groups {unknown}; known: {sorted(known)}")
@@ -143,7 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--workers", type=int, default=2)
     c = sub.add_parser("score", help="score a model on the streamed groups")
     c.add_argument("--root", type=Path, required=True)
-    c.add_argument("--groups", default=None)
+    c.add_argument("--groups", default=None, help="comma-separated group names (default the "
+                   "verification groups; the calibration designs' names score a choice set)")
     c.add_argument("--model", type=Path, required=True)
     c.add_argument("--in-range", type=Path, default=None,
                    help="the protocol run's verification campaign (the in-range group)")
@@ -169,10 +174,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "calibrate":
         calibrate(args.root, args.model, args.out, args.jobs)
         return 0
-    groups = _chosen(args.groups)
     if args.command == "stream":
-        stream(args.root, groups, args.per_mode, args.workers)
+        stream(args.root, _chosen(args.groups), args.per_mode, args.workers)
         return 0
+    groups = _chosen(args.groups, GROUPS + CALIBRATION)
     figures = score(args.root, groups, args.model, args.in_range, args.jobs)
     print(markdown(figures))
     if args.out:

@@ -314,7 +314,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo_model = sub.add_parser("demo-model", help="regenerate the model the demo ships with "
                                 "(server/data/demo_model.json): stream the shipped design "
                                 "campaign of seed 1 (16 minutes on 2 idle cores) and train on "
-                                "it; hmsm calibrate then adds the RUL bands' layers")
+                                "it; hmsm calibrate then adds the RUL bands' layers "
+                                "(bench/rul_suite.py calibrate)")
     demo_model.add_argument("--out", required=True, help="JSON file to write")
     demo_model.add_argument("--campaign", default=None,
                             help="reuse this streamed shipped design campaign of seed 1 "

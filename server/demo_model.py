@@ -7,8 +7,10 @@ commands on a seeded design campaign -- the ``DESIGN_SCALE`` design campaign of 
 test station's conditions: what a fleet and the station fly, sim_worker/campaign/), streamed,
 trained with seed ``TRAINING_SEED`` -- and ships the result. ``hmsm demo-model --out FILE``
 regenerates it (16 minutes on 2 idle cores); the RUL bands' calibration layers are then added by
-``hmsm calibrate`` (docs/RESULTS.md). The suite cannot simulate that design in its budget: it
-checks the shipped document's provenance against today's code (``tests/test_demo.py``), and
+``hmsm calibrate`` on replays of three calibration designs, one per band of fault speeds
+(``bench/rul_suite.py calibration-stream`` and ``calibrate``, docs/RESULTS.md). The suite
+cannot simulate that design in its budget: it checks the shipped document's provenance
+against today's code (``tests/test_demo.py``), and
 ``HMSM_SHIPPED_DESIGN=DIR`` makes it retrain from a streamed copy of the design and compare.
 
 The document: ``{"format": "ema-demo-model/1", "design": {"kind", "scale", "seed",

@@ -100,8 +100,8 @@ class TrainingConfig:
     rate_prior_tail: float = 0.2
     #: [flights] the bank of rate hypotheses (``PrognoserConfig.rate_hypotheses``): the edges
     #: of its bands of fault-to-failure spans over the test station's envelope, ascending
-    #: (30/100/300/1000: fast, medium, slow); empty: the tail mixture of ``rate_prior_tail``
-    rate_band_edges: tuple[float, ...] = ()
+    #: (fast, medium, slow); empty: the tail mixture of ``rate_prior_tail`` (docs/TUNING.md)
+    rate_band_edges: tuple[float, ...] = (30.0, 100.0, 300.0, 1000.0)
     #: [-] each band's rate prior sd is its moments' times this (:mod:`.prognosis.hypotheses`)
     hypothesis_inflation: float = 1.0
     #: the long-term prediction's severity random walk: "filter", the filter's process noise;
