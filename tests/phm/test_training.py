@@ -223,18 +223,23 @@ def test_training_can_learn_the_prediction_noise_from_the_design_runs(design_cam
 
 def test_training_with_rate_bands_gives_each_exponential_mode_a_bank_of_hypotheses(
         design_campaign_dir, trained_model) -> None:
-    """With ``rate_band_edges`` every mode tuned on the log-level gets one hypothesis per band,
-    fastest first, its rates falling as the spans grow, and no tail mixture; the report
-    carries them; the polynomial modes and the default model have none."""
+    """With ``rate_band_edges`` (the default 30/100/300/1000) every mode tuned on the log-level
+    gets one hypothesis per band, fastest first, its rates falling as the spans grow, and no
+    tail mixture; the report carries them; the polynomial modes have none, nor does a model
+    trained without bands (the tail mixture instead)."""
     from dataclasses import replace
 
     from server.phm.training import TRAINING, train_phm_model
 
+    assert TRAINING.rate_band_edges == (30.0, 100.0, 300.0, 1000.0)
     campaign = load_campaign(design_campaign_dir, jobs=2)
-    banked, report = train_phm_model(
-        campaign, seed=0, training=replace(TRAINING, rate_band_edges=(30.0, 100.0, 300.0,
-                                                                      1000.0)))
-    assert "rate_hypotheses" not in json.dumps(trained_model[0])
+    banked, report = train_phm_model(campaign, seed=0)
+    assert json.dumps(banked.to_dict()["measurement"], sort_keys=True) == json.dumps(
+        trained_model[0]["measurement"], sort_keys=True)
+    plain, _ = train_phm_model(campaign, seed=0, training=replace(TRAINING, rate_band_edges=()))
+    assert "rate_hypotheses" not in json.dumps(plain.to_dict())
+    assert any(plain.measurement[m].config_for("WT").rate_prior_tail > 0
+               for m in plain.measurement)
     exponential = 0
     for mode, spec in banked.measurement.items():
         for position in ("WL1", "WT"):
