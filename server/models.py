@@ -396,6 +396,10 @@ class Alarm(Base):
                                                           default=_class_at_insert)
     class_probability: Mapped[float | None] = mapped_column(Float)
     features: Mapped[list[str]] = mapped_column(JSON, default=list)
+    #: the units the alarm may belong to, position -> probability (the ambiguity group: both
+    #: winglet drives when it rests on a pair-coupled feature alone); null on alarms raised
+    #: before it was recorded
+    isolation: Mapped[dict[str, float] | None] = mapped_column(JSON)
     rul_median_flights: Mapped[float | None] = mapped_column(Float)
     #: the 5 % quantile of the latest RUL distribution [flights]: what urgency is read from
     rul_low_flights: Mapped[float | None] = mapped_column(Float)

@@ -800,6 +800,10 @@ class AlarmRead(BaseModel):
                                           "raised; later changes are its events")
     class_probability: float | None
     features: list[str]
+    isolation: dict[str, float] | None = Field(
+        default=None, description="the units the alarm may belong to, position -> "
+        "probability: its own alone, or both winglet drives (an ambiguity group) when it rests "
+        "on a feature the partner drive moves too; null on alarms raised before it was kept")
     rul_median_flights: float | None = Field(description="median of the latest RUL; 0 once "
                                              "the unit has failed")
     rul_low_flights: float | None = Field(description="5 % quantile of the latest RUL; 0 once "

@@ -494,15 +494,57 @@ def test_concurrent_fault_injections_one_live_per_mode_of_an_actuator_from_0017(
     with pytest.raises(RuntimeError, match=r"more than one live injection on an aircraft "
                        r"\(aircraft 1: 3\)"):
         downgrade(url, "0016")
-    with engine.connect() as conn:
-        assert MigrationContext.configure(conn).get_current_revision() == head_revision()
+    with engine.connect() as conn:  # 0017's own step changed nothing; PostgreSQL rolls the
+        # whole downgrade back (one transaction), SQLite keeps the later revisions' steps
+        assert MigrationContext.configure(conn).get_current_revision() in (
+            "0017", head_revision())
     with engine.begin() as conn:
         conn.execute(sa.text("UPDATE injections SET status = 'cancelled' WHERE id IN (2, 3)"))
-    downgrade(url, "0016")
+    downgrade(url, "0016")  # one live per aircraft again: 0017 goes down
     with pytest.raises(IntegrityError), engine.begin() as conn:
         _fault(conn, 6, "pending", "WL2", "MTEL")
     with engine.begin() as conn:
         conn.execute(sa.text("DELETE FROM injections"))
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database
+
+
+def test_an_alarm_keeps_its_ambiguity_group_from_0018(settings: Settings) -> None:
+    """0018 adds ``alarms.isolation``: an alarm raised before has none (null), one raised
+    after keeps its units and probabilities; going down drops the column and keeps the
+    alarms and their constraints."""
+    import json
+
+    import pytest
+    import sqlalchemy as sa
+    from sqlalchemy.exc import IntegrityError
+
+    url = _fresh_url(settings)
+    downgrade(url, "base")
+    upgrade(url, "0017")
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
+        conn.execute(sa.text("INSERT INTO actuators (id, aircraft_id, position, serial, "
+                             "installed_at) VALUES (1, 1, 'WL1', 'S-MIG', CURRENT_TIMESTAMP)"))
+        _alarm_and_version(conn, 1, "open", "ready")
+    upgrade(url)
+    group = {"WL1": 0.8, "WL2": 0.2}
+    with engine.begin() as conn:
+        _alarm_and_version(conn, 2, "open", "ready")
+        conn.execute(sa.text("UPDATE alarms SET isolation = :g WHERE id = 2"),
+                     {"g": json.dumps(group)})
+        rows = dict(conn.execute(sa.text("SELECT id, isolation FROM alarms")).all())
+    assert rows[1] is None
+    assert (json.loads(rows[2]) if isinstance(rows[2], str) else rows[2]) == group
+    downgrade(url, "0017")
+    assert "isolation" not in {c["name"] for c in inspect(engine).get_columns("alarms")}
+    with engine.begin() as conn:
+        assert conn.execute(sa.text("SELECT COUNT(*) FROM alarms")).scalar() == 2
+    with pytest.raises(IntegrityError, match="ck_alarms_status"), engine.begin() as conn:
+        conn.execute(sa.text("UPDATE alarms SET status = 'snoozed' WHERE id = 1"))
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database

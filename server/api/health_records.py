@@ -34,7 +34,7 @@ def alarm_read(row: service.AlarmRow) -> AlarmRead:
                      urgency_label=None if u is None else u.label,
                      act_within_flights=None if u is None else u.within_flights,
                      confidence=alarm.confidence, fault_mode=alarm.fault_mode,
-                     raised_fault_mode=alarm.raised_fault_mode,
+                     raised_fault_mode=alarm.raised_fault_mode, isolation=alarm.isolation,
                      class_probability=alarm.class_probability, features=alarm.features,
                      rul_median_flights=row.rul_median, rul_low_flights=row.rul_low,
                      created_at=alarm.created_at,

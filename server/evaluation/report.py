@@ -210,6 +210,26 @@ def _per_unit_flight(det: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def _isolation(det: Mapping[str, Any]) -> list[str]:
+    """How often an alarm after onset named the faulty unit (ambiguity groups included)."""
+    iso = det.get("isolation")
+    if not iso or not iso["named_right"]["alarms"]:
+        return []
+
+    def share(r: Mapping[str, Any]) -> str:
+        lo, hi = r["interval"]
+        return f"{r['hits']} of {r['alarms']}, {r['share']:.1%} [{lo:.1%}, {hi:.1%}]"
+
+    groups = iso["ambiguity_groups"]
+    text = (f"Isolation, every alarm after onset (partner and other surface included): named "
+            f"the faulty unit {share(iso['named_right'])}; the faulty unit in its group "
+            f"{share(iso['faulty_in_group'])}; {groups} ambiguity groups")
+    if groups:
+        text += (f", named right {iso['groups_named_right']} times, mean probability of the "
+                 f"named unit {iso['groups_mean_named_probability']:.2f}")
+    return ["", text + "."]
+
+
 def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
     """Markdown tables: detection, confusion (first alarm, last flight), prognosis (median
     and most probable RUL), timing. Means as "mean [lo, hi]", the 90 % bootstrap interval
@@ -222,7 +242,7 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
              f"{fa['healthy_flights']} healthy flights (incl. pre-onset flights of fault "
              f"patterns), rate per healthy flight "
              f"{_ci(rate, fa.get('rate_per_flight_ci'), '.4f')} "
-             "(paper: 0 on 25 healthy cycles).", *_per_unit_flight(det), "",
+             "(paper: 0 on 25 healthy cycles).", *_per_unit_flight(det), *_isolation(det), "",
              "| mode | patterns | detected | detection rate | detection time mean [% life] | "
              "max [% life] | flights after onset mean | max | alarms on other actuators |",
              "|---|---|---|---|---|---|---|---|---|"]

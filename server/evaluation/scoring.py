@@ -44,6 +44,7 @@ from server.vocabulary import PAPER_TABLE2, PROGRESSIVE, alarming_positions
 
 from .bootstrap import finite_max, interval, mean_ci, nan_if_none, resamples
 from .false_alarms import summarise_false_alarms
+from .isolation import summarise_isolation
 
 ALPHA = 0.2
 LAMBDA = 0.5
@@ -153,6 +154,7 @@ def summarise_detection(traces: Sequence[Mapping[str, Any]],
         per_mode[mode] = _mode_detection(rows)
     return {"false_alarms": fa,
             "per_unit_flight": summarise_false_alarms(traces, design_rate),
+            "isolation": summarise_isolation(traces),
             "per_mode": per_mode}
 
 

@@ -276,6 +276,7 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
         session.add(Alarm(actuator_id=act.id, flight_id=flight.id, status=AlarmStatus.OPEN,
                           confidence=out.max_confidence, fault_mode=out.fault_mode,
                           class_probability=prob, features=out.alarm_features,
+                          isolation=out.isolation or None,
                           rul_median_flights=median, rul_low_flights=low))
     elif out.alarm:
         open_alarm = session.scalar(select(Alarm).where(

@@ -26,7 +26,8 @@ def _outcome(mode: str | None, *, new: bool, index: int) -> SimpleNamespace:
     """The parts of a chain outcome ``_store_alarm`` reads."""
     return SimpleNamespace(new_alarm=new, alarm=True, fault_mode=mode, flight_index=index,
                            class_probabilities={mode: 0.8} if mode else None,
-                           max_confidence=0.99, alarm_features=["WT.F_MTEL"])
+                           max_confidence=0.99, alarm_features=["WT.F_MTEL"],
+                           isolation={"WT": 1.0} if new else {})
 
 
 def _alarm_item(client: TestClient, keys: dict[str, str], alarm_id: int) -> dict:

@@ -107,6 +107,9 @@ def test_injected_faults_raise_classified_alarms_and_prognoses(system) -> None: 
         assert by_actuator[("SIM01", "WT")]["fault_mode"] == "BDO"
         wear = by_actuator[("SIM02", "WL1")]
         assert wear["fault_mode"] == "MTWEAR"
+        # every alarm names its unit; a winglet drive's maybe with its partner, less likely
+        assert by_actuator[("SIM01", "WT")]["isolation"] == {"WT": 1.0}
+        assert max(wear["isolation"], key=wear["isolation"].get) == "WL1"
         prognoses = httpx.get(f"{url}/api/v1/actuators/{wear['actuator_id']}/prognoses",
                               headers=viewer).json()
         assert isinstance(prognoses, list), prognoses

@@ -172,7 +172,7 @@ def seed_results(factory: sessionmaker[Session], *, tail: str, position: str = "
 
 def add_alarm(factory: sessionmaker[Session], *, tail: str, position: str,
               fault_mode: str = "TTS", confidence: float = 0.99,
-              rul: float | None = 12.0) -> int:
+              rul: float | None = 12.0, isolation: dict[str, float] | None = None) -> int:
     """Raise a new open alarm on an installed actuator (as the analysis job would)."""
     with factory() as session:
         aircraft = session.scalar(select(Aircraft).where(Aircraft.tail == tail))
@@ -186,7 +186,8 @@ def add_alarm(factory: sessionmaker[Session], *, tail: str, position: str,
         session.flush()
         row = Alarm(actuator_id=act.id, flight_id=flight.id, status="open",
                     confidence=confidence, fault_mode=fault_mode, class_probability=0.8,
-                    features=[f"{position}.F_{fault_mode}"], rul_median_flights=rul)
+                    features=[f"{position}.F_{fault_mode}"], rul_median_flights=rul,
+                    isolation=isolation)
         session.add(row)
         session.commit()
         return row.id

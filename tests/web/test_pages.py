@@ -121,6 +121,28 @@ def test_the_header_names_the_open_alarms_mode_even_without_a_prognosis(
     assert 'id="median-rul">–</dd>' in page  # no RUL: a dash, not "- flights"
 
 
+def test_an_ambiguity_group_names_both_drives_with_their_probabilities(
+        app, client, keys, seeded, aircraft) -> None:  # type: ignore[no-untyped-def]
+    """A winglet drive's alarm on a feature its partner moves too names both drives, the
+    likelier first, in the inbox, on the actuator page and in the API; a unit's own alarm
+    shows no group."""
+    factory = app.state.session_factory
+    own = add_alarm(factory, tail=aircraft, position="WT", fault_mode="DMD",
+                    isolation={"WT": 1.0})
+    pair = add_alarm(factory, tail=aircraft, position="WL2", fault_mode="MTEL",
+                     isolation={"WL1": 0.27, "WL2": 0.73})
+    sign_in(client, keys["viewer"])
+    inbox = client.get("/alarms").text
+    row = inbox[inbox.index(f'id="alarm-{pair}"'):]
+    assert "ambiguity group: WL2 0.73 · WL1 0.27" in row[:row.index("</tr>")]
+    assert "ambiguity group" not in inbox[inbox.index(f'id="alarm-{own}"'):].split("</tr>")[0]
+    items = client.get("/api/v1/alarms", headers={
+        "Authorization": f"Bearer {keys['viewer']}"}).json()["items"]
+    assert {a["id"]: a["isolation"] for a in items}[pair] == {"WL1": 0.27, "WL2": 0.73}
+    act = next(a["actuator_id"] for a in items if a["id"] == pair)
+    assert "ambiguity group: WL2 0.73 · WL1 0.27" in client.get(f"/actuators/{act}").text
+
+
 def test_the_leading_rate_hypothesis_is_shown_beside_the_band(app, client, keys, seeded
                                                                ) -> None:  # type: ignore[no-untyped-def]
     """A prediction of a bank of rate hypotheses names the fault's speed and its weight on

@@ -60,6 +60,9 @@ class ActuatorOutcome:
     #: this actuator's conditions far outside the design's (OutsideDesign.to_dict): their
     #: features are in ``set_aside``
     outside_design: list[dict[str, Any]] = field(default_factory=list)
+    #: on a new alarm, the units it may belong to with their probabilities
+    #: (``DetectionResult.isolation``)
+    isolation: dict[str, float] = field(default_factory=dict)
 
 
 def analyze_flight(model: PhmModel, features: FlightFeatures,
@@ -228,4 +231,5 @@ def _outcome(features: FlightFeatures, z_all: dict[str, float], det: DetectionRe
         z={n: v for n in names if (v := _finite(z_all.get(n, math.nan))) is not None},
         confidence=dict(det.confidence), max_confidence=float(det.max_confidence),
         alarm=det.alarm, new_alarm=det.new_alarm, alarm_features=list(det.alarm_features),
-        class_probabilities=probs, fault_mode=h.fault_mode if det.alarm else None, rul=rul)
+        class_probabilities=probs, fault_mode=h.fault_mode if det.alarm else None, rul=rul,
+        isolation=dict(det.isolation))

@@ -20,8 +20,11 @@ window keeps the raw value, for step faults.
 
 The unit alarms when ``c`` of one of its features reaches ``alarm_confidence``, unless the
 winglet pair's rule (:mod:`.pair`) leaves that feature's evidence to the partner drive: every
-unit of the flight is observed first, then the alarms are decided. The alarm latches until
-maintenance: a replaced actuator gets a fresh state (:meth:`DetectionState.reset`).
+unit of the flight is observed first, then the alarms are decided. A new alarm names the units
+it may belong to with their probabilities (``DetectionResult.isolation``): its own unit alone,
+or both winglet drives when it rests on a coupled feature alone (:func:`.pair.isolation_of`).
+The alarm latches until maintenance: a replaced actuator gets a fresh state
+(:meth:`DetectionState.reset`).
 
 :mod:`.sequences` is this judge vectorised over flight sequences; the two are held equal by
 ``tests/phm/test_judge.py``.
@@ -31,13 +34,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 from scipy.special import ndtr
 
 from .config import UNITS, unit_features
 from .detector import FaultDetector
-from .pair import is_pair_coupled, pair_level, partner_held
+from .pair import is_pair_coupled, isolation_of, pair_level, partner_held
 from .state import DetectionResult, DetectionState, Observation
 from .statistics import median_n_eff, reference_posterior
 
@@ -70,8 +74,13 @@ def update_units(detector: FaultDetector, states: Mapping[str, DetectionState],
     ``evidence`` (feature -> evidence weight, :mod:`.evidence`) adds the flight's sampling
     share."""
     seen = {u: observe(detector, st, z, extra_variance, evidence) for u, st in states.items()}
-    held = partner_held({u: o.level for u, o in seen.items()})
-    return {u: decide(detector, st, seen[u], held.get(u, ())) for u, st in states.items()}
+    levels = {u: o.level for u, o in seen.items()}
+    held = partner_held(levels)
+    out = {u: decide(detector, st, seen[u], held.get(u, ())) for u, st in states.items()}
+    counts = {u: {f: len(st.history.get(f, ())) for f in seen[u].level}
+              for u, st in states.items()}
+    return {u: replace(r, isolation=isolation_of(u, r.alarm_features, levels, counts))
+            if r.new_alarm else r for u, r in out.items()}
 
 
 def observe(detector: FaultDetector, state: DetectionState, z: Mapping[str, float],
