@@ -407,9 +407,11 @@ class Section:
 
 
 def _row(kind: Kind, page: KindPage, it: Item) -> Row:
+    """An item's row: its cells (its last truth in the kind's words: ``summary``) and what its
+    Cancel button says."""
     row, last = it["item"], it["truth_latest"]
-    it = {**it, "summary": None if last is None else page.truth(row, last)}
-    return Row(id=row.id, cells=tuple(c.cell(it) for c in page.columns), live=it["live"],
+    shown = {**it, "summary": None if last is None else page.truth(row, last)}
+    return Row(id=row.id, cells=tuple(c.cell(shown) for c in page.columns), live=it["live"],
                cancel_label=f"Cancel {kind.noun.lower()} {row.id} "
                f"({page.cancel_what(row, it['tail'])})")
 
