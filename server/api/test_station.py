@@ -3,13 +3,15 @@ the simulator takes each flight's plan and reports what it flew.
 
 The routes of every kind (``/test-station/<kind>``: create, list, one, cancel, its truth) are
 made from the registry ``server.services.station.KINDS``, each with its own body and read model
-in the OpenAPI; the flight plan and the flight's report serve all kinds at once."""
+in the OpenAPI; ``POST /test-station/items`` creates any kind from one body, a union discriminated
+by ``station_kind`` (the kind's key); the flight plan and the flight's report serve all kinds at
+once."""
 
 from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal, Union
 
 from fastapi import APIRouter, Path, Query
 from pydantic import BaseModel, ConfigDict, Field, create_model
@@ -18,6 +20,7 @@ from server.api.deps import Operator, Reader, SessionDep
 from server.api.openapi import errors
 from server.api.presenters import aircraft_read
 from server.flightlog import ID_PATTERN, MAX_ID_LEN
+from server.models import ApiKey
 from server.schemas import (
     MAX_INT32,
     AircraftRead,
@@ -64,6 +67,15 @@ def _tail(session: SessionDep, row: Any) -> str:
     return fleet.tail_of(session=session, aircraft_id=row.aircraft_id)
 
 
+def _create(kind: Kind, spec: Any, session: SessionDep, key: ApiKey) -> BaseModel:
+    """A new item of ``kind`` from its create schema, committed, as the API shows it."""
+    row = station.create(session=session, kind=kind, spec=spec, created_by=key.name)
+    warnings = kind.warnings(session, row) if kind.warnings else None
+    session.commit()
+    more = {} if warnings is None else {"warnings": warnings}
+    return item_read(kind, row, spec.aircraft, **more)
+
+
 def _add_kind(kind: Kind) -> None:
     """The six routes of one kind of item."""
     base, noun, plural = f"/{kind.path}", kind.noun.lower(), kind.noun.lower() + "s"
@@ -72,11 +84,7 @@ def _add_kind(kind: Kind) -> None:
         pattern="^(" + "|".join(kind.statuses) + ")$")]
 
     def create_item(body: Any, session: SessionDep, key: Operator) -> BaseModel:
-        row = station.create(session=session, kind=kind, spec=body, created_by=key.name)
-        warnings = kind.warnings(session, row) if kind.warnings else None
-        session.commit()
-        more = {} if warnings is None else {"warnings": warnings}
-        return item_read(kind, row, body.aircraft, **more)
+        return _create(kind, body, session, key)
 
     def list_items(session: SessionDep, _: Reader, aircraft: str | None = None,
               status: str | None = None,
@@ -121,6 +129,55 @@ def _add_kind(kind: Kind) -> None:
         _typed(report_truth, body=kind.truth_in))
     router.get(item + "/ground-truth", response_model=list[kind.truth_read],  # type: ignore[name-defined]
                summary=f"Truth of a {noun}, flight by flight")(list_truth)
+
+
+# ---- one create for every kind: a body tagged with its kind --------------------------------
+
+#: the union's discriminator. Not ``kind``: a sensor injection's and a condition's ``kind``
+#: already says what it does (noise, load_scale, ...); its values are the kinds' keys, the
+#: names the flight plan and the flight's report give them
+DISCRIMINATOR = "station_kind"
+_KEYED = {kind.key: kind for kind in KINDS}
+
+
+def _tagged(model: type[BaseModel], kind: Kind, name: str) -> type[BaseModel]:
+    """``model`` with the discriminator, a ``Literal`` of the kind's key (required)."""
+    tag = Literal[kind.key]  # type: ignore[name-defined]  # a value known at run time
+    return create_model(  # type: ignore[call-overload]
+        name, __base__=model, __doc__=f"{kind.noun}: {model.__name__} tagged with its kind.",
+        **{DISCRIMINATOR: (tag, Field(description=f"'{kind.key}': a {kind.noun.lower()}"))})
+
+
+#: per kind key, its create schema and its read model, each tagged
+TAGGED_SPECS = {kind.key: _tagged(kind.spec, kind, f"Station{kind.spec.__name__}")
+                for kind in KINDS}
+TAGGED_READS = {kind.key: _tagged(kind.read, kind, f"Station{kind.read.__name__}")
+                for kind in KINDS}
+
+
+def _one_of(models: dict[str, type[BaseModel]]) -> Any:
+    """The models as a union the discriminator picks from (OpenAPI ``oneOf`` + mapping)."""
+    return Annotated[Union[tuple(models.values())],  # noqa: UP007  # a run-time union
+                     Field(discriminator=DISCRIMINATOR)]
+
+
+StationItemCreate = _one_of(TAGGED_SPECS)
+StationItemRead = _one_of(TAGGED_READS)
+
+
+def create_any(body: Any, session: SessionDep, key: Operator) -> Any:
+    kind = _KEYED[getattr(body, DISCRIMINATOR)]
+    # the kind's own schema again, without the tag: what its own route takes (and stores)
+    spec = kind.spec.model_validate(body.model_dump(exclude={DISCRIMINATOR}))
+    read = _create(kind, spec, session, key)
+    return TAGGED_READS[kind.key].model_validate({**read.model_dump(), DISCRIMINATOR: kind.key})
+
+
+router.post("/items", status_code=201, response_model=StationItemRead,
+            responses=errors(404, 409),
+            summary="Create a test-station item of any kind, named by station_kind "
+            "(operator; as its kind's own POST)")(
+    _typed(create_any, body=StationItemCreate))
 
 
 # ---- the simulator's flight: its plan and its report ---------------------------------------
@@ -194,4 +251,5 @@ def set_status(item_id: IdPath, body: InjectionStatus, session: SessionDep, _: O
 for _kind in KINDS:
     _add_kind(_kind)
 
-__all__ = ["router", "item_read", "truth_read", "FlightPlan", "FlightReport"]
+__all__ = ["router", "item_read", "truth_read", "FlightPlan", "FlightReport", "DISCRIMINATOR",
+           "StationItemCreate", "StationItemRead"]

@@ -19,13 +19,11 @@ from server.services import flights as flight_service
 from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
-from server.services import station, station_faults
+from server.services import station
 from server.services import urgency as urgency_rule
 from server.vocabulary import (
-    FAULT_MODES,
     OWN_FEATURE,
     POSITIONS,
-    PROGRESSIVE,
     SENSOR_OF_SIGNAL,
     STATION_LIVE,
 )
@@ -320,46 +318,27 @@ def _at(values: Any, i: int) -> Any:
 
 
 def station_view(*, session: Session, limit: int = 50) -> dict[str, Any]:
-    """The test station's latest fault injections, sensor injections and conditions, each
-    with its last ground truth, and the aircraft the forms offer."""
-    faults, total = station.list_(session=session, kind=station.FAULTS, tail=None,
-                                  status=None, limit=limit, offset=0)
+    """The aircraft the station's forms offer (``tails``) and, per kind of the registry (its
+    key), its latest items (``station_items``), each with its last ground truth."""
     aircraft, _ = fleet_service.list_aircraft(session=session, base=None, limit=1000, offset=0)
-    return {"items": _with_truth(session, station.FAULTS, faults, "injection",
-                                 warning=lambda row: _live_span_warning(session, row)),
-            "total": total, "tails": [a.tail for a in aircraft],
-            "positions": POSITIONS, "modes": FAULT_MODES, "progressive": PROGRESSIVE,
-            "sensor_items": _latest_with_truth(session, station.SENSORS, limit, "injection"),
-            "condition_items": _latest_with_truth(session, station.CONDITIONS, limit,
-                                                  "condition",
-                                                  what=station.describe_condition)}
+    return {"tails": [a.tail for a in aircraft],
+            "station_items": {kind.key: _latest_with_truth(session, kind, limit)
+                              for kind in station.KINDS}}
 
 
-def _live_span_warning(session: Session, row: Any) -> str | None:
-    """A live fault's time to failure outside the active model's training spans, in words."""
-    if row.status not in STATION_LIVE:
-        return None
-    return station_faults.span_warning(session=session, fault_mode=row.fault_mode,
-                                       time_to_failure_flights=row.time_to_failure_flights)
-
-
-def _with_truth(session: Session, kind: station.Kind, rows: list[tuple[Any, str]], name: str,
-                **extra: Any) -> list[dict[str, Any]]:
-    """Station items (``name``: the row), each with its tail, whether it is live and its
-    truth's count and last entry; ``extra`` maps more keys to functions of the row."""
+def _latest_with_truth(session: Session, kind: station.Kind, limit: int
+                       ) -> list[dict[str, Any]]:
+    """The latest items of ``kind`` (``item``), each with its tail, whether it is live, its
+    truth's count and last entry, and what an operator should know of it while it is live
+    (the kind's ``warnings``, e.g. a fault's span outside the active model's training)."""
+    rows, _ = station.list_(session=session, kind=kind, tail=None, status=None, limit=limit,
+                            offset=0)
     items = []
     for row, tail in rows:
         truth = station.list_truth(session=session, kind=kind, item_id=row.id)
-        items.append({name: row, "tail": tail, "truth_count": len(truth),
-                      "truth_latest": truth[-1] if truth else None,
-                      "live": row.status in STATION_LIVE,
-                      **{key: f(row) for key, f in extra.items()}})
+        live = row.status in STATION_LIVE
+        items.append({"item": row, "tail": tail, "truth_count": len(truth),
+                      "truth_latest": truth[-1] if truth else None, "live": live,
+                      "warnings": kind.warnings(session, row) if live and kind.warnings
+                      else []})
     return items
-
-
-def _latest_with_truth(session: Session, kind: station.Kind, limit: int, name: str,
-                       **extra: Any) -> list[dict[str, Any]]:
-    """The latest items of ``kind``, each with its last truth."""
-    rows, _ = station.list_(session=session, kind=kind, tail=None, status=None, limit=limit,
-                            offset=0)
-    return _with_truth(session, kind, rows, name, **extra)

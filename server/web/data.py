@@ -1,6 +1,6 @@
 """The dashboard pages' wording: what :mod:`server.services.dashboard` reads, in words and
-units, and what the pages show that is not in the database (the station forms' vocabulary and
-hints, the evaluation document beside the paper's Table 2).
+units, and what the pages show that is not in the database (the evaluation document beside the
+paper's Table 2; the station page's forms and tables: :mod:`server.web.station_sections`).
 
 Nothing here queries the database or touches the request: the read models come from the
 services (``server.services.dashboard``) and these functions take plain data.
@@ -12,23 +12,14 @@ import json
 import math
 import time
 from collections.abc import Iterable
-from functools import cache
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel
-
-from server.schemas import (
-    CONDITION_UNITS,
-    SENSOR_INJECTION_KINDS,
-)
-from server.services import station
 from server.services.evaluation_status import read_progress
 from server.services.health import SensorFlight
-from server.vocabulary import BASES, CONDITION_KINDS, PAPER_TABLE2, SENSORS
+from server.vocabulary import PAPER_TABLE2
 
-__all__ = ["actuator_view", "sensor_view", "finding_text", "condition_name", "station_forms",
-           "evaluation_view"]
+__all__ = ["actuator_view", "sensor_view", "finding_text", "condition_name", "evaluation_view"]
 
 
 def actuator_view(read: dict[str, Any]) -> dict[str, Any]:
@@ -100,40 +91,6 @@ def sensor_view(flights: Iterable[SensorFlight]) -> list[dict[str, Any]]:
                           + [outside_text(x) for x in f.outside_design]),
              "set_aside": f.set_aside, "widened": sorted(f.widened)}
             for f in flights]
-
-
-#: what the sensor form's value means for each kind (the bounds are the schema's, in its hint)
-SENSOR_KIND_LABELS = {"noise": "noise × factor", "drift": "drift per flight [m]",
-                      "quantisation": "quantisation step", "stuck": "stuck at",
-                      "clipped": "clipped at"}
-
-
-@cache  # the schemas' and the vocabulary's: fixed while the process runs
-def station_forms() -> dict[str, Any]:
-    """What the station page's forms offer: the API's vocabulary, and hints and bounds from
-    each kind's schema (the server validates with the same schemas), by the kind's form."""
-    return {"sensors": SENSORS, "bases": BASES,
-            "sensor_kinds": {k: SENSOR_KIND_LABELS.get(k, k) for k in SENSOR_INJECTION_KINDS},
-            "condition_kinds": {k: _condition_label(k) for k in CONDITION_KINDS},
-            "hints": {kind.form: _hints(kind.spec) for kind in station.KINDS},
-            "onset": {kind.form: _int_bounds(kind.spec, "onset_flight")
-                      for kind in station.KINDS}}
-
-
-def _condition_label(kind: str) -> str:
-    unit = CONDITION_UNITS.get(kind)
-    return kind.replace("_", " ") + (f" [{unit}]" if unit else "")
-
-
-def _hints(schema: type[BaseModel]) -> dict[str, str]:
-    return {name: f.description for name, f in schema.model_fields.items() if f.description}
-
-
-def _int_bounds(schema: type[BaseModel], name: str) -> dict[str, int]:
-    """A field's bounds in the API's JSON schema as an input's ``min`` / ``max`` (the
-    browser's first check; the server's is the schema itself)."""
-    field = schema.model_json_schema()["properties"][name]
-    return {"min": field["minimum"], "max": field["maximum"]}
 
 
 def evaluation_view(*, data_dir: Path) -> dict[str, Any]:

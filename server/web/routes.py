@@ -57,7 +57,7 @@ from server.services import health as health_service
 from server.services import maintenance as maintenance_service
 from server.services import models as model_service
 from server.vocabulary import FEATURE_LABELS, MODE_NAMES, AlarmStatus
-from server.web import data, figures
+from server.web import data, figures, station_sections
 
 __all__ = ["router", "COOKIE", "STATIC_DIR", "TEMPLATE_DIR", "csrf_token"]
 
@@ -425,9 +425,10 @@ def _station(request: Request, session: SessionDep, key: ApiKey, status_code: in
              form: dict[str, str] | None = None) -> HTMLResponse:
     """The station page; after a refused post, its error beside the form that ``failed``
     (``fault``, ``sensor``, ``condition``; None: a cancel) with what was typed in it."""
+    view = dashboard.station_view(session=session)
     return _render(request, "test_station.html", key, status_code=status_code, error=error,
                    failed=failed, forms={failed: form or {}} if failed else {},
-                   **dashboard.station_view(session=session), **data.station_forms())
+                   sections=station_sections.sections(view["station_items"], view["tails"]))
 
 
 async def _form_fields(request: Request) -> dict[str, str]:
