@@ -395,6 +395,9 @@ class Alarm(Base):
     raised_fault_mode: Mapped[str | None] = mapped_column(String(16),
                                                           default=_class_at_insert)
     class_probability: Mapped[float | None] = mapped_column(Float)
+    #: the class once the evidence confirmed it (server.phm.classification.confirmation);
+    #: null while it is provisional
+    confirmed_fault_mode: Mapped[str | None] = mapped_column(String(16))
     features: Mapped[list[str]] = mapped_column(JSON, default=list)
     #: the units the alarm may belong to, position -> probability (the ambiguity group: both
     #: winglet drives when it rests on a pair-coupled feature alone); null on alarms raised
@@ -416,8 +419,9 @@ class Alarm(Base):
 
 
 #: what can happen to an alarm after it was raised, each recorded as its own row:
-#: ``class_change``: the leading fault class changed (``from_mode`` -> ``to_mode``)
-ALARM_EVENT_KINDS = ("class_change",)
+#: ``class_change``: the leading fault class changed (``from_mode`` -> ``to_mode``);
+#: ``confirmed``: the evidence confirmed the class (``to_mode``)
+ALARM_EVENT_KINDS = ("class_change", "confirmed")
 
 
 class AlarmEvent(Base):

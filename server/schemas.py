@@ -799,6 +799,9 @@ class AlarmRead(BaseModel):
     raised_fault_mode: str | None = Field(description="the leading class when the alarm was "
                                           "raised; later changes are its events")
     class_probability: float | None
+    confirmed_fault_mode: str | None = Field(
+        default=None, description="the class once the evidence confirmed it (the leading class "
+        "on consecutive flights at a high enough probability); null while it is provisional")
     features: list[str]
     isolation: dict[str, float] | None = Field(
         default=None, description="the units the alarm may belong to, position -> "
@@ -824,6 +827,7 @@ class AlarmEventRead(BaseModel):
     model_config = ConfigDict(from_attributes=True)
     alarm_id: int
     kind: str = Field(description="class_change: the leading class went from from_mode to "
+                      "to_mode on this flight; confirmed: the evidence confirmed the class "
                       "to_mode on this flight")
     flight_id: int | None
     flight_index: int | None

@@ -35,6 +35,7 @@ def alarm_read(row: service.AlarmRow) -> AlarmRead:
                      act_within_flights=None if u is None else u.within_flights,
                      confidence=alarm.confidence, fault_mode=alarm.fault_mode,
                      raised_fault_mode=alarm.raised_fault_mode, isolation=alarm.isolation,
+                     confirmed_fault_mode=alarm.confirmed_fault_mode,
                      class_probability=alarm.class_probability, features=alarm.features,
                      rul_median_flights=row.rul_median, rul_low_flights=row.rul_low,
                      created_at=alarm.created_at,

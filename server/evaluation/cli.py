@@ -152,8 +152,9 @@ def write_outputs(result: dict[str, Any], out_dir: Path, *, latest: Path | None)
     tables = markdown_tables(result)
     md = out_dir / "summary.md"
     md.write_text("\n\n".join(tables[k] for k in ("detection", "at_first_alarm",
-                                                   "at_last_flight", "prognosis",
-                                                   "prognosis_most_probable", "timing"))
+                                                   "at_confirmation", "at_last_flight",
+                                                   "prognosis", "prognosis_most_probable",
+                                                   "timing") if k in tables)
                   + "\n", encoding="utf-8")
     written.append(md)
     if latest is not None:
@@ -235,6 +236,9 @@ def _print_summary(result: dict[str, Any]) -> None:
     print()
     print(t["at_first_alarm"])
     print()
+    if "at_confirmation" in t:
+        print(t["at_confirmation"])
+        print()
     print(t["at_last_flight"])
     print()
     print(t["prognosis"])

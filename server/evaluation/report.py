@@ -230,6 +230,18 @@ def _isolation(det: Mapping[str, Any]) -> list[str]:
     return ["", text + "."]
 
 
+def _confirmation_line(cls: Mapping[str, Any]) -> str:
+    """The rule and the flights from the first alarm to confirmation."""
+    rule, d = cls["confirmation_rule"], cls["flights_to_confirmation"]
+    said = (f"Confirmed when the leading class led {rule['flights']} classified flights in a "
+            f"row at a probability of {rule['probability']:.2f} or more: {d['confirmed']} "
+            f"detected faults confirmed, {d['unconfirmed']} never")
+    if d["mean"] is None:
+        return said + "."
+    return (said + f"; flights from the first alarm to confirmation mean {d['mean']:.1f}, "
+            f"90th percentile {d['p90']:.0f}, max {d['max']:.0f}.")
+
+
 def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
     """Markdown tables: detection, confusion (first alarm, last flight), prognosis (median
     and most probable RUL), timing. Means as "mean [lo, hi]", the 90 % bootstrap interval
@@ -260,7 +272,10 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
                       f"and figure, flights: {named}."]
     out = {"detection": "\n".join(lines)}
     for key, title in (("at_first_alarm", "at the first alarm"),
+                       ("at_confirmation", "at confirmation"),
                        ("at_last_flight", "at the last flight")):
+        if key not in result["classification"]:  # evaluations before it was kept
+            continue
         c = result["classification"][key]
         cols = c["columns"]
         t = [f"Classification {title} (rows: true mode, columns: predicted; accuracy "
@@ -271,6 +286,8 @@ def markdown_tables(result: Mapping[str, Any]) -> dict[str, str]:
             pc = c["per_class"][row]
             t.append(f"| {row} | " + " | ".join(str(v) for v in vals) +
                      f" | {_ci(pc['recall'], pc.get('recall_ci'), '.0f', 100.0)} |")
+        if key == "at_confirmation":
+            t += ["", _confirmation_line(result["classification"])]
         cal = (result["classification"].get("probability_calibration") or {}).get(key)
         if cal and cal["n"]:
             t += ["", f"Shown probability of the leading class: mean "
@@ -378,6 +395,8 @@ def write_html_report(result: Mapping[str, Any], path: Path, *,
         f"{html.escape(str(model.get('source', '-')))}.</p>",
         "<h2>Detection</h2>", _md_to_html_table(tables["detection"]),
         "<h2>Classification</h2>", _md_to_html_table(tables["at_first_alarm"]),
+        *([_md_to_html_table(tables["at_confirmation"])] if "at_confirmation" in tables
+          else []),
         _md_to_html_table(tables["at_last_flight"]),
         "<h2>Prognosis (paper Table 2)</h2>", _md_to_html_table(tables["prognosis"]),
         _md_to_html_table(tables["prognosis_most_probable"]),

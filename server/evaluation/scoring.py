@@ -33,12 +33,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import asdict
 from typing import Any
 
 import numpy as np
 
 from server.phm import metrics
 from server.phm.classification import confusion as count_confusion
+from server.phm.classification.confirmation import (
+    CONFIRMATION,
+    ConfirmationRule,
+    first_confirmation,
+)
 from server.phm.prognosis.document import rul_point, rul_quantile
 from server.vocabulary import PAPER_TABLE2, PROGRESSIVE, alarming_positions
 
@@ -212,14 +218,46 @@ def confusion(true: Sequence[str], predicted: Sequence[str], classes: Sequence[s
             "per_class": per_class}
 
 
+UNCONFIRMED = "unconfirmed"
+
+
+def confirmation_of(trace: Mapping[str, Any], detected: int | None,
+                    rule: ConfirmationRule = CONFIRMATION) -> tuple[str, int | None]:
+    """The faulty unit's class at confirmation and the flights from its first alarm to it
+    (:mod:`server.phm.classification.confirmation` on the probabilities the trace kept)."""
+    if detected is None:
+        return UNDETECTED, None
+    flights = [f for f in trace["flights"] if int(f["index"]) >= detected]
+    found = first_confirmation(rule, [f["probs"] for f in flights])
+    if found is None:
+        return UNCONFIRMED, None
+    i, mode = found
+    return mode, int(flights[i]["index"]) - detected
+
+
+def confirmation_delays(delays: Sequence[int | None]) -> dict[str, Any]:
+    """Flights from the first alarm to confirmation: mean, 90th percentile, how many."""
+    d = np.array([x for x in delays if x is not None], dtype=float)
+    return {"confirmed": int(d.size), "unconfirmed": sum(x is None for x in delays),
+            "mean": float(d.mean()) if d.size else None,
+            "p90": float(np.percentile(d, 90)) if d.size else None,
+            "max": float(d.max()) if d.size else None}
+
+
 def classification_summary(traces: Sequence[Mapping[str, Any]], classes: Sequence[str]
                            ) -> dict[str, Any]:
     faulty = [t for t in traces if t["mode"] != "healthy"]
     dets = [detection_of(t) for t in faulty]
     true = [t["mode"] for t in faulty]
+    confirmed = [confirmation_of(t, d["detected_index"]) for t, d in zip(faulty, dets,
+                                                                          strict=True)]
+    detected = [c for c in confirmed if c[0] != UNDETECTED]
     return {"classes": list(classes),
             "at_first_alarm": confusion(true, [_argmax(d["first_probs"]) for d in dets],
                                         classes),
+            "at_confirmation": confusion(true, [m for m, _ in confirmed], classes),
+            "confirmation_rule": asdict(CONFIRMATION),
+            "flights_to_confirmation": confirmation_delays([k for _, k in detected]),
             "at_last_flight": confusion(true, [_argmax(d["last_probs"]) for d in dets], classes),
             "probability_calibration": {
                 "at_first_alarm": probability_calibration(

@@ -268,16 +268,19 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
                  rul: RulDistribution | None) -> None:
     """A new alarm is opened (its class at raising kept: ``Alarm.raised_fault_mode``); an
     open one follows the actuator's latest class and RUL, each change of its leading class
-    recorded as an alarm event."""
+    recorded as an alarm event, and so is the flight that confirmed its class."""
     prob = (out.class_probabilities or {}).get(out.fault_mode or "")
     median = None if rul is None or not math.isfinite(rul.median) else float(rul.median)
     low = None if rul is None else _finite(rul.quantiles.get(RUL_LOW_QUANTILE))
     if out.new_alarm:
-        session.add(Alarm(actuator_id=act.id, flight_id=flight.id, status=AlarmStatus.OPEN,
-                          confidence=out.max_confidence, fault_mode=out.fault_mode,
-                          class_probability=prob, features=out.alarm_features,
-                          isolation=out.isolation or None,
-                          rul_median_flights=median, rul_low_flights=low))
+        alarm = Alarm(actuator_id=act.id, flight_id=flight.id, status=AlarmStatus.OPEN,
+                      confidence=out.max_confidence, fault_mode=out.fault_mode,
+                      class_probability=prob, features=out.alarm_features,
+                      isolation=out.isolation or None,
+                      rul_median_flights=median, rul_low_flights=low)
+        session.add(alarm)
+        session.flush()
+        _confirm_class(session, flight, alarm, out)
     elif out.alarm:
         open_alarm = session.scalar(select(Alarm).where(
             Alarm.actuator_id == act.id, Alarm.status != AlarmStatus.CLOSED)
@@ -293,7 +296,20 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
             open_alarm.confidence = max(open_alarm.confidence, out.max_confidence)
             open_alarm.rul_median_flights = median
             open_alarm.rul_low_flights = low
+            _confirm_class(session, flight, open_alarm, out)
     session.flush()
+
+
+def _confirm_class(session: Session, flight: Flight, alarm: Alarm, out: ActuatorOutcome
+                   ) -> None:
+    """The flight that confirmed the alarm's class (``out.confirmed``): kept on the alarm and
+    as its own event."""
+    if out.confirmed is None or alarm.confirmed_fault_mode is not None:
+        return
+    alarm.confirmed_fault_mode = out.confirmed
+    session.add(AlarmEvent(alarm_id=alarm.id, flight_id=flight.id,
+                           flight_index=out.flight_index, kind="confirmed",
+                           to_mode=out.confirmed))
 
 
 def _finite(v: float | None) -> float | None:

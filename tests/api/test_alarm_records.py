@@ -22,12 +22,13 @@ from tests.api.conftest import auth
 from tests.web.seed import add_alarm, rul_document
 
 
-def _outcome(mode: str | None, *, new: bool, index: int) -> SimpleNamespace:
+def _outcome(mode: str | None, *, new: bool, index: int, confirmed: str | None = None
+             ) -> SimpleNamespace:
     """The parts of a chain outcome ``_store_alarm`` reads."""
     return SimpleNamespace(new_alarm=new, alarm=True, fault_mode=mode, flight_index=index,
                            class_probabilities={mode: 0.8} if mode else None,
                            max_confidence=0.99, alarm_features=["WT.F_MTEL"],
-                           isolation={"WT": 1.0} if new else {})
+                           isolation={"WT": 1.0} if new else {}, confirmed=confirmed)
 
 
 def _alarm_item(client: TestClient, keys: dict[str, str], alarm_id: int) -> dict:
@@ -87,13 +88,20 @@ def test_an_alarm_keeps_its_class_at_raising_and_records_changes_as_events(  # t
         analysis._store_alarm(s, flight, act, _outcome("MTEL", new=False, index=31), None)
         analysis._store_alarm(s, flight, act, _outcome("DMD", new=False, index=32), None)
         alarm_id = s.scalar(select(Alarm.id).where(Alarm.actuator_id == act_id))
+    item = _alarm_item(client, keys, alarm_id)
+    assert item["confirmed_fault_mode"] is None  # provisional
+    with session_scope(factory) as s:
+        analysis._store_alarm(s, flight, act, _outcome("DMD", new=False, index=33,
+                                                       confirmed="DMD"), None)
 
     item = _alarm_item(client, keys, alarm_id)
     assert (item["raised_fault_mode"], item["fault_mode"]) == ("MTEL", "DMD")
+    assert (item["confirmed_fault_mode"], item["isolation"]) == ("DMD", {"WT": 1.0})
     events = client.get(f"/api/v1/alarms/{alarm_id}/events", headers=auth(keys["viewer"]))
     assert events.status_code == 200, events.text
     assert [(e["kind"], e["from_mode"], e["to_mode"], e["flight_index"])
-            for e in events.json()] == [("class_change", "MTEL", "DMD", 32)]
+            for e in events.json()] == [("class_change", "MTEL", "DMD", 32),
+                                        ("confirmed", None, "DMD", 33)]
     assert client.get("/api/v1/alarms/99999/events",
                       headers=auth(keys["viewer"])).status_code == 404
 

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..baselines import OutsideDesign
+from ..classification.confirmation import CONFIRMATION, advance
 from ..detection import DetectionResult, update_units
 from ..features import FlightFeatures
 from ..prognosis import RulDistribution
@@ -63,6 +64,9 @@ class ActuatorOutcome:
     #: on a new alarm, the units it may belong to with their probabilities
     #: (``DetectionResult.isolation``)
     isolation: dict[str, float] = field(default_factory=dict)
+    #: the mode the alarm's class was confirmed as on this flight (None: no confirmation
+    #: now; server.phm.classification.confirmation)
+    confirmed: str | None = None
 
 
 def analyze_flight(model: PhmModel, features: FlightFeatures,
@@ -118,10 +122,12 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         del h.history[:-CHAIN.history_flights]
         with timed("classification"):
             probs = _classify(model, h, position) if det.alarm else None
+            confirmed = _confirm(h, probs)
         with timed("prognosis"):
             rul = (prognose(model, h, generic, position, index, base=base, seed=seed)
                    if det.alarm else None)
         out[position] = _outcome(features, z_all, det, h, position, index, probs, rul)
+        out[position].confirmed = confirmed
         if judged is not None:
             _note_sensors(out[position], judged, position)
         _note_outside(out[position], outside, position)
@@ -215,6 +221,18 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
         h.fault_mode = mode
         h.prognosis = None
     return probs
+
+
+def _confirm(h: ActuatorHealth, probs: dict[str, float] | None) -> str | None:
+    """Advance the confirmation rule on a classified flight; the mode it confirms on this
+    flight (once per alarm), else None."""
+    if not probs or h.confirmed_mode is not None:
+        return None
+    h.class_lead, h.class_run, held = advance(CONFIRMATION, h.class_lead, h.class_run, probs)
+    if held:
+        h.confirmed_mode = h.class_lead
+        return h.confirmed_mode
+    return None
 
 
 def _finite(v: float) -> float | None:

@@ -28,6 +28,11 @@ class ActuatorHealth:
     #: pooled as their weighted mean (chain.run._classify); None with no evidence yet
     class_weight: float | None = None
     fault_mode: str | None = None
+    #: the confirmation rule's run (server.phm.classification.confirmation): the mode that
+    #: led the last classified flight, for how many in a row, and the mode once confirmed
+    class_lead: str | None = None
+    class_run: int = 0
+    confirmed_mode: str | None = None
     prognosis: dict[str, Any] | None = None
     history: list[tuple[int, dict[str, float]]] = field(default_factory=list)
     #: take-off time (ISO 8601) of the last flight analysed and the aircraft's flying rate
@@ -46,6 +51,9 @@ class ActuatorHealth:
         self.class_log_prob = None
         self.class_weight = None
         self.fault_mode = None
+        self.class_lead = None
+        self.class_run = 0
+        self.confirmed_mode = None
         self.prognosis = None
 
     def to_dict(self) -> dict[str, Any]:
@@ -53,7 +61,8 @@ class ActuatorHealth:
                 "detection": self.detection.to_dict(), "flights_seen": self.flights_seen,
                 "alarm_index": self.alarm_index,
                 "class_log_prob": self.class_log_prob, "class_weight": self.class_weight,
-                "fault_mode": self.fault_mode,
+                "fault_mode": self.fault_mode, "class_lead": self.class_lead,
+                "class_run": self.class_run, "confirmed_mode": self.confirmed_mode,
                 "prognosis": self.prognosis,
                 "history": [[i, z] for i, z in self.history],
                 "last_started_at": self.last_started_at,
@@ -71,7 +80,9 @@ class ActuatorHealth:
                    flights_seen=int(d["flights_seen"]),
                    alarm_index=None if d.get("alarm_index") is None else int(d["alarm_index"]),
                    class_log_prob=d.get("class_log_prob"), class_weight=d.get("class_weight"),
-                   fault_mode=d.get("fault_mode"),
+                   fault_mode=d.get("fault_mode"), class_lead=d.get("class_lead"),
+                   class_run=int(d.get("class_run") or 0),
+                   confirmed_mode=d.get("confirmed_mode"),
                    prognosis=d.get("prognosis"),
                    history=[(int(i), {k: float(v) for k, v in z.items()})
                             for i, z in d.get("history", [])] if keep_history else [],

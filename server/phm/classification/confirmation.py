@@ -1,0 +1,67 @@
+"""When an alarm's class is confirmed: provisional at the first alarm, confirmed once the
+evidence has said the same for long enough.
+
+The classifier names a leading mode on every flight from the alarm on (its probabilities
+pooled over the flights since, ``server.phm.chain.run``). The rule confirms the leading mode
+when it has led on ``flights`` consecutive classified flights and its probability on the last
+of them is at least ``probability``: a second flight of evidence for a step fault, a margin
+for a slow one. The alarm is raised at the first flight either way; the confirmation is its own
+event. One function serves the chain (flight by flight, :func:`advance`) and the evaluation
+(whole sequences, :func:`first_confirmation`), so the two cannot disagree.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+__all__ = ["ConfirmationRule", "CONFIRMATION", "advance", "first_confirmation", "leading"]
+
+
+@dataclass(frozen=True)
+class ConfirmationRule:
+    #: consecutive classified flights the mode must lead
+    flights: int = 2
+    #: its pooled probability on the last of them, at least
+    probability: float = 0.9
+
+    def __post_init__(self) -> None:
+        if self.flights < 1 or not 0.0 <= self.probability <= 1.0:
+            raise ValueError("a confirmation needs at least one flight and a probability "
+                             "in [0, 1]")
+
+
+#: the rule the service runs (first cut: not yet chosen on design seeds; docs/TUNING.md)
+CONFIRMATION = ConfirmationRule()
+
+
+def leading(probs: Mapping[str, float]) -> str:
+    """The leading mode of one flight's probabilities (ties: the first in order)."""
+    return max(probs, key=lambda c: probs[c])
+
+
+def advance(rule: ConfirmationRule, lead: str | None, run: int,
+            probs: Mapping[str, float]) -> tuple[str, int, bool]:
+    """One classified flight: ``(leading mode, flights it has led in a row, whether the rule
+    holds now)``, from the previous flight's ``lead`` and ``run``."""
+    mode = leading(probs)
+    run = run + 1 if mode == lead else 1
+    return mode, run, run >= rule.flights and probs[mode] >= rule.probability
+
+
+def first_confirmation(rule: ConfirmationRule,
+                       sequence: Sequence[Mapping[str, float] | None]
+                       ) -> tuple[int, str] | None:
+    """The position in ``sequence`` (one flight's probabilities each, from the alarm on; None
+    where a flight was not classified, which breaks a run) and the mode of the first
+    confirmation; None if the rule never holds."""
+    lead: str | None = None
+    run = 0
+    for i, probs in enumerate(sequence):
+        if not probs:
+            lead, run = None, 0
+            continue
+        lead, run, held = advance(rule, lead, run, probs)
+        if held:
+            return i, lead
+    return None
