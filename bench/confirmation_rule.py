@@ -6,8 +6,9 @@ so each setting is scored from ``evaluation.json`` files in seconds, without run
 again. For every setting of the grid: classification at confirmation (share right over the
 detected faults, exact 90 % interval), faults never confirmed, and the flights from the first
 alarm to confirmation (mean, 90th percentile). The choice: the fewest mean flights among the
-settings whose share right has its lower bound at or above ``--target`` (the issue's 98 %
-at confirmation) and that confirm every detected fault.
+settings whose share right is at or above ``--target`` (98 % at confirmation) and that confirm
+every detected fault. Its interval is reported, not required above the target: a lower 90 %
+bound of 98 % needs about 150 patterns, all right.
 
     python bench/confirmation_rule.py EVAL_DIR [EVAL_DIR ...] [--target 0.98] [--out F.json]
 
@@ -77,8 +78,8 @@ def main() -> None:
         p90 = "-" if r["p90"] is None else f"{r['p90']:.0f}"
         print(f"| {r['flights']} | {r['probability']} | {r['right']} / {r['confirmed']} | "
               f"{share} | {r['unconfirmed']} | {mean} | {p90} |")
-    ok = [r for r in rows if r["unconfirmed"] == 0 and r["interval"] is not None
-          and r["interval"][0] >= args.target]
+    ok = [r for r in rows if r["unconfirmed"] == 0 and r["share"] is not None
+          and r["share"] >= args.target]
     chosen = min(ok, key=lambda r: (r["mean"], r["flights"], r["probability"])) if ok else None
     print(f"chosen: {chosen and (chosen['flights'], chosen['probability'])} "
           f"on {len(traces)} fault patterns")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
-from sqlalchemy import create_engine, inspect
+from sqlalchemy import Engine, create_engine, inspect
 
 from server.config import Settings
 from server.migrate import downgrade, head_revision, upgrade
@@ -379,6 +379,22 @@ def test_station_items_hold_their_status_to_the_vocabulary_from_0015(
     upgrade(url)  # leave it at head for the next test on this database
 
 
+def _one_actuator_at(url: str, revision: str, position: str) -> Engine:
+    """A fresh database at ``revision`` holding aircraft 1 with actuator 1 at ``position``."""
+    import sqlalchemy as sa
+
+    downgrade(url, "base")
+    upgrade(url, revision)
+    engine = create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
+                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
+        conn.execute(sa.text("INSERT INTO actuators (id, aircraft_id, position, serial, "
+                             "installed_at) VALUES (1, 1, :p, 'S-MIG', CURRENT_TIMESTAMP)"),
+                     {"p": position})
+    return engine
+
+
 def _alarm_and_version(conn, id_: int, alarm: str, version: str) -> None:  # type: ignore[no-untyped-def]
     """An alarm ``id_`` on its own flight ``id_`` of actuator 1, and a model version ``id_``."""
     import sqlalchemy as sa
@@ -406,14 +422,8 @@ def test_alarm_and_model_statuses_held_to_the_vocabulary_from_0016(settings: Set
     from server.vocabulary import AlarmStatus, ModelVersionStatus
 
     url = _fresh_url(settings)
-    downgrade(url, "base")
-    upgrade(url, "0015")
-    engine = create_engine(url)
+    engine = _one_actuator_at(url, "0015", "WT")
     with engine.begin() as conn:
-        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
-                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
-        conn.execute(sa.text("INSERT INTO actuators (id, aircraft_id, position, serial, "
-                             "installed_at) VALUES (1, 1, 'WT', 'S-MIG', CURRENT_TIMESTAMP)"))
         for i, (alarm, version) in enumerate(zip(AlarmStatus, ModelVersionStatus, strict=True),
                                              start=1):
             _alarm_and_version(conn, i, alarm, version)  # every status the code writes
@@ -521,14 +531,8 @@ def test_an_alarm_keeps_its_ambiguity_group_from_0018(settings: Settings) -> Non
     from sqlalchemy.exc import IntegrityError
 
     url = _fresh_url(settings)
-    downgrade(url, "base")
-    upgrade(url, "0017")
-    engine = create_engine(url)
+    engine = _one_actuator_at(url, "0017", "WL1")
     with engine.begin() as conn:
-        conn.execute(sa.text("INSERT INTO aircraft (id, tail, base, created_at) "
-                             "VALUES (1, 'I-MIG', 'Turin', CURRENT_TIMESTAMP)"))
-        conn.execute(sa.text("INSERT INTO actuators (id, aircraft_id, position, serial, "
-                             "installed_at) VALUES (1, 1, 'WL1', 'S-MIG', CURRENT_TIMESTAMP)"))
         _alarm_and_version(conn, 1, "open", "ready")
     upgrade(url)
     group = {"WL1": 0.8, "WL2": 0.2}

@@ -105,7 +105,7 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
             "new_alarms": sorted(p for p, v in out.items() if v.new_alarm),
             # the features each new alarm was raised on, for tracing false alarms by feature
             "raised_on": {p: list(v.alarm_features) for p, v in out.items() if v.new_alarm},
-            # the units each new alarm named, with their probabilities (isolation)
+            # the units each new alarm named at raising, with their probabilities (isolation)
             "isolation": {p: dict(v.isolation) for p, v in out.items() if v.new_alarm},
             "alarm": bool(o.alarm) if o is not None else None,
             "probs": dict(o.class_probabilities) if o is not None and o.class_probabilities

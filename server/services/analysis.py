@@ -267,8 +267,8 @@ def _store_prognosis(session: Session, flight: Flight, act: Actuator, out: Actua
 def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome,
                  rul: RulDistribution | None) -> None:
     """A new alarm is opened (its class at raising kept: ``Alarm.raised_fault_mode``); an
-    open one follows the actuator's latest class and RUL, each change of its leading class
-    recorded as an alarm event, and so is the flight that confirmed its class."""
+    open one follows the actuator's latest class, RUL and ambiguity group, each change of its
+    leading class recorded as an alarm event, and so is the flight that confirmed its class."""
     prob = (out.class_probabilities or {}).get(out.fault_mode or "")
     median = None if rul is None or not math.isfinite(rul.median) else float(rul.median)
     low = None if rul is None else _finite(rul.quantiles.get(RUL_LOW_QUANTILE))
@@ -296,6 +296,7 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
             open_alarm.confidence = max(open_alarm.confidence, out.max_confidence)
             open_alarm.rul_median_flights = median
             open_alarm.rul_low_flights = low
+            open_alarm.isolation = out.isolation or open_alarm.isolation
             _confirm_class(session, flight, open_alarm, out)
     session.flush()
 

@@ -65,7 +65,7 @@ def test_the_judge_raises_a_friction_alarm_with_both_drives_named(faulty: str) -
     names = ["WL1.F_MTEL", "WL2.F_MTEL"]
     det = FaultDetector().fit([rng.standard_normal((200, 2)) for _ in range(8)], names)
     states = {u: DetectionState.new(u, [f"{u}.F_MTEL"]) for u in ("WL1", "WL2")}
-    raised = {}
+    raised, last = {}, {}
     for k in range(300):
         active = "WL1" if k % 2 == 0 else "WL2"
         rise = 0.05 * max(k - 20, 0) * (1.0 if active == faulty else PAIR_COUPLING)
@@ -74,8 +74,11 @@ def test_the_judge_raises_a_friction_alarm_with_both_drives_named(faulty: str) -
         for u, r in update_units(det, states, z).items():
             if r.new_alarm:
                 raised[u] = r.isolation
-            else:
-                assert r.isolation == {}
+            assert bool(r.isolation) == r.alarm  # a group while the alarm stands, none before
+            if r.alarm:
+                last[u] = r.isolation
     assert list(raised) == [faulty]
     group = raised[faulty]
     assert set(group) == {"WL1", "WL2"} and group[faulty] > 0.5
+    # as the fault grows the two drives' levels part: the group grows surer
+    assert last[faulty][faulty] >= group[faulty] and last[faulty][faulty] > 0.99

@@ -61,7 +61,7 @@ class ActuatorOutcome:
     #: this actuator's conditions far outside the design's (OutsideDesign.to_dict): their
     #: features are in ``set_aside``
     outside_design: list[dict[str, Any]] = field(default_factory=list)
-    #: on a new alarm, the units it may belong to with their probabilities
+    #: while in alarm, the units it may belong to with their probabilities on this flight
     #: (``DetectionResult.isolation``)
     isolation: dict[str, float] = field(default_factory=dict)
     #: the mode the alarm's class was confirmed as on this flight (None: no confirmation

@@ -20,9 +20,10 @@ window keeps the raw value, for step faults.
 
 The unit alarms when ``c`` of one of its features reaches ``alarm_confidence``, unless the
 winglet pair's rule (:mod:`.pair`) leaves that feature's evidence to the partner drive: every
-unit of the flight is observed first, then the alarms are decided. A new alarm names the units
-it may belong to with their probabilities (``DetectionResult.isolation``): its own unit alone,
-or both winglet drives when it rests on a coupled feature alone (:func:`.pair.isolation_of`).
+unit of the flight is observed first, then the alarms are decided. An alarm names the units it
+may belong to with their probabilities (``DetectionResult.isolation``, on every flight it
+stands, from that flight's levels): its own unit alone, or both winglet drives when it rests on
+a coupled feature alone (:func:`.pair.isolation_of`).
 The alarm latches until maintenance: a replaced actuator gets a fresh state
 (:meth:`DetectionState.reset`).
 
@@ -80,7 +81,7 @@ def update_units(detector: FaultDetector, states: Mapping[str, DetectionState],
     counts = {u: {f: len(st.history.get(f, ())) for f in seen[u].level}
               for u, st in states.items()}
     return {u: replace(r, isolation=isolation_of(u, r.alarm_features, levels, counts))
-            if r.new_alarm else r for u, r in out.items()}
+            if r.alarm else r for u, r in out.items()}
 
 
 def observe(detector: FaultDetector, state: DetectionState, z: Mapping[str, float],

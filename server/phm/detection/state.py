@@ -85,8 +85,9 @@ class DetectionResult:
     #: features whose evidence was left to the partner drive this flight
     #: (:func:`~server.phm.detection.pair.partner_held`)
     held: list[str] = field(default_factory=list)
-    #: on a new alarm, the units it may belong to and the probability of each (the ambiguity
-    #: group, :func:`~server.phm.detection.pair.isolation_of`); empty otherwise
+    #: while the unit is in alarm, the units the alarm may belong to and the probability of
+    #: each on this flight (the ambiguity group,
+    #: :func:`~server.phm.detection.pair.isolation_of`); empty otherwise
     isolation: dict[str, float] = field(default_factory=dict)
 
 
