@@ -42,7 +42,7 @@ def _traces(dirs: list[Path]) -> list[dict[str, Any]]:
     traces = []
     for d in dirs:
         doc = json.loads((d / "evaluation.json").read_text(encoding="utf-8"))
-        traces += [t for t in doc["traces"] if t["mode"] != "healthy"]
+        traces += [t for t in doc["patterns"] if t["mode"] != "healthy"]
     return traces
 
 
