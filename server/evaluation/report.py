@@ -235,7 +235,9 @@ def _confirmation_line(cls: Mapping[str, Any]) -> str:
     rule, d = cls["confirmation_rule"], cls["flights_to_confirmation"]
     said = (f"Confirmed when the leading class led {rule['flights']} classified flights in a "
             f"row at a probability of {rule['probability']:.2f} or more: {d['confirmed']} "
-            f"detected faults confirmed, {d['unconfirmed']} never")
+            f"detected faults confirmed, {d['unconfirmed']} never"
+            + (f" ({d['ended_before_due']} of them: the pattern ended first)"
+               if d.get("ended_before_due") else ""))
     if d["mean"] is None:
         return said + "."
     return (said + f"; flights from the first alarm to confirmation mean {d['mean']:.1f}, "

@@ -60,6 +60,8 @@ N_PREDICTIONS = 10
 POINT_ESTIMATE = "median"
 _POINT_ESTIMATES = ("median", "mode")
 UNDETECTED = "undetected"
+#: a detected fault whose class the rule never confirmed (a column of its own)
+UNCONFIRMED = "unconfirmed"
 
 
 def expected_units(mode: str, position: str | None, pair_rod_ends: bool = False) -> set[str]:
@@ -183,14 +185,15 @@ def _mode_detection(rows: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]]
     return out
 
 
-def confusion(true: Sequence[str], predicted: Sequence[str], classes: Sequence[str]
-              ) -> dict[str, Any]:
-    """Confusion matrix (rows true, columns predicted + ``undetected``) and per-class rates.
+def confusion(true: Sequence[str], predicted: Sequence[str], classes: Sequence[str],
+              extra: Sequence[str] = ()) -> dict[str, Any]:
+    """Confusion matrix (rows true, columns predicted + ``extra`` + ``undetected``) and
+    per-class rates; ``extra``: other outcomes with a column of their own (``unconfirmed``).
 
     ``accuracy_ci`` and each class's ``recall_ci`` (the accuracy on that true mode) are
     bootstrap intervals over the rows (patterns); precision has none.
     """
-    cols = [*classes, UNDETECTED]
+    cols = [*classes, *extra, UNDETECTED]
     rows = [c for c in classes if c in set(true)] + sorted(set(true) - set(classes))
     # counted by the classifier's report (the one owner of the matrix) over every label of
     # either axis; this view keeps the true modes seen as rows and the undetected column
@@ -218,9 +221,6 @@ def confusion(true: Sequence[str], predicted: Sequence[str], classes: Sequence[s
             "per_class": per_class}
 
 
-UNCONFIRMED = "unconfirmed"
-
-
 def confirmation_of(trace: Mapping[str, Any], detected: int | None,
                     rule: ConfirmationRule = CONFIRMATION) -> tuple[str, int | None]:
     """The faulty unit's class at confirmation and the flights from its first alarm to it
@@ -233,6 +233,10 @@ def confirmation_of(trace: Mapping[str, Any], detected: int | None,
         return UNCONFIRMED, None
     i, mode = found
     return mode, int(flights[i]["index"]) - detected
+
+
+def _flights_from(trace: Mapping[str, Any], index: int | None) -> int:
+    return 0 if index is None else sum(int(f["index"]) >= index for f in trace["flights"])
 
 
 def confirmation_delays(delays: Sequence[int | None]) -> dict[str, Any]:
@@ -255,9 +259,16 @@ def classification_summary(traces: Sequence[Mapping[str, Any]], classes: Sequenc
     return {"classes": list(classes),
             "at_first_alarm": confusion(true, [_argmax(d["first_probs"]) for d in dets],
                                         classes),
-            "at_confirmation": confusion(true, [m for m, _ in confirmed], classes),
+            "at_confirmation": confusion(true, [m for m, _ in confirmed], classes,
+                                         extra=(UNCONFIRMED,)),
             "confirmation_rule": asdict(CONFIRMATION),
-            "flights_to_confirmation": confirmation_delays([k for _, k in detected]),
+            "flights_to_confirmation": {
+                **confirmation_delays([k for _, k in detected]),
+                # of the unconfirmed: the pattern ended before the rule could hold
+                "ended_before_due": sum(
+                    c[0] == UNCONFIRMED and _flights_from(t, d["detected_index"])
+                    < CONFIRMATION.flights for t, d, c in zip(faulty, dets, confirmed,
+                                                              strict=True))},
             "at_last_flight": confusion(true, [_argmax(d["last_probs"]) for d in dets], classes),
             "probability_calibration": {
                 "at_first_alarm": probability_calibration(

@@ -54,3 +54,20 @@ def test_the_chain_confirms_once_per_alarm_and_keeps_its_run_across_a_restart() 
     assert _confirm(h, MTEL) is None  # once
     h.rearm()  # no fault found: a new alarm is confirmed afresh
     assert (h.class_lead, h.class_run, h.confirmed_mode) == (None, 0, None)
+
+
+def test_the_summary_counts_a_pattern_that_ended_before_the_rule_could_hold() -> None:
+    from server.evaluation.scoring import classification_summary
+
+    def trace(i: int, probs: list) -> dict:
+        return {"id": f"SE-{i}", "mode": "SE", "position": "WT", "onset": 0, "failure": None,
+                "flights": [{"index": k, "alarm": p is not None, "new_alarms": [],
+                             "probs": p} for k, p in enumerate(probs)]}
+
+    se = {"SE": 0.97, "MTEL": 0.03}
+    s = classification_summary([trace(0, [None, se, se]), trace(1, [None, None, se])],
+                               ["MTEL", "SE"])
+    assert s["flights_to_confirmation"]["confirmed"] == 1
+    assert s["flights_to_confirmation"]["ended_before_due"] == 1
+    assert s["at_confirmation"]["matrix"][s["at_confirmation"]["rows"].index("SE")] == \
+        [0, 1, 1, 0]  # MTEL, SE, unconfirmed, undetected
