@@ -24,8 +24,6 @@ from itertools import product
 from pathlib import Path
 from typing import Any
 
-from scipy.stats import binomtest
-
 from server.evaluation.scoring import (
     UNCONFIRMED,
     confirmation_delays,
@@ -33,6 +31,7 @@ from server.evaluation.scoring import (
     detection_of,
 )
 from server.phm.classification.confirmation import ConfirmationRule
+from server.phm.metrics import proportion_interval
 
 FLIGHTS = (1, 2, 3, 4)
 PROBABILITIES = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.98)
@@ -52,11 +51,10 @@ def score(rule: ConfirmationRule, traces: list[dict[str, Any]]) -> dict[str, Any
     got = [(t["mode"], *confirmation_of(t, d, rule)) for t, d in found]
     confirmed = [(m, c) for m, c, _ in got if c != UNCONFIRMED]
     right = sum(m == c for m, c in confirmed)
-    ci = binomtest(right, len(confirmed)).proportion_ci(0.90, method="exact") \
-        if confirmed else None
     return {"flights": rule.flights, "probability": rule.probability,
             "detected": len(found), "right": right, "share": right / len(confirmed)
-            if confirmed else None, "interval": None if ci is None else [ci.low, ci.high],
+            if confirmed else None,
+            "interval": proportion_interval(right, len(confirmed)) if confirmed else None,
             **confirmation_delays([k for _, c, k in got if c != UNCONFIRMED] +
                                   [None for _, c, _ in got if c == UNCONFIRMED])}
 

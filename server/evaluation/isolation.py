@@ -14,8 +14,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from scipy.stats import binomtest
-
+from server.phm.metrics import proportion_interval
 from server.vocabulary import alarming_positions
 
 from .false_alarms import LEVEL
@@ -26,9 +25,8 @@ __all__ = ["isolation_cases", "summarise_isolation"]
 def _share(hits: int, n: int) -> dict[str, Any]:
     if n == 0:
         return {"hits": 0, "alarms": 0, "share": None, "interval": None}
-    ci = binomtest(hits, n).proportion_ci(LEVEL, method="exact")
     return {"hits": hits, "alarms": n, "share": hits / n,
-            "interval": [float(ci.low), float(ci.high)]}
+            "interval": proportion_interval(hits, n, LEVEL)}
 
 
 def isolation_cases(trace: Mapping[str, Any]) -> list[dict[str, Any]]:

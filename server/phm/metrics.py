@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.stats import binomtest
 
 __all__ = [
+    "proportion_interval",
     "alpha_bounds_hit",
     "alpha_lambda",
     "alpha_lambda_probability",
@@ -255,9 +256,15 @@ def event_rate(events: int, trials: int, level: float = 0.90) -> dict[str, Any]:
     None without a unit-flight."""
     if trials <= 0:
         return {"events": events, "unit_flights": 0, "rate": None, "interval": None}
-    ci = binomtest(events, trials).proportion_ci(level, method="exact")
     return {"events": events, "unit_flights": trials, "rate": events / trials,
-            "interval": [float(ci.low), float(ci.high)]}
+            "interval": proportion_interval(events, trials, level)}
+
+
+def proportion_interval(hits: int, trials: int, level: float = 0.90) -> list[float]:
+    """The exact (Clopper-Pearson) ``level`` interval ``[lo, hi]`` of a share ``hits /
+    trials`` (``trials`` > 0): a rate per unit-flight, a share of alarms named right."""
+    ci = binomtest(hits, trials).proportion_ci(level, method="exact")
+    return [float(ci.low), float(ci.high)]
 
 
 def missed_detection_rate(alarm_raised: ArrayLike, is_faulty: ArrayLike) -> float:

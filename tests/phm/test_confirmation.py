@@ -48,12 +48,13 @@ def test_the_chain_confirms_once_per_alarm_and_keeps_its_run_across_a_restart() 
     from server.phm.detection import DetectionState
 
     h = ActuatorHealth(position="WT", detection=DetectionState.new("WT", ["WT.F_MTEL"]))
-    assert _confirm(h, MTEL) is None and (h.class_lead, h.class_run) == ("MTEL", 1)
+    assert _confirm(h, None, MTEL) is None and h.class_run == 1
     h = ActuatorHealth.from_dict(h.to_dict())  # the service stores the state between flights
-    assert _confirm(h, MTEL) == "MTEL" and h.confirmed_mode == "MTEL"
-    assert _confirm(h, MTEL) is None  # once
+    assert _confirm(h, "DMD", MTEL) is None and h.class_run == 1  # a new leader: run again
+    assert _confirm(h, "MTEL", MTEL) == "MTEL" and h.confirmed_mode == "MTEL"
+    assert _confirm(h, "MTEL", MTEL) is None  # once
     h.rearm()  # no fault found: a new alarm is confirmed afresh
-    assert (h.class_lead, h.class_run, h.confirmed_mode) == (None, 0, None)
+    assert (h.fault_mode, h.class_run, h.confirmed_mode) == (None, 0, None)
 
 
 def test_the_summary_counts_a_pattern_that_ended_before_the_rule_could_hold() -> None:

@@ -121,8 +121,9 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         h.history.append((index, generic))
         del h.history[:-CHAIN.history_flights]
         with timed("classification"):
+            lead = h.fault_mode  # the last classified flight's leading mode
             probs = _classify(model, h, position) if det.alarm else None
-            confirmed = _confirm(h, probs)
+            confirmed = _confirm(h, lead, probs)
         with timed("prognosis"):
             rul = (prognose(model, h, generic, position, index, base=base, seed=seed)
                    if det.alarm else None)
@@ -223,15 +224,16 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     return probs
 
 
-def _confirm(h: ActuatorHealth, probs: dict[str, float] | None) -> str | None:
-    """Advance the confirmation rule on a classified flight; the mode it confirms on this
-    flight (once per alarm), else None."""
+def _confirm(h: ActuatorHealth, lead: str | None, probs: dict[str, float] | None
+             ) -> str | None:
+    """Advance the confirmation rule on a classified flight (``lead``: the previous one's
+    leading mode); the mode it confirms on this flight (once per alarm), else None."""
     if not probs or h.confirmed_mode is not None:
         return None
-    h.class_lead, h.class_run, held = advance(CONFIRMATION, h.class_lead, h.class_run, probs)
+    mode, h.class_run, held = advance(CONFIRMATION, lead, h.class_run, probs)
     if held:
-        h.confirmed_mode = h.class_lead
-        return h.confirmed_mode
+        h.confirmed_mode = mode
+        return mode
     return None
 
 

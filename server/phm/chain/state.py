@@ -28,9 +28,8 @@ class ActuatorHealth:
     #: pooled as their weighted mean (chain.run._classify); None with no evidence yet
     class_weight: float | None = None
     fault_mode: str | None = None
-    #: the confirmation rule's run (server.phm.classification.confirmation): the mode that
-    #: led the last classified flight, for how many in a row, and the mode once confirmed
-    class_lead: str | None = None
+    #: the confirmation rule's run (server.phm.classification.confirmation): how many
+    #: classified flights in a row ``fault_mode`` has led, and the mode once confirmed
     class_run: int = 0
     confirmed_mode: str | None = None
     prognosis: dict[str, Any] | None = None
@@ -51,7 +50,6 @@ class ActuatorHealth:
         self.class_log_prob = None
         self.class_weight = None
         self.fault_mode = None
-        self.class_lead = None
         self.class_run = 0
         self.confirmed_mode = None
         self.prognosis = None
@@ -61,8 +59,8 @@ class ActuatorHealth:
                 "detection": self.detection.to_dict(), "flights_seen": self.flights_seen,
                 "alarm_index": self.alarm_index,
                 "class_log_prob": self.class_log_prob, "class_weight": self.class_weight,
-                "fault_mode": self.fault_mode, "class_lead": self.class_lead,
-                "class_run": self.class_run, "confirmed_mode": self.confirmed_mode,
+                "fault_mode": self.fault_mode, "class_run": self.class_run,
+                "confirmed_mode": self.confirmed_mode,
                 "prognosis": self.prognosis,
                 "history": [[i, z] for i, z in self.history],
                 "last_started_at": self.last_started_at,
@@ -80,8 +78,7 @@ class ActuatorHealth:
                    flights_seen=int(d["flights_seen"]),
                    alarm_index=None if d.get("alarm_index") is None else int(d["alarm_index"]),
                    class_log_prob=d.get("class_log_prob"), class_weight=d.get("class_weight"),
-                   fault_mode=d.get("fault_mode"), class_lead=d.get("class_lead"),
-                   class_run=int(d.get("class_run") or 0),
+                   fault_mode=d.get("fault_mode"), class_run=int(d.get("class_run") or 0),
                    confirmed_mode=d.get("confirmed_mode"),
                    prognosis=d.get("prognosis"),
                    history=[(int(i), {k: float(v) for k, v in z.items()})

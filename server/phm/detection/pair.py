@@ -92,9 +92,7 @@ def isolation_of(unit: str, features: Sequence[str], levels: Mapping[str, Mappin
 
 
 def _partner(unit: str) -> str | None:
-    if unit not in WINGLET_PAIR:
-        return None
-    return WINGLET_PAIR[1] if unit == WINGLET_PAIR[0] else WINGLET_PAIR[0]
+    return next((p for p in WINGLET_PAIR if p != unit), None) if unit in WINGLET_PAIR else None
 
 
 def partner_held(levels: Mapping[str, Mapping[str, float]]) -> dict[str, list[str]]:
