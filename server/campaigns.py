@@ -96,15 +96,14 @@ def read_manifest(directory: Location) -> dict[str, Any]:
 
 def single_fault(manifest: Mapping[str, Any], where: str, use: str) -> None:
     """Refuse (:class:`CampaignError`) a concurrent-fault campaign (``manifest``, at ``where``)
-    for ``use``: training and scoring read one fault per pattern, a single mode, position and
-    true RUL; a pattern with two faults needs per-fault detection, multi-mode classification
-    and per-fault RUL scoring, which they do not have."""
+    for ``use``: training and the single-fault scoring read one fault per pattern, a single
+    mode, position and true RUL; a concurrent campaign is scored by
+    :func:`server.evaluation.concurrent.evaluate_concurrent` (``hmsm evaluate`` chooses it)."""
     if manifest.get("kind") == "concurrent":
         raise CampaignError(
             f"{where} is a concurrent-fault campaign (two faults per pattern); {use} reads "
-            "single-fault campaigns (design or verification) only: scoring concurrent faults "
-            "needs per-fault detection, multi-mode classification and per-fault RUL scoring, "
-            "which are not implemented")
+            "single-fault campaigns (design or verification) only; hmsm evaluate scores a "
+            "concurrent one per fault (server.evaluation.concurrent)")
 
 
 def decode_log(data: bytes, name: str) -> FlightLog:

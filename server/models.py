@@ -403,6 +403,10 @@ class Alarm(Base):
     #: winglet drives when it rests on a pair-coupled feature alone); null on alarms raised
     #: before it was recorded
     isolation: Mapped[dict[str, float] | None] = mapped_column(JSON)
+    #: the modes present on the unit, the leading one first: ``{mode, probability (its own),
+    #: rul_median_flights}`` each (server.phm.classification.modes); null on alarms raised
+    #: before it was recorded
+    modes: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON)
     rul_median_flights: Mapped[float | None] = mapped_column(Float)
     #: the 5 % quantile of the latest RUL distribution [flights]: what urgency is read from
     rul_low_flights: Mapped[float | None] = mapped_column(Float)

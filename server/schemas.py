@@ -780,6 +780,16 @@ class PrognosisRead(BaseModel):
     created_at: datetime
 
 
+class ModePresentRead(BaseModel):
+    """One mode present on an alarm's unit."""
+
+    mode: str
+    probability: float | None = Field(description="its own probability of being present "
+                                      "(not competing with the other modes')")
+    rul_median_flights: float | None = Field(description="median RUL of its own prognosis "
+                                             "(null: a step fault, or none yet)")
+
+
 class AlarmRead(BaseModel):
     id: int
     aircraft: str
@@ -807,6 +817,10 @@ class AlarmRead(BaseModel):
         default=None, description="the units the alarm may belong to, position -> "
         "probability: its own alone, or both winglet drives (an ambiguity group) when it rests "
         "on a feature the partner drive moves too; null on alarms raised before it was kept")
+    modes: list[ModePresentRead] | None = Field(
+        default=None, description="every mode present on the unit, the leading one first "
+        "(two degradations at once: each with its own probability and RUL; the alarm's RUL is "
+        "the earliest failure among them); null on alarms raised before it was kept")
     rul_median_flights: float | None = Field(description="median of the latest RUL; 0 once "
                                              "the unit has failed")
     rul_low_flights: float | None = Field(description="5 % quantile of the latest RUL; 0 once "

@@ -552,3 +552,33 @@ def test_an_alarm_keeps_its_ambiguity_group_from_0018(settings: Settings) -> Non
     engine.dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
+
+
+def test_an_alarm_keeps_its_modes_present_from_0019(settings: Settings) -> None:
+    """0019 adds ``alarms.modes``: an alarm raised before has none (null), one raised after
+    keeps every mode present; going down drops the column and keeps the alarms."""
+    import json
+
+    import sqlalchemy as sa
+
+    url = _fresh_url(settings)
+    engine = _one_actuator_at(url, "0018", "WL1")
+    with engine.begin() as conn:
+        _alarm_and_version(conn, 1, "open", "ready")
+    upgrade(url)
+    modes = [{"mode": "TTS", "probability": 0.9, "rul_median_flights": 40.0},
+             {"mode": "DMD", "probability": 0.7, "rul_median_flights": None}]
+    with engine.begin() as conn:
+        _alarm_and_version(conn, 2, "open", "ready")
+        conn.execute(sa.text("UPDATE alarms SET modes = :m WHERE id = 2"),
+                     {"m": json.dumps(modes)})
+        rows = dict(conn.execute(sa.text("SELECT id, modes FROM alarms")).all())
+    assert rows[1] is None
+    assert (json.loads(rows[2]) if isinstance(rows[2], str) else rows[2]) == modes
+    downgrade(url, "0018")
+    assert "modes" not in {c["name"] for c in inspect(engine).get_columns("alarms")}
+    with engine.begin() as conn:
+        assert conn.execute(sa.text("SELECT COUNT(*) FROM alarms")).scalar() == 2
+    engine.dispose()
+    downgrade(url, "base")
+    upgrade(url)  # leave it at head for the next test on this database

@@ -16,6 +16,7 @@ from server.schemas import (
     GridCellRead,
     HealthRecordRead,
     IdPath,
+    ModePresentRead,
     Offset,
     Page,
     PrognosisRead,
@@ -35,6 +36,8 @@ def alarm_read(row: service.AlarmRow) -> AlarmRead:
                      act_within_flights=None if u is None else u.within_flights,
                      confidence=alarm.confidence, fault_mode=alarm.fault_mode,
                      raised_fault_mode=alarm.raised_fault_mode, isolation=alarm.isolation,
+                     modes=None if alarm.modes is None
+                     else [ModePresentRead.model_validate(m) for m in alarm.modes],
                      confirmed_fault_mode=alarm.confirmed_fault_mode,
                      class_probability=alarm.class_probability, features=alarm.features,
                      rul_median_flights=row.rul_median, rul_low_flights=row.rul_low,

@@ -182,7 +182,7 @@ def run_evaluate(args: argparse.Namespace, settings: Settings, *,
     """Body of ``hmsm evaluate`` (see the module docstring); ``progress(done, total)`` is told
     of each pattern scored (the demo's background evaluation reports it to the dashboard),
     in place of the progress bar."""
-    from server.campaigns import campaign_store
+    from server.campaigns import campaign_store, read_manifest
 
     from .runner import evaluate_campaign
 
@@ -192,6 +192,8 @@ def run_evaluate(args: argparse.Namespace, settings: Settings, *,
     model, source = load_model(args, settings)
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     out_dir = Path(args.out) if args.out else settings.data_dir / "evaluation" / stamp
+    if read_manifest(campaign).get("kind") == "concurrent":
+        return _run_concurrent(args, model, source, campaign, out_dir)
     bar = None
     if progress is None and not args.no_progress:
         from tqdm import tqdm
@@ -224,6 +226,30 @@ def run_evaluate(args: argparse.Namespace, settings: Settings, *,
     written = write_outputs(result, out_dir, latest=latest)
     _print_summary(result)
     for p in written:
+        print(f"wrote {p}")
+    return 0
+
+
+def _run_concurrent(args: argparse.Namespace, model: PhmModel, source: dict[str, Any],
+                    campaign: Any, out_dir: Path) -> int:
+    """``hmsm evaluate`` on a concurrent campaign: concurrent.json and concurrent.md."""
+    from .concurrent import concurrent_markdown, evaluate_concurrent
+
+    if args.noise_free_features:
+        raise ValueError("--noise-free-features is a single-fault error budget: a concurrent "
+                         "campaign has no one fault's severity to read")
+    t0 = time.perf_counter()
+    result = evaluate_concurrent(model, campaign, jobs=max(int(args.jobs), 1))
+    result["model"] = {**result["model"], **source}
+    result["created_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+    result["wall_s"] = time.perf_counter() - t0
+    out_dir.mkdir(parents=True, exist_ok=True)
+    js, md = out_dir / "concurrent.json", out_dir / "concurrent.md"
+    js.write_text(json.dumps(_sanitise(result), indent=1, allow_nan=False), encoding="utf-8")
+    table = concurrent_markdown(result["summary"])
+    md.write_text(table + "\n", encoding="utf-8")
+    print(table)
+    for p in (js, md):
         print(f"wrote {p}")
     return 0
 

@@ -49,6 +49,9 @@ from .scoring import (
 from .timing import ChainTimer, feature_timing, timing_summary
 
 Progress = Callable[[int, int], None]
+#: runs the chain over one pattern: its trace (JSON-safe); a module-level function, so that
+#: worker processes can be handed it
+PatternRun = Callable[..., dict[str, Any]]
 
 
 def pattern_seed(pattern_id: str) -> int:
@@ -111,6 +114,10 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
             "probs": dict(o.class_probabilities) if o is not None and o.class_probabilities
             else None,
             "fault_mode": o.fault_mode if o is not None else None,
+            # the modes present and each mode's own probability (a second mode named beside
+            # a single fault is scored by bench/mode_sets.py)
+            "modes": list(o.modes) if o is not None and o.modes else None,
+            "own": o.mode_probabilities if o is not None else None,
             "rul": o.rul.to_dict() if o is not None and o.rul is not None else None,
             "sensor": sorted({f"{x['channel']} {x['metric']}" for v in out.values()
                               for x in v.sensor_findings}),
@@ -124,12 +131,15 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
 
 _WORKER_MODEL: PhmModel | None = None
 _WORKER_NOISE_FREE = False
+_WORKER_RUN: PatternRun = run_pattern
 
 
-def _init_worker(model_doc: dict[str, Any], noise_free: bool = False) -> None:
-    global _WORKER_MODEL, _WORKER_NOISE_FREE
+def _init_worker(model_doc: dict[str, Any], noise_free: bool = False,
+                 run: PatternRun = run_pattern) -> None:
+    global _WORKER_MODEL, _WORKER_NOISE_FREE, _WORKER_RUN
     _WORKER_MODEL = PhmModel.from_dict(model_doc)
     _WORKER_NOISE_FREE = noise_free
+    _WORKER_RUN = run
 
 
 def _work(pattern: Pattern) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -137,31 +147,33 @@ def _work(pattern: Pattern) -> tuple[dict[str, Any], dict[str, Any]]:
         raise RuntimeError("the evaluation worker has no model: _init_worker was not run")
     timer = ChainTimer()
     with timer.instrument():
-        trace = run_pattern(_WORKER_MODEL, pattern, timer=timer, noise_free=_WORKER_NOISE_FREE)
+        trace = _WORKER_RUN(_WORKER_MODEL, pattern, timer=timer, noise_free=_WORKER_NOISE_FREE)
     return trace, timer.to_dict()
 
 
 def evaluate_patterns(model: PhmModel, patterns: Sequence[Pattern], *, jobs: int = 1,
-                      progress: Progress | None = None, noise_free: bool = False
+                      progress: Progress | None = None, noise_free: bool = False,
+                      run: PatternRun = run_pattern
                       ) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Traces of all patterns (in the given order) and the merged chain timings.
 
     The model goes to the workers as its JSON document (and is rebuilt from it in the serial
     case too), so the results do not depend on ``jobs``. ``noise_free``: see
-    :func:`run_pattern`.
+    :func:`run_pattern`. ``run``: what runs one pattern (:func:`run_pattern`; a concurrent
+    campaign's, :func:`.concurrent.run_concurrent_pattern`).
     """
     doc = model.to_dict()
     order = sorted(range(len(patterns)), key=lambda i: -len(patterns[i].flights))
     results: dict[int, tuple[dict[str, Any], dict[str, Any]]] = {}
     if jobs <= 1:
-        _init_worker(doc, noise_free)
+        _init_worker(doc, noise_free, run)
         for k, i in enumerate(order):
             results[i] = _work(patterns[i])
             if progress is not None:
                 progress(k + 1, len(patterns))
     else:
         with ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker,
-                                 initargs=(doc, noise_free)) as ex:
+                                 initargs=(doc, noise_free, run)) as ex:
             futs = {ex.submit(_work, patterns[i]): i for i in order}
             for k, fut in enumerate(as_completed(futs)):
                 results[futs[fut]] = fut.result()

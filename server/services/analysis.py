@@ -257,11 +257,23 @@ def _store_state(session: Session, flight: Flight, act: Actuator, out: ActuatorO
 
 def _store_prognosis(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome
                      ) -> RulDistribution | None:
-    if out.rul is not None and out.fault_mode is not None:
+    """The unit's RUL (its earliest failure among the modes present), under its mode."""
+    mode = out.rul_mode or out.fault_mode
+    if out.rul is not None and mode is not None:
         session.add(Prognosis(actuator_id=act.id, flight_id=flight.id,
-                              flight_index=out.flight_index, fault_mode=out.fault_mode,
+                              flight_index=out.flight_index, fault_mode=mode,
                               distribution=json_safe(out.rul.to_dict())))
     return out.rul
+
+
+def _modes_present(out: ActuatorOutcome) -> list[dict[str, Any]] | None:
+    """The alarm's ``modes``: each mode present with its own probability and median RUL."""
+    if not out.modes:
+        return None
+    own, ruls = out.mode_probabilities or {}, out.ruls
+    return [{"mode": m, "probability": _finite(own.get(m)),
+             "rul_median_flights": _finite(ruls[m].median) if m in ruls else None}
+            for m in out.modes]
 
 
 def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorOutcome,
@@ -276,7 +288,7 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
         alarm = Alarm(actuator_id=act.id, flight_id=flight.id, status=AlarmStatus.OPEN,
                       confidence=out.max_confidence, fault_mode=out.fault_mode,
                       class_probability=prob, features=out.alarm_features,
-                      isolation=out.isolation or None,
+                      isolation=out.isolation or None, modes=_modes_present(out),
                       rul_median_flights=median, rul_low_flights=low)
         session.add(alarm)
         session.flush()
@@ -297,6 +309,7 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
             open_alarm.rul_median_flights = median
             open_alarm.rul_low_flights = low
             open_alarm.isolation = out.isolation or open_alarm.isolation
+            open_alarm.modes = _modes_present(out) or open_alarm.modes
             _confirm_class(session, flight, open_alarm, out)
     session.flush()
 

@@ -14,6 +14,7 @@ from sqlalchemy import select
 
 from server.db import session_scope
 from server.models import Actuator, Alarm, Flight, HealthRecord, Injection, Prognosis
+from server.phm.prognosis import RulDistribution
 from server.schemas import InjectionCreate
 from server.services import analysis, station, station_faults
 from server.services import health as health_service
@@ -22,13 +23,20 @@ from tests.api.conftest import auth
 from tests.web.seed import add_alarm, rul_document
 
 
-def _outcome(mode: str | None, *, new: bool, index: int, confirmed: str | None = None
-             ) -> SimpleNamespace:
-    """The parts of a chain outcome ``_store_alarm`` reads."""
+def _outcome(mode: str | None, *, new: bool, index: int, confirmed: str | None = None,
+             second: str | None = None) -> SimpleNamespace:
+    """The parts of a chain outcome ``_store_alarm`` reads (``second``: another mode present,
+    with RULs for both: the unit's the earlier)."""
+    modes = [m for m in (mode, second) if m]
+    ruls = ({m: RulDistribution.from_dict(rul_document(index, median, 0.5, 0.1, [0.0, 100.0],
+                                                       [1.0]))
+             for m, median in ((mode, 40.0), (second, 25.0))} if mode and second else {})
     return SimpleNamespace(new_alarm=new, alarm=True, fault_mode=mode, flight_index=index,
                            class_probabilities={mode: 0.8} if mode else None,
                            max_confidence=0.99, alarm_features=["WT.F_MTEL"],
-                           isolation={"WT": 1.0} if new else {}, confirmed=confirmed)
+                           isolation={"WT": 1.0} if new else {}, confirmed=confirmed,
+                           modes=modes, mode_probabilities=dict.fromkeys(modes, 0.9),
+                           ruls=ruls)
 
 
 def _alarm_item(client: TestClient, keys: dict[str, str], alarm_id: int) -> dict:
@@ -57,6 +65,31 @@ def test_a_failed_unit_reports_no_remaining_life(app, client, keys, aircraft) ->
     cells = client.get("/api/v1/fleet/health", headers=auth(keys["viewer"])).json()
     cell = next(c for c in cells if c["tail"] == aircraft and c["position"] == "WT")
     assert (cell["failed_at_flight"], cell["rul_median"], cell["rul_low"]) == (71, 0.0, 0.0)
+
+
+def test_an_alarm_lists_every_mode_present_and_follows_them(  # type: ignore[no-untyped-def]
+        app, client, keys, aircraft) -> None:
+    """Two modes on one unit: the alarm lists both with their own probability and median RUL,
+    the leading one first; a flight naming one mode again lists that one."""
+    factory = app.state.session_factory
+    first = add_alarm(factory, tail=aircraft, position="WT", fault_mode="TTS")
+    with session_scope(factory) as s:
+        act_id = s.get(Alarm, first).actuator_id
+        s.delete(s.get(Alarm, first))
+    with session_scope(factory) as s:
+        flight = s.scalar(select(Flight).where(Flight.tail == aircraft))
+        act = s.get(Actuator, act_id)
+        analysis._store_alarm(s, flight, act, _outcome("TTS", new=True, index=30,
+                                                       second="DMD"), None)
+        alarm_id = s.scalar(select(Alarm.id).where(Alarm.actuator_id == act_id))
+    assert _alarm_item(client, keys, alarm_id)["modes"] == [
+        {"mode": "TTS", "probability": 0.9, "rul_median_flights": 40.0},
+        {"mode": "DMD", "probability": 0.9, "rul_median_flights": 25.0}]
+    with session_scope(factory) as s:
+        analysis._store_alarm(s, flight, s.get(Actuator, act_id),
+                              _outcome("TTS", new=False, index=31), None)
+    assert _alarm_item(client, keys, alarm_id)["modes"] == [
+        {"mode": "TTS", "probability": 0.9, "rul_median_flights": None}]
 
 
 def test_a_closed_alarm_claims_no_live_urgency(app, client, keys, aircraft) -> None:  # type: ignore[no-untyped-def]

@@ -1,6 +1,7 @@
 """A concurrent-fault campaign at the ci scale, streamed end to end as ``hmsm campaign`` streams
 one (features kept, logs sampled): each flight's truth per fault in its manifest, readable by
-the campaign reader, refused by training and the evaluation until they score two faults."""
+the campaign reader, refused by training and the single-fault scoring, scored per fault by
+the concurrent evaluation (``hmsm evaluate`` chooses it)."""
 
 from __future__ import annotations
 
@@ -61,7 +62,7 @@ def test_every_combination_flies_with_its_truth_per_fault(
     assert any(f["outcome"] == "censored" for p in manifest["patterns"] for f in p["faults"])
 
 
-def test_the_reader_loads_it_and_training_and_evaluation_refuse_it(
+def test_the_reader_loads_it_and_training_and_the_single_fault_scoring_refuse_it(
         campaign: tuple[Path, dict[str, Any]]) -> None:
     out, manifest = campaign
     loaded = load_campaign(out)
@@ -70,11 +71,35 @@ def test_the_reader_loads_it_and_training_and_evaluation_refuse_it(
         len(p["flights"]) for p in manifest["patterns"])
     from server.evaluation import evaluate_campaign
 
-    with pytest.raises(CampaignError, match="concurrent-fault campaign.*multi-mode "
-                       "classification"):
+    with pytest.raises(CampaignError, match="concurrent-fault campaign.*hmsm evaluate scores"):
         evaluate_campaign(cast(PhmModel, None), out)
     with pytest.raises(CampaignError, match="training reads single-fault campaigns"):
         train_from_directory(out)
+
+
+def test_hmsm_evaluate_scores_it_per_fault(campaign: tuple[Path, dict[str, Any]],
+                                           tmp_path: Path) -> None:
+    """The whole command on the streamed campaign with the shipped model: a fact per fault of
+    every pattern, the table per combination kind, the dashboard's latest.json left alone."""
+    import json
+
+    from server.cli import main as hmsm_main
+
+    out, manifest = campaign
+    assert hmsm_main(["evaluate", "--campaign", str(out), "--model-json",
+                      "server/data/demo_model.json", "--out", str(tmp_path / "ev"),
+                      "--no-progress", "--jobs", "1"]) == 0
+    result = json.loads((tmp_path / "ev" / "concurrent.json").read_text())
+    rows = result["summary"]["patterns"]
+    assert [r["id"] for r in rows] == [p["id"] for p in manifest["patterns"]]
+    for row, pattern in zip(rows, manifest["patterns"], strict=True):
+        assert [(f["mode"], f["position"]) for f in row["faults"]] == [
+            (f["mode"], f["position"]) for f in pattern["faults"]]
+        for f in row["faults"]:
+            assert f["alarmed"] is None or f["onset"] <= f["alarmed"] <= f["end"]
+    table = (tmp_path / "ev" / "concurrent.md").read_text()
+    assert all(f"| {c.name} |" in table for c in COMBINATIONS) and "| all | 5 |" in table
+    assert not (tmp_path / "ev" / "evaluation.json").exists()
 
 
 def test_the_cli_refuses_a_scale_without_concurrent_patterns(

@@ -245,3 +245,31 @@ def test_a_classifier_right_on_every_held_out_row_does_not_claim_certainty() -> 
     del doc["error_floor"]  # a document written before the floor: probabilities as they were
     old = FaultClassifier.from_dict(doc).predict_proba(X)
     assert old.max() > 1.0 - 1e-6
+
+
+def test_each_mode_has_its_own_probability(trained) -> None:
+    """Platt's per-mode probabilities on fresh single-mode patterns: the true mode's is at
+    least 1/2 on most flights, another mode's almost never (they do not compete: a row's
+    need not sum to 1)."""
+    model, _ = trained
+    X, y, _, _ = make_data(3)
+    Q = model.mode_proba(X)
+    yi = np.searchsorted(model.classes_, y)
+    own = Q[np.arange(y.size), yi]
+    others = np.where(np.eye(len(FAULT_MODES), dtype=bool)[yi], np.nan, Q)
+    assert np.mean(own >= 0.5) > 0.8 and np.nanmean(others >= 0.5) < 0.02
+    assert np.ptp(Q.sum(axis=1)) > 0.5
+
+
+def test_a_document_without_per_mode_calibration_reads_but_cannot_tell_modes_apart(
+        trained) -> None:
+    model, _ = trained
+    doc = model.to_dict()
+    assert np.asarray(doc["mode_calibration"]).shape == (len(FAULT_MODES), 2)
+    old = FaultClassifier.from_dict({k: v for k, v in doc.items() if k != "mode_calibration"})
+    X, _, _, _ = make_data(4, patterns_per_mode=1, flights=3)
+    assert np.array_equal(old.predict_proba(X), model.predict_proba(X))
+    with pytest.raises(NotFittedError, match="per-mode calibration"):
+        old.mode_proba(X)
+    with pytest.raises(ValueError, match="inconsistent"):
+        FaultClassifier.from_dict({**doc, "mode_calibration": [[1.0, 0.0]]})

@@ -15,6 +15,7 @@ import hashlib
 import math
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
+from typing import Any
 
 import numpy as np
 from sqlalchemy import select, update
@@ -172,7 +173,8 @@ def seed_results(factory: sessionmaker[Session], *, tail: str, position: str = "
 
 def add_alarm(factory: sessionmaker[Session], *, tail: str, position: str,
               fault_mode: str = "TTS", confidence: float = 0.99,
-              rul: float | None = 12.0, isolation: dict[str, float] | None = None) -> int:
+              rul: float | None = 12.0, isolation: dict[str, float] | None = None,
+              modes: list[dict[str, Any]] | None = None) -> int:
     """Raise a new open alarm on an installed actuator (as the analysis job would)."""
     with factory() as session:
         aircraft = session.scalar(select(Aircraft).where(Aircraft.tail == tail))
@@ -187,7 +189,7 @@ def add_alarm(factory: sessionmaker[Session], *, tail: str, position: str,
         row = Alarm(actuator_id=act.id, flight_id=flight.id, status="open",
                     confidence=confidence, fault_mode=fault_mode, class_probability=0.8,
                     features=[f"{position}.F_{fault_mode}"], rul_median_flights=rul,
-                    isolation=isolation)
+                    isolation=isolation, modes=modes)
         session.add(row)
         session.commit()
         return row.id

@@ -121,6 +121,30 @@ def test_the_header_names_the_open_alarms_mode_even_without_a_prognosis(
     assert 'id="median-rul">–</dd>' in page  # no RUL: a dash, not "- flights"
 
 
+def test_two_modes_on_one_unit_show_with_their_probabilities_and_rul(
+        app, client, keys, seeded, aircraft) -> None:  # type: ignore[no-untyped-def]
+    """An alarm whose unit carries two modes lists both, the leading one first, each with its
+    own probability and median RUL, in the inbox, on the actuator page and in the API; an alarm
+    with one mode lists none."""
+    factory = app.state.session_factory
+    both = [{"mode": "TTS", "probability": 0.97, "rul_median_flights": 120.0},
+            {"mode": "DMD", "probability": 0.74, "rul_median_flights": 80.4}]
+    two = add_alarm(factory, tail=aircraft, position="WT", fault_mode="TTS", rul=80.4,
+                    modes=both)
+    one = add_alarm(factory, tail=aircraft, position="WL1", fault_mode="MTEL",
+                    modes=[{"mode": "MTEL", "probability": 0.9, "rul_median_flights": 50.0}])
+    sign_in(client, keys["viewer"])
+    inbox = client.get("/alarms").text
+    text = "modes present: TTS 0.97 (RUL 120) · DMD 0.74 (RUL 80)"
+    assert text in inbox[inbox.index(f'id="alarm-{two}"'):].split("</tr>")[0]
+    assert "modes present" not in inbox[inbox.index(f'id="alarm-{one}"'):].split("</tr>")[0]
+    items = client.get("/api/v1/alarms", headers={
+        "Authorization": f"Bearer {keys['viewer']}"}).json()["items"]
+    assert {a["id"]: a["modes"] for a in items}[two] == both
+    act = next(a["actuator_id"] for a in items if a["id"] == two)
+    assert text in client.get(f"/actuators/{act}").text
+
+
 def test_an_ambiguity_group_names_both_drives_with_their_probabilities(
         app, client, keys, seeded, aircraft) -> None:  # type: ignore[no-untyped-def]
     """A winglet drive's alarm on a feature its partner moves too names both drives, the

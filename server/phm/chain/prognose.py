@@ -1,10 +1,12 @@
-"""The prognosis step of one actuator after an alarm: carry its particle filter one flight
-on, or restart it from the stored history (a new mode, a new model), and predict its RUL."""
+"""The prognosis step of one actuator after an alarm: per progressive mode present, carry its
+particle filter one flight on, or restart it from the stored history (a mode new to the set, a
+new model), and predict its RUL; the unit's RUL is its earliest failure among them."""
 
 from __future__ import annotations
 
 import math
 from datetime import datetime
+from typing import Any
 
 import numpy as np
 
@@ -21,42 +23,68 @@ from ..season import StressClock
 from .model import MeasurementSpec, PhmModel
 from .state import ActuatorHealth
 
-__all__ = ["prognose"]
+__all__ = ["prognose", "prognose_modes", "earliest"]
 
 History = list[tuple[int, dict[str, float]]]
 
 
+def prognose_modes(model: PhmModel, h: ActuatorHealth, generic: dict[str, float],
+                   position: str, index: int, *, base: str | None, seed: int
+                   ) -> dict[str, RulDistribution]:
+    """Each progressive mode present's RUL (``h.modes``, the leading one first); the filters
+    of modes no longer present are dropped."""
+    h.prognoses = {m: s for m, s in h.prognoses.items() if m in h.modes}
+    out = {}
+    for mode in h.modes:
+        rul = prognose(model, h, generic, position, index, base=base, seed=seed, mode=mode)
+        if rul is not None:
+            out[mode] = rul
+    return out
+
+
+def earliest(ruls: dict[str, RulDistribution]) -> tuple[str | None, RulDistribution | None]:
+    """The unit's RUL: the mode whose median failure comes first, with its distribution (the
+    first in order on a tie: the leading mode); (None, None) without any."""
+    if not ruls:
+        return None, None
+    mode = min(ruls, key=lambda m: ruls[m].median)
+    return mode, ruls[mode]
+
+
 def prognose(model: PhmModel, h: ActuatorHealth, generic: dict[str, float], position: str,
-             index: int, *, base: str | None, seed: int) -> RulDistribution | None:
-    """RUL of an alarmed actuator whose class is a progressive mode the model can track
-    (None otherwise); ``h.prognosis`` holds the filter state afterwards."""
-    if h.fault_mode not in PROGRESSIVE or h.fault_mode not in model.measurement:
+             index: int, *, base: str | None, seed: int, mode: str | None = None
+             ) -> RulDistribution | None:
+    """RUL of an alarmed actuator for ``mode`` (default its leading one) when it is a
+    progressive mode the model can track (None otherwise); ``h.prognoses[mode]`` holds the
+    filter state afterwards."""
+    mode = h.fault_mode if mode is None else mode
+    if mode not in PROGRESSIVE or mode not in model.measurement:
         return None
-    spec = model.measurement[h.fault_mode]
+    spec = model.measurement[mode]
     pf = ParticleFilterPrognoser(spec.config_for(position) or model.prognoser,
                                  spec.model_for(position))
     clock = _stress_clock(model, spec, h, base, index)
-    state, rul = _continue(pf, spec, h, generic, index, clock)
+    state, rul = _continue(pf, spec, h.prognoses.get(mode), generic, index, clock)
     if state is None:
-        state = _restart(model, spec, h, position, seed, clock)
+        state = _restart(model, spec, h, mode, position, seed, clock)
         rul = None if state is None else _predict(pf, state, index, clock)
     if state is not None:
-        h.prognosis = state.to_dict()
+        h.prognoses[mode] = state.to_dict()
     if rul is not None and spec.band_calibration is not None:
         rul = spec.band_calibration.apply(rul)
     return rul
 
 
-def _continue(pf: ParticleFilterPrognoser, spec: MeasurementSpec, h: ActuatorHealth,
+def _continue(pf: ParticleFilterPrognoser, spec: MeasurementSpec, stored: dict[str, Any] | None,
               generic: dict[str, float], index: int, clock: StressClock | None
               ) -> tuple[PrognoserState | None, RulDistribution | None]:
     """The stored filter updated with this flight's measurement; (None, None) when there is
     none, or it belongs to another model version (a new model was activated). Any other
     error (a flight index that does not increase, a non-finite stress) propagates."""
-    if h.prognosis is None:
+    if stored is None:
         return None, None
     try:
-        state = PrognoserState.from_dict(h.prognosis)
+        state = PrognoserState.from_dict(stored)
         value = generic.get(spec.feature)
         if value is not None and math.isfinite(value):
             state = pf.update(state, value, index, stress=_stress(clock, state, index))
@@ -65,14 +93,14 @@ def _continue(pf: ParticleFilterPrognoser, spec: MeasurementSpec, h: ActuatorHea
         return None, None
 
 
-def _restart(model: PhmModel, spec: MeasurementSpec, h: ActuatorHealth, position: str,
-             seed: int, clock: StressClock | None) -> PrognoserState | None:
+def _restart(model: PhmModel, spec: MeasurementSpec, h: ActuatorHealth, mode: str,
+             position: str, seed: int, clock: StressClock | None) -> PrognoserState | None:
     """A new filter replayed over the history since the alarm (or since the growth's onset,
     for modes that grow along a straight line)."""
     since = h.alarm_index if h.alarm_index is not None else -1
     if spec.replay_from_onset:
         since = min(since, _growth_onset(spec, position, h.history))
-    return _replay(model, str(h.fault_mode), position,
+    return _replay(model, mode, position,
                    [(i, v) for i, v in h.history if i >= since], seed, clock)
 
 

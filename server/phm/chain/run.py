@@ -14,6 +14,7 @@ import numpy as np
 
 from ..baselines import OutsideDesign
 from ..classification.confirmation import CONFIRMATION, advance
+from ..classification.modes import modes_present
 from ..detection import DetectionResult, update_units
 from ..features import FlightFeatures
 from ..prognosis import RulDistribution
@@ -22,7 +23,7 @@ from ..sensor_health import SensorJudgement
 from .config import CHAIN
 from .inputs import actuator_feature_names, classifier_vector, measurement_values, self_residuals
 from .model import PhmModel
-from .prognose import prognose
+from .prognose import earliest, prognose_modes
 from .state import ActuatorHealth
 
 __all__ = ["MeasurementHook", "ActuatorOutcome", "analyze_flight"]
@@ -64,6 +65,16 @@ class ActuatorOutcome:
     #: while in alarm, the units it may belong to with their probabilities on this flight
     #: (``DetectionResult.isolation``)
     isolation: dict[str, float] = field(default_factory=dict)
+    #: each mode's own probability of being present, pooled since the alarm (None: not
+    #: classified, or a classifier without per-mode calibration)
+    mode_probabilities: dict[str, float] | None = None
+    #: the modes present, the leading one first (server.phm.classification.modes); empty
+    #: when not classified
+    modes: list[str] = field(default_factory=list)
+    #: each progressive mode present's RUL; ``rul`` is the earliest of them (the unit's) and
+    #: ``rul_mode`` its mode
+    ruls: dict[str, RulDistribution] = field(default_factory=dict)
+    rul_mode: str | None = None
     #: the mode the alarm's class was confirmed as on this flight (None: no confirmation
     #: now; server.phm.classification.confirmation)
     confirmed: str | None = None
@@ -125,10 +136,15 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
             probs = _classify(model, h, position) if det.alarm else None
             confirmed = _confirm(h, lead, probs)
         with timed("prognosis"):
-            rul = (prognose(model, h, generic, position, index, base=base, seed=seed)
-                   if det.alarm else None)
+            ruls = (prognose_modes(model, h, generic, position, index, base=base, seed=seed)
+                    if det.alarm else {})
+        rul_mode, rul = earliest(ruls)
         out[position] = _outcome(features, z_all, det, h, position, index, probs, rul)
         out[position].confirmed = confirmed
+        out[position].ruls, out[position].rul_mode = ruls, rul_mode
+        if probs:
+            out[position].mode_probabilities = _own_probabilities(model, h)
+            out[position].modes = list(h.modes)
         if judged is not None:
             _note_sensors(out[position], judged, position)
         _note_outside(out[position], outside, position)
@@ -188,7 +204,9 @@ def _track_calendar(h: ActuatorHealth, index: int, started_at: datetime | None) 
 
 def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, float] | None:
     """Class probabilities from the class evidence accumulated since the alarm (older flights
-    decayed); a change of the leading mode restarts the prognosis on the new mode's feature.
+    decayed), and the modes present (``h.modes``): the leading one and every other at the
+    mode-set threshold; each has its own filter (chain.prognose), a mode new to the set one
+    restarted from the stored history.
 
     The flights since the alarm are not independent views of the fault: their features are
     windowed over several flights and one fault drives them all. Multiplying their calibrated
@@ -199,15 +217,20 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     leading mode) is that of the summed raw evidence either way."""
     if model.classifier is None:
         return None
-    logp = model.classifier.raw_log_proba(
-        classifier_vector(h.detection, position)[np.newaxis, :])[0]
+    vector = classifier_vector(h.detection, position)[np.newaxis, :]
+    logp = model.classifier.raw_log_proba(vector)[0]
     classes = [str(c) for c in model.classifier.classes_.tolist()]
-    acc = h.class_log_prob or dict.fromkeys(classes, 0.0)
-    acc = {c: CHAIN.class_evidence_decay * acc.get(c, 0.0) + float(lp)
-           for c, lp in zip(classes, logp, strict=True)}
+    decision = model.classifier.decision_function(vector)[0]
+    acc = _decayed(h.class_log_prob, classes, logp)
     if h.class_weight is None:  # a state stored before the weight was kept: saturated
         h.class_weight = 0.0 if h.class_log_prob is None else 1.0 / (
             1.0 - CHAIN.class_evidence_decay)
+    if h.mode_decision is None and h.class_log_prob is not None:
+        # a state stored before the decision values were kept: its past flights taken as
+        # this one, so the pooled mean starts at this flight's values
+        h.mode_decision = {c: h.class_weight * float(v)
+                           for c, v in zip(classes, decision, strict=True)}
+    h.mode_decision = _decayed(h.mode_decision, classes, decision)
     h.class_log_prob = acc
     h.class_weight = CHAIN.class_evidence_decay * h.class_weight + 1.0
     pooled = {c: v / h.class_weight for c, v in acc.items()}
@@ -218,10 +241,31 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     floored = model.classifier.apply_error_floor(np.array([weights[c] / total for c in classes]))
     probs = {c: float(p) for c, p in zip(classes, floored, strict=True)}
     mode = max(probs, key=lambda c: probs[c])
-    if mode != h.fault_mode:
-        h.fault_mode = mode
-        h.prognosis = None
+    h.fault_mode = mode  # its filter, if it had one as a mode present, carries on
+    own = _own_probabilities(model, h)
+    h.modes = [mode] if own is None else modes_present(mode, own)
     return probs
+
+
+def _decayed(acc: dict[str, float] | None, classes: list[str], values: np.ndarray
+             ) -> dict[str, float]:
+    """``acc`` decayed by one flight, plus this flight's ``values`` (one per class)."""
+    acc = acc or {}
+    return {c: CHAIN.class_evidence_decay * acc.get(c, 0.0) + float(v)
+            for c, v in zip(classes, values, strict=True)}
+
+
+def _own_probabilities(model: PhmModel, h: ActuatorHealth) -> dict[str, float] | None:
+    """Each mode's own probability of being present, from its decision values pooled over the
+    flights since the alarm (their decayed mean); None without per-mode calibration."""
+    clf = model.classifier
+    if (clf is None or getattr(clf, "mode_calibration_", None) is None
+            or not h.mode_decision or not h.class_weight):
+        return None
+    classes = [str(c) for c in clf.classes_.tolist()]
+    mean = np.array([h.mode_decision.get(c, 0.0) for c in classes]) / h.class_weight
+    return {c: float(q) for c, q in
+            zip(classes, clf.mode_proba_from_decision(mean[np.newaxis, :])[0], strict=True)}
 
 
 def _confirm(h: ActuatorHealth, lead: str | None, probs: dict[str, float] | None

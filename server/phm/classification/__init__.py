@@ -24,6 +24,11 @@ size of the calibration set is the number of degradation patterns (tens), not th
 flights (flights of one pattern are strongly correlated), and (ii) it is monotone, so ``argmax
 predict_proba == predict`` always and the calibration never changes the SVM's decision.
 
+Each mode also has a probability of its own, ``q_k = sigmoid(a_k d_k + b_k)`` (Platt's scaling
+of its one-vs-rest decision value on the same out-of-fold values): "is this mode present",
+not "which one mode". The softmax decides the leading mode; ``q`` lets a second mode present at
+once join it (:mod:`.modes`).
+
 Prediction is plain numpy over the stored arrays (scaler mean/scale, ``coef_``, ``intercept_``,
 ``temperature_``), so a model written with :meth:`FaultClassifier.to_dict` and read back with
 :meth:`FaultClassifier.from_dict` predicts bit-identically. JSON floats round-trip exactly
@@ -37,6 +42,8 @@ Modules
 -------
 :mod:`.config`     :class:`ClassifierConfig`, the hyper-parameters and their defaults
 :mod:`.estimator`  :class:`FaultClassifier` (scaler + LinearSVC + temperature), to/from dict
+:mod:`.modes`      the set of modes present: the leading one and every other at its threshold
+:mod:`.confirmation` when the leading mode is confirmed
 :mod:`.split`      :func:`split_by_group` (train/verify by pattern) and the calibration folds
 :mod:`.report`     :func:`confusion` and the probability-calibration report
 :mod:`.train`      :func:`train_classifier`, the split-fit-verify driver

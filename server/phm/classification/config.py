@@ -38,6 +38,11 @@ class ClassifierConfig:
     temperature_max: float = 1e2
     #: -, absolute tolerance of that search on log T
     temperature_xatol: float = 1e-6
+    #: -, inverse L2 penalty on the slope of each mode's own calibration (Platt's sigmoid on
+    #: its one-vs-rest decision value, :mod:`~.estimator`): out-of-fold values that separate a
+    #: mode perfectly would otherwise fit an infinite slope, a claim of 0 or 1 that a fault
+    #: beside another one (never in the training rows) would inherit. scikit-learn's default
+    mode_calibration_C: float = 1.0
     #: -, fraction of the degradation patterns (per class) held out for verification: the
     #: paper's 70 % / 30 % split
     test_fraction: float = 0.3

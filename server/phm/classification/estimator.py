@@ -7,6 +7,13 @@ solver), predicted class ``argmax_k d_k``, and calibrated probabilities by tempe
 ``p_k = exp(T d_k) / sum_j exp(T d_j)``, ``T`` fitted on out-of-fold decision values (group
 folds, :func:`~.split.calibration_folds`).
 
+The softmax answers "which one mode": its probabilities compete. Each mode also gets a
+probability of its own, "is this mode present", that does not: ``q_k = 1 / (1 + exp(-(a_k d_k
++ b_k)))`` (Platt's sigmoid on the mode's one-vs-rest decision value, a regularised logistic
+regression of "row is mode k" on the same out-of-fold ``d_k``). Two modes at once can each
+have a high ``q`` (:meth:`FaultClassifier.mode_proba`; the set of modes present,
+:mod:`~.modes`).
+
 Prediction is plain numpy over the stored arrays (scaler mean/scale, ``coef_``, ``intercept_``,
 ``temperature_``), so a model written with :meth:`FaultClassifier.to_dict` and read back with
 :meth:`FaultClassifier.from_dict` predicts bit-identically. JSON floats round-trip exactly
@@ -22,6 +29,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize_scalar
 from sklearn.exceptions import NotFittedError
+from sklearn.linear_model import LogisticRegression
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import LinearSVC
 
@@ -98,6 +106,28 @@ def _fit_temperature(D: np.ndarray, yi: np.ndarray,
     return float(math.exp(res.x))
 
 
+def _fit_mode_calibration(D: np.ndarray, yi: np.ndarray,
+                          config: ClassifierConfig = CLASSIFIER_DEFAULTS) -> np.ndarray:
+    """Per mode ``k``, Platt's ``(a_k, b_k)`` on the rows where ``d_k`` is known: a logistic
+    regression of ``yi == k`` on ``d_k``; shape ``(n_classes, 2)``. A mode on every row or on
+    none (nothing to tell apart) gets slope 0 and the log-odds of its share."""
+    out = np.zeros((D.shape[1], 2))
+    for k in range(D.shape[1]):
+        ok = np.isfinite(D[:, k])
+        target = yi[ok] == k
+        if target.all() or not target.any():
+            share = (target.sum() + 0.5) / (target.size + 1.0)
+            out[k] = 0.0, math.log(share / (1.0 - share))
+            continue
+        fit = LogisticRegression(C=config.mode_calibration_C).fit(D[ok, k:k + 1], target)
+        out[k] = float(fit.coef_[0, 0]), float(fit.intercept_[0])
+    return out
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.tanh(0.5 * x))  # overflow-free logistic
+
+
 def _fit_scaler(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """StandardScaler (NaN-aware); an all-NaN feature gets mean 0, scale 1."""
     with np.errstate(invalid="ignore", divide="ignore"):  # an all-NaN column is handled below
@@ -155,6 +185,9 @@ class FaultClassifier:
     intercept_ : ndarray of shape (n_classes,)
     temperature_ : float
         Softmax temperature ``T`` (multiplies the decision values).
+    mode_calibration_ : ndarray of shape (n_classes, 2) or None
+        Each mode's Platt slope and intercept ``(a_k, b_k)`` on its decision value (None for a
+        document written before they were kept: :meth:`mode_proba` then refuses).
     error_floor_ : float
         ``e = (errors + 1) / (n + 2)`` of the out-of-fold predictions (Laplace's rule of
         succession: the posterior mean error rate under a uniform prior). The probabilities
@@ -257,6 +290,7 @@ class FaultClassifier:
             D_cal, y_cal = Z @ coef.T + icpt, yi
             source = "in-sample"
         temperature = _fit_temperature(D_cal, y_cal)
+        mode_calibration = _fit_mode_calibration(D_cal, y_cal)
         errors = int(np.sum(np.argmax(D_cal, axis=1) != y_cal))
         error_floor = (errors + 1.0) / (y_cal.size + 2.0)
 
@@ -268,6 +302,7 @@ class FaultClassifier:
         self.coef_ = coef
         self.intercept_ = icpt
         self.temperature_ = temperature
+        self.mode_calibration_: np.ndarray | None = mode_calibration
         self.error_floor_ = float(error_floor)
         self.n_samples_ = int(X.shape[0])
         oof_pred = np.argmax(D_cal, axis=1)
@@ -346,6 +381,20 @@ class FaultClassifier:
         """
         return np.exp(self.predict_log_proba(X))
 
+    def mode_proba_from_decision(self, D: np.ndarray) -> np.ndarray:
+        """Each mode's own probability of being present, ``sigmoid(a_k d_k + b_k)``, from
+        decision values ``D`` (n_samples, n_classes); rows need not sum to 1."""
+        cal = getattr(self, "mode_calibration_", None)
+        if cal is None:
+            raise NotFittedError("this classifier keeps no per-mode calibration (a document "
+                                 "written before it was fitted): retrain it")
+        return _sigmoid(cal[:, 0] * np.asarray(D, dtype=np.float64) + cal[:, 1])
+
+    def mode_proba(self, X: np.ndarray) -> np.ndarray:
+        """Each mode's own probability of being present (see the module docstring),
+        shape (n_samples, n_classes), column order ``classes_``."""
+        return self.mode_proba_from_decision(self.decision_function(X))
+
     def score(self, X: np.ndarray, y: Sequence[Hashable] | np.ndarray) -> float:
         """Accuracy on ``(X, y)``."""
         return float(np.mean(self.predict(X) == np.asarray(y)))
@@ -379,6 +428,8 @@ class FaultClassifier:
             "coef": self.coef_.tolist(),
             "intercept": self.intercept_.tolist(),
             "temperature": float(self.temperature_),
+            **({} if self.mode_calibration_ is None
+               else {"mode_calibration": self.mode_calibration_.tolist()}),
             "error_floor": float(self.error_floor_),
             "calibration": dict(self.calibration_),
             "n_samples": self.n_samples_,
@@ -399,12 +450,16 @@ class FaultClassifier:
         model.coef_ = np.asarray(d["coef"], dtype=np.float64).reshape(len(classes), -1)
         model.intercept_ = np.asarray(d["intercept"], dtype=np.float64)
         model.temperature_ = float(d["temperature"])
+        model.mode_calibration_ = (None if d.get("mode_calibration") is None else
+                                   np.asarray(d["mode_calibration"], dtype=np.float64))
         # a document written before the floor was kept: none (its probabilities as they were)
         model.error_floor_ = float(d.get("error_floor", 0.0))
         model.calibration_ = dict(d["calibration"])
         model.n_samples_ = int(d["n_samples"])
         k, n = model.coef_.shape
+        cal = model.mode_calibration_
         if (model.mean_.shape != (n,) or model.scale_.shape != (n,)
-                or model.intercept_.shape != (k,) or n != model.n_features_in_):
+                or model.intercept_.shape != (k,) or n != model.n_features_in_
+                or (cal is not None and (cal.shape != (k, 2) or not np.isfinite(cal).all()))):
             raise ValueError("inconsistent array shapes in classifier document")
         return model

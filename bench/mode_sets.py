@@ -1,0 +1,110 @@
+"""Choose the mode-set threshold, on design seeds' evaluations.
+
+A unit in alarm names its leading mode and every other mode whose own probability is at the
+threshold or above (:mod:`server.phm.classification.modes`). Every evaluation keeps, per flight
+in alarm, the leading mode and each mode's own probability, so each threshold is scored from
+the stored traces in seconds, without running the chain again:
+
+- on concurrent evaluations (``concurrent.json``, ``hmsm evaluate`` on a concurrent campaign):
+  both modes named on the flight of the first fault's half life (:mod:`server.evaluation.
+  concurrent_scoring`), and the unit-flights naming a mode their unit does not carry;
+- on single-fault evaluations (``evaluation.json``): the faulty unit's flights in alarm that
+  name a second mode (a fault it does not carry).
+
+The choice: the highest threshold whose share named at half life is at or above ``--target``
+(0.90) while single faults name a second mode on at most ``--spurious`` (0.05) of their flights
+in alarm; without one, none is chosen and the grid says why.
+
+    python bench/mode_sets.py --concurrent C.json [C.json ...] --single E.json [E.json ...]
+        [--target 0.9] [--spurious 0.05] [--out F.json]
+
+Score the chosen threshold on a concurrent verification campaign once, with ``hmsm evaluate``
+(the service's rule is ``MODE_SET``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+from pathlib import Path
+from typing import Any
+
+from server.evaluation.concurrent_scoring import score_concurrent
+from server.phm.classification.modes import ModeSetRule, modes_present
+from server.phm.metrics import proportion_interval
+
+THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+
+
+def _load(paths: list[Path]) -> list[dict[str, Any]]:
+    """The traces of evaluations (concurrent.json or evaluation.json)."""
+    return [t for p in paths for t in json.loads(p.read_text())["patterns"]]
+
+
+def _with_rule(traces: list[dict[str, Any]], rule: ModeSetRule) -> list[dict[str, Any]]:
+    """The concurrent traces with every unit's modes recomputed under ``rule``."""
+    out = copy.deepcopy(traces)
+    for t in out:
+        for f in t["flights"]:
+            for unit in f["units"].values():
+                if unit.get("own") and unit.get("fault_mode"):
+                    unit["modes"] = modes_present(unit["fault_mode"], unit["own"], rule)
+    return out
+
+
+def _single_spurious(traces: list[dict[str, Any]], rule: ModeSetRule) -> dict[str, Any]:
+    """Flights in alarm of a single fault's unit naming a mode beside its own."""
+    wrong = total = 0
+    for t in traces:
+        if t["mode"] == "healthy":
+            continue
+        for f in t["flights"]:
+            if f["alarm"] and f.get("own") and f.get("fault_mode"):
+                total += 1
+                named = modes_present(f["fault_mode"], f["own"], rule)
+                wrong += any(m != t["mode"] for m in named[1:])
+    return {"hits": wrong, "n": total, "share": wrong / total if total else None,
+            "interval": proportion_interval(wrong, total) if total else None}
+
+
+def grid(concurrent: list[dict[str, Any]], single: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    rows = []
+    for threshold in THRESHOLDS:
+        rule = ModeSetRule(threshold)
+        s = score_concurrent(_with_rule(concurrent, rule))["all"]
+        rows.append({"threshold": threshold, "named_at_half": s["named_at_half"],
+                     "faults_named": s["faults_named"], "concurrent_spurious": s["spurious"],
+                     "single_spurious": _single_spurious(single, rule)})
+    return rows
+
+
+def choose(rows: list[dict[str, Any]], target: float, spurious: float) -> dict[str, Any] | None:
+    ok = [r for r in rows if (r["named_at_half"]["share"] or 0.0) >= target
+          and (r["single_spurious"]["share"] or 0.0) <= spurious]
+    return max(ok, key=lambda r: r["threshold"]) if ok else None
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--concurrent", nargs="+", type=Path, required=True)
+    ap.add_argument("--single", nargs="+", type=Path, required=True)
+    ap.add_argument("--target", type=float, default=0.9)
+    ap.add_argument("--spurious", type=float, default=0.05)
+    ap.add_argument("--out", type=Path)
+    args = ap.parse_args()
+    rows = grid(_load(args.concurrent), _load(args.single))
+    for r in rows:
+        h, c, s = r["named_at_half"], r["concurrent_spurious"], r["single_spurious"]
+        print(f"threshold {r['threshold']:.2f}: named at half {h['hits']}/{h['n']}, "
+              f"faults named {r['faults_named']['hits']}/{r['faults_named']['n']}, "
+              f"spurious concurrent {c['hits']}/{c['n']}, single {s['hits']}/{s['n']}")
+    chosen = choose(rows, args.target, args.spurious)
+    print("chosen:", None if chosen is None else chosen["threshold"])
+    if args.out:
+        args.out.write_text(json.dumps({"target": args.target, "spurious": args.spurious,
+                                        "grid": rows, "chosen": chosen}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
