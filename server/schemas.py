@@ -788,6 +788,9 @@ class ModePresentRead(BaseModel):
                                       "(not competing with the other modes')")
     rul_median_flights: float | None = Field(description="median RUL of its own prognosis "
                                              "(null: a step fault, or none yet)")
+    confirmed: bool = Field(default=False, description="confirmed: the leading one as the "
+                            "alarm's class, another as present beside it (its own probability "
+                            "held on consecutive flights); else provisional")
 
 
 class AlarmRead(BaseModel):
@@ -842,7 +845,7 @@ class AlarmEventRead(BaseModel):
     alarm_id: int
     kind: str = Field(description="class_change: the leading class went from from_mode to "
                       "to_mode on this flight; confirmed: the evidence confirmed the class "
-                      "to_mode on this flight")
+                      "to_mode on this flight, or to_mode present beside it")
     flight_id: int | None
     flight_index: int | None
     from_mode: str | None

@@ -30,7 +30,8 @@ __all__ = ["run_concurrent_pattern", "evaluate_concurrent", "concurrent_markdown
 def _unit(o: ActuatorOutcome) -> dict[str, Any]:
     return {"new_alarm": o.new_alarm, "probs": o.class_probabilities,
             "fault_mode": o.fault_mode, "modes": list(o.modes), "own": o.mode_probabilities,
-            "confirmed": o.confirmed, "isolation": dict(o.isolation) if o.new_alarm else None,
+            "confirmed": o.confirmed, "confirmed_others": list(o.confirmed_others),
+            "isolation": dict(o.isolation) if o.new_alarm else None,
             "rul": None if o.rul is None else o.rul.to_dict()}
 
 
@@ -103,12 +104,14 @@ def _mean(e: Mapping[str, Any], key: str, scale: float = 1.0) -> str:
 def concurrent_markdown(summary: Mapping[str, Any]) -> str:
     """The concurrent table: per combination kind and over all, each share with its exact
     interval, the earlier failure's PH and RA with bootstrap intervals."""
-    head = ("| combination | patterns | faults alarmed | faults named | both named at the "
-            "first's half life | second after it | earlier failure: PH | PH cone | RA [%] | "
-            "spurious modes (unit-flights) |\n|---|---|---|---|---|---|---|---|---|---|")
+    head = ("| combination | patterns | faults alarmed | faults named | faults confirmed | both "
+            "named at the first's half life | second after it | earlier failure: PH | PH cone "
+            "| RA [%] | spurious modes (unit-flights) |\n"
+            + "|---" * 11 + "|")
     rows = [*summary["combinations"].items(), ("all", summary["all"])]
     lines = [f"| {name} | {s['patterns']} | {_share(s['faults_alarmed'])} | "
-             f"{_share(s['faults_named'])} | {_share(s['named_at_half'])} | "
+             f"{_share(s['faults_named'])} | {_share(s['faults_confirmed'])} | "
+             f"{_share(s['named_at_half'])} | "
              f"{s['second_after_half']} | {_mean(s['earlier_failure'], 'ph')} | "
              f"{_mean(s['earlier_failure'], 'ph_cone')} | "
              f"{_mean(s['earlier_failure'], 'ra', 100.0)} | {_share(s['spurious'])} |"

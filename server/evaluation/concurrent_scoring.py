@@ -4,8 +4,10 @@ naming, both modes named by the first fault's half life, the RUL of the earlier 
 Per pattern, from its truth (each fault's unit, onset, and end: its failure, or the flight its
 unit failed of the other fault, censoring it):
 
-- a fault is *alarmed* when its unit is in alarm on a flight from its onset to its end, and
-  *named* from the first such flight whose modes present hold its mode;
+- a fault is *alarmed* when its unit is in alarm on a flight from its onset to its end,
+  *named* from the first such flight whose modes present hold its mode, and *confirmed* on the
+  first flight up to its end that confirmed its mode on its unit (as the alarm's class, or
+  present beside it: :mod:`server.phm.classification.confirmation`);
 - the *half flight* is the first fault's onset plus half its life (to its failure; a censored
   first fault's planned span); the pattern is *named at half* when, on the last flight at or
   before it, every fault's unit names that fault's mode (patterns whose second fault starts
@@ -44,12 +46,18 @@ def _fault_facts(fault: Mapping[str, Any], flights: Sequence[Mapping[str, Any]]
     alarmed = next((int(f["index"]) for f in window if pos in f["units"]), None)
     named = next((int(f["index"]) for f in window
                   if mode in (f["units"].get(pos) or {}).get("modes", [])), None)
+    confirmed = next((int(f["index"]) for f in flights if int(f["index"]) <= end
+                      and _confirms(f["units"].get(pos) or {}, mode)), None)
     life = (int(fault["failure_flight"]) - onset if fault.get("failure_flight") is not None
             else float(fault["span_flights"]))
     return {"mode": mode, "position": pos, "onset": onset, "end": end,
             "outcome": fault["outcome"], "failure": fault.get("failure_flight"), "life": life,
-            "alarmed": alarmed, "named": named,
+            "alarmed": alarmed, "named": named, "confirmed": confirmed,
             "named_pct_life": None if named is None else 100.0 * (named - onset) / life}
+
+
+def _confirms(unit: Mapping[str, Any], mode: str) -> bool:
+    return unit.get("confirmed") == mode or mode in (unit.get("confirmed_others") or [])
 
 
 def _named_at(flight: Mapping[str, Any] | None, faults: Sequence[Mapping[str, Any]]) -> bool:
@@ -127,6 +135,8 @@ def _summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
             "faults_alarmed": _share(sum(f["alarmed"] is not None for f in faults),
                                      len(faults)),
             "faults_named": _share(sum(f["named"] is not None for f in faults), len(faults)),
+            "faults_confirmed": _share(sum(f["confirmed"] is not None for f in faults),
+                                       len(faults)),
             "named_at_half": _share(sum(bool(r["named_at_half"]) for r in eligible),
                                     len(eligible)),
             "second_after_half": len(rows) - len(eligible),

@@ -266,13 +266,16 @@ def _store_prognosis(session: Session, flight: Flight, act: Actuator, out: Actua
     return out.rul
 
 
-def _modes_present(out: ActuatorOutcome) -> list[dict[str, Any]] | None:
-    """The alarm's ``modes``: each mode present with its own probability and median RUL."""
+def _modes_present(out: ActuatorOutcome, confirmed: str | None) -> list[dict[str, Any]] | None:
+    """The alarm's ``modes``: each mode present with its own probability, median RUL and
+    whether it is confirmed (the leading one as the alarm's class, ``confirmed``; another
+    as present beside it)."""
     if not out.modes:
         return None
     own, ruls = out.mode_probabilities or {}, out.ruls
     return [{"mode": m, "probability": _finite(own.get(m)),
-             "rul_median_flights": _finite(ruls[m].median) if m in ruls else None}
+             "rul_median_flights": _finite(ruls[m].median) if m in ruls else None,
+             "confirmed": m == confirmed or m in out.confirmed_modes}
             for m in out.modes]
 
 
@@ -288,11 +291,12 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
         alarm = Alarm(actuator_id=act.id, flight_id=flight.id, status=AlarmStatus.OPEN,
                       confidence=out.max_confidence, fault_mode=out.fault_mode,
                       class_probability=prob, features=out.alarm_features,
-                      isolation=out.isolation or None, modes=_modes_present(out),
+                      isolation=out.isolation or None,
                       rul_median_flights=median, rul_low_flights=low)
         session.add(alarm)
         session.flush()
         _confirm_class(session, flight, alarm, out)
+        alarm.modes = _modes_present(out, alarm.confirmed_fault_mode)
     elif out.alarm:
         open_alarm = session.scalar(select(Alarm).where(
             Alarm.actuator_id == act.id, Alarm.status != AlarmStatus.CLOSED)
@@ -309,15 +313,19 @@ def _store_alarm(session: Session, flight: Flight, act: Actuator, out: ActuatorO
             open_alarm.rul_median_flights = median
             open_alarm.rul_low_flights = low
             open_alarm.isolation = out.isolation or open_alarm.isolation
-            open_alarm.modes = _modes_present(out) or open_alarm.modes
             _confirm_class(session, flight, open_alarm, out)
+            open_alarm.modes = (_modes_present(out, open_alarm.confirmed_fault_mode)
+                                or open_alarm.modes)
     session.flush()
 
 
 def _confirm_class(session: Session, flight: Flight, alarm: Alarm, out: ActuatorOutcome
                    ) -> None:
     """The flight that confirmed the alarm's class (``out.confirmed``): kept on the alarm and
-    as its own event."""
+    as its own event; so is each mode confirmed present beside it (``out.confirmed_others``)."""
+    for mode in out.confirmed_others:
+        session.add(AlarmEvent(alarm_id=alarm.id, flight_id=flight.id,
+                               flight_index=out.flight_index, kind="confirmed", to_mode=mode))
     if out.confirmed is None or alarm.confirmed_fault_mode is not None:
         return
     alarm.confirmed_fault_mode = out.confirmed

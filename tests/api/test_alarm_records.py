@@ -36,7 +36,8 @@ def _outcome(mode: str | None, *, new: bool, index: int, confirmed: str | None =
                            max_confidence=0.99, alarm_features=["WT.F_MTEL"],
                            isolation={"WT": 1.0} if new else {}, confirmed=confirmed,
                            modes=modes, mode_probabilities=dict.fromkeys(modes, 0.9),
-                           ruls=ruls)
+                           ruls=ruls, confirmed_others=[second] if second and confirmed else [],
+                           confirmed_modes=[second] if second and confirmed else [])
 
 
 def _alarm_item(client: TestClient, keys: dict[str, str], alarm_id: int) -> dict:
@@ -70,7 +71,8 @@ def test_a_failed_unit_reports_no_remaining_life(app, client, keys, aircraft) ->
 def test_an_alarm_lists_every_mode_present_and_follows_them(  # type: ignore[no-untyped-def]
         app, client, keys, aircraft) -> None:
     """Two modes on one unit: the alarm lists both with their own probability and median RUL,
-    the leading one first; a flight naming one mode again lists that one."""
+    the leading one first, provisional until confirmed (each confirmation its own event); a
+    flight naming one mode again lists that one."""
     factory = app.state.session_factory
     first = add_alarm(factory, tail=aircraft, position="WT", fault_mode="TTS")
     with session_scope(factory) as s:
@@ -83,13 +85,22 @@ def test_an_alarm_lists_every_mode_present_and_follows_them(  # type: ignore[no-
                                                        second="DMD"), None)
         alarm_id = s.scalar(select(Alarm.id).where(Alarm.actuator_id == act_id))
     assert _alarm_item(client, keys, alarm_id)["modes"] == [
-        {"mode": "TTS", "probability": 0.9, "rul_median_flights": 40.0},
-        {"mode": "DMD", "probability": 0.9, "rul_median_flights": 25.0}]
+        {"mode": "TTS", "probability": 0.9, "rul_median_flights": 40.0, "confirmed": False},
+        {"mode": "DMD", "probability": 0.9, "rul_median_flights": 25.0, "confirmed": False}]
+    with session_scope(factory) as s:  # both confirmed on one flight: two events
+        analysis._store_alarm(s, flight, s.get(Actuator, act_id),
+                              _outcome("TTS", new=False, index=31, second="DMD",
+                                       confirmed="TTS"), None)
+    assert [m["confirmed"] for m in _alarm_item(client, keys, alarm_id)["modes"]] == [
+        True, True]
+    events = client.get(f"/api/v1/alarms/{alarm_id}/events", headers=auth(keys["viewer"]))
+    assert sorted((e["kind"], e["to_mode"], e["flight_index"]) for e in events.json()) == [
+        ("confirmed", "DMD", 31), ("confirmed", "TTS", 31)]
     with session_scope(factory) as s:
         analysis._store_alarm(s, flight, s.get(Actuator, act_id),
-                              _outcome("TTS", new=False, index=31), None)
+                              _outcome("TTS", new=False, index=32), None)
     assert _alarm_item(client, keys, alarm_id)["modes"] == [
-        {"mode": "TTS", "probability": 0.9, "rul_median_flights": None}]
+        {"mode": "TTS", "probability": 0.9, "rul_median_flights": None, "confirmed": True}]
 
 
 def test_a_closed_alarm_claims_no_live_urgency(app, client, keys, aircraft) -> None:  # type: ignore[no-untyped-def]

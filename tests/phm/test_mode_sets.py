@@ -27,10 +27,31 @@ def test_the_leader_comes_first_then_every_other_mode_at_the_threshold() -> None
 def test_the_modes_and_pooled_decisions_survive_a_restart_and_a_rearm_clears_them() -> None:
     h = ActuatorHealth("WL1", DetectionState.new("WL1", ["WL1.F_TTS", "WL1.F_DMD"]))
     h.mode_decision, h.modes, h.fault_mode = {"TTS": 3.0, "DMD": 1.5}, ["TTS", "DMD"], "TTS"
+    h.mode_runs, h.confirmed_modes = {"DMD": 3}, ["DMD"]
     back = ActuatorHealth.from_dict(json.loads(json.dumps(h.to_dict())))
-    assert (back.mode_decision, back.modes) == (h.mode_decision, h.modes)
+    assert (back.mode_decision, back.modes, back.mode_runs, back.confirmed_modes) == (
+        h.mode_decision, h.modes, h.mode_runs, h.confirmed_modes)
     old = {k: v for k, v in h.to_dict().items() if k not in ("mode_decision", "modes")}
     assert (ActuatorHealth.from_dict(old).mode_decision, ActuatorHealth.from_dict(old).modes
             ) == (None, [])
     back.rearm()
-    assert (back.mode_decision, back.modes) == (None, [])
+    assert (back.mode_decision, back.modes, back.mode_runs, back.confirmed_modes) == (
+        None, [], {}, [])
+
+
+def test_a_mode_beside_the_leader_is_confirmed_by_the_rule_on_its_own_evidence() -> None:
+    """In the set on the rule's flights in a row, its own probability at the rule's on the
+    last: confirmed; leaving the set starts its run again; the leader's run is not counted."""
+    from server.phm.classification.confirmation import ConfirmationRule, advance_others
+
+    rule = ConfirmationRule(flights=2, probability=0.8)
+    runs, held = advance_others(rule, {}, ["TTS", "DMD"], {"TTS": 0.99, "DMD": 0.85})
+    assert (runs, held) == ({"DMD": 1}, [])
+    runs, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.7})
+    assert (runs, held) == ({"DMD": 2}, [])  # long enough, not probable enough
+    runs, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.9})
+    assert held == ["DMD"]
+    runs, _ = advance_others(rule, runs, ["TTS"], {"DMD": 0.9})
+    assert runs == {}
+    runs, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.9})
+    assert (runs, held) == ({"DMD": 1}, [])

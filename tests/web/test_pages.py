@@ -124,18 +124,21 @@ def test_the_header_names_the_open_alarms_mode_even_without_a_prognosis(
 def test_two_modes_on_one_unit_show_with_their_probabilities_and_rul(
         app, client, keys, seeded, aircraft) -> None:  # type: ignore[no-untyped-def]
     """An alarm whose unit carries two modes lists both, the leading one first, each with its
-    own probability and median RUL, in the inbox, on the actuator page and in the API; an alarm
-    with one mode lists none."""
+    own probability and median RUL, a mode not yet confirmed marked provisional, in the inbox,
+    on the actuator page and in the API; an alarm with one mode lists none."""
     factory = app.state.session_factory
-    both = [{"mode": "TTS", "probability": 0.97, "rul_median_flights": 120.0},
-            {"mode": "DMD", "probability": 0.74, "rul_median_flights": 80.4}]
+    both = [{"mode": "TTS", "probability": 0.97, "rul_median_flights": 120.0,
+             "confirmed": True},
+            {"mode": "DMD", "probability": 0.74, "rul_median_flights": 80.4,
+             "confirmed": False}]
     two = add_alarm(factory, tail=aircraft, position="WT", fault_mode="TTS", rul=80.4,
                     modes=both)
     one = add_alarm(factory, tail=aircraft, position="WL1", fault_mode="MTEL",
                     modes=[{"mode": "MTEL", "probability": 0.9, "rul_median_flights": 50.0}])
     sign_in(client, keys["viewer"])
     inbox = client.get("/alarms").text
-    text = "modes present: TTS 0.97 (RUL 120) · DMD 0.74 (RUL 80)"
+    text = ('modes present: TTS 0.97 (RUL 120) · DMD 0.74 (RUL 80) '
+            '<span class="provisional">provisional</span>')
     assert text in inbox[inbox.index(f'id="alarm-{two}"'):].split("</tr>")[0]
     assert "modes present" not in inbox[inbox.index(f'id="alarm-{one}"'):].split("</tr>")[0]
     items = client.get("/api/v1/alarms", headers={

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..baselines import OutsideDesign
-from ..classification.confirmation import CONFIRMATION, advance
+from ..classification.confirmation import CONFIRMATION, advance, advance_others
 from ..classification.modes import modes_present
 from ..detection import DetectionResult, update_units
 from ..features import FlightFeatures
@@ -78,6 +78,9 @@ class ActuatorOutcome:
     #: the mode the alarm's class was confirmed as on this flight (None: no confirmation
     #: now; server.phm.classification.confirmation)
     confirmed: str | None = None
+    #: the modes beside the leading one confirmed present on this flight, and all so far
+    confirmed_others: list[str] = field(default_factory=list)
+    confirmed_modes: list[str] = field(default_factory=list)
 
 
 def analyze_flight(model: PhmModel, features: FlightFeatures,
@@ -143,8 +146,11 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         out[position].confirmed = confirmed
         out[position].ruls, out[position].rul_mode = ruls, rul_mode
         if probs:
-            out[position].mode_probabilities = _own_probabilities(model, h)
+            own = _own_probabilities(model, h)
+            out[position].mode_probabilities = own
             out[position].modes = list(h.modes)
+            out[position].confirmed_others = _confirm_others(h, own or {})
+            out[position].confirmed_modes = list(h.confirmed_modes)
         if judged is not None:
             _note_sensors(out[position], judged, position)
         _note_outside(out[position], outside, position)
@@ -279,6 +285,15 @@ def _confirm(h: ActuatorHealth, lead: str | None, probs: dict[str, float] | None
         h.confirmed_mode = mode
         return mode
     return None
+
+
+def _confirm_others(h: ActuatorHealth, own: dict[str, float]) -> list[str]:
+    """Advance the confirmation of the modes beside the leading one; those it confirms on this
+    flight (each once per alarm)."""
+    h.mode_runs, held = advance_others(CONFIRMATION, h.mode_runs, h.modes, own)
+    now = [m for m in held if m not in h.confirmed_modes]
+    h.confirmed_modes += now
+    return now
 
 
 def _finite(v: float) -> float | None:

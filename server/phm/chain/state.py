@@ -36,6 +36,10 @@ class ActuatorHealth:
     mode_decision: dict[str, float] | None = None
     #: the modes present on the last classified flight, the leading one first
     modes: list[str] = field(default_factory=list)
+    #: per mode beside the leading one, its run of consecutive classified flights in the set;
+    #: and the modes beside it confirmed present (classification.confirmation.advance_others)
+    mode_runs: dict[str, int] = field(default_factory=dict)
+    confirmed_modes: list[str] = field(default_factory=list)
     #: the confirmation rule's run (server.phm.classification.confirmation): how many
     #: classified flights in a row ``fault_mode`` has led, and the mode once confirmed
     class_run: int = 0
@@ -75,6 +79,8 @@ class ActuatorHealth:
         self.fault_mode = None
         self.mode_decision = None
         self.modes = []
+        self.mode_runs = {}
+        self.confirmed_modes = []
         self.class_run = 0
         self.confirmed_mode = None
         self.prognoses = {}
@@ -85,7 +91,8 @@ class ActuatorHealth:
                 "alarm_index": self.alarm_index,
                 "class_log_prob": self.class_log_prob, "class_weight": self.class_weight,
                 "fault_mode": self.fault_mode, "mode_decision": self.mode_decision,
-                "modes": list(self.modes), "class_run": self.class_run,
+                "modes": list(self.modes), "mode_runs": dict(self.mode_runs),
+                "confirmed_modes": list(self.confirmed_modes), "class_run": self.class_run,
                 "confirmed_mode": self.confirmed_mode,
                 "prognoses": self.prognoses,
                 "history": [[i, z] for i, z in self.history],
@@ -109,6 +116,8 @@ class ActuatorHealth:
                    class_log_prob=d.get("class_log_prob"), class_weight=d.get("class_weight"),
                    fault_mode=d.get("fault_mode"), mode_decision=d.get("mode_decision"),
                    modes=[str(m) for m in d.get("modes") or []],
+                   mode_runs={str(m): int(n) for m, n in (d.get("mode_runs") or {}).items()},
+                   confirmed_modes=[str(m) for m in d.get("confirmed_modes") or []],
                    class_run=int(d.get("class_run") or 0),
                    confirmed_mode=d.get("confirmed_mode"),
                    prognoses=prognoses,

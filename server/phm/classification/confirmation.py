@@ -8,6 +8,10 @@ of them is at least ``probability``: a second flight of evidence for a step faul
 for a slow one. The alarm is raised at the first flight either way; the confirmation is its own
 event. One function serves the chain (flight by flight, :func:`advance`) and the evaluation
 (whole sequences, :func:`first_confirmation`), so the two cannot disagree.
+
+A second mode present beside the leading one (:mod:`.modes`) is confirmed by the same rule on
+its own evidence (:func:`advance_others`): in the set on ``flights`` consecutive classified
+flights, its own probability on the last of them at least ``probability``.
 """
 
 from __future__ import annotations
@@ -15,7 +19,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-__all__ = ["ConfirmationRule", "CONFIRMATION", "advance", "first_confirmation", "leading"]
+__all__ = ["ConfirmationRule", "CONFIRMATION", "advance", "advance_others",
+           "first_confirmation", "leading"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +52,16 @@ def advance(rule: ConfirmationRule, lead: str | None, run: int,
     mode = leading(probs)
     run = run + 1 if mode == lead else 1
     return mode, run, run >= rule.flights and probs[mode] >= rule.probability
+
+
+def advance_others(rule: ConfirmationRule, runs: Mapping[str, int], modes: Sequence[str],
+                   own: Mapping[str, float]) -> tuple[dict[str, int], list[str]]:
+    """One classified flight for the modes beside the leading one (``modes[1:]``): each one's
+    run of consecutive flights in the set (a mode that left it starts again), and those for
+    which the rule holds now."""
+    new = {m: runs.get(m, 0) + 1 for m in modes[1:]}
+    return new, [m for m, n in new.items()
+                 if n >= rule.flights and own.get(m, 0.0) >= rule.probability]
 
 
 def first_confirmation(rule: ConfirmationRule,
