@@ -131,6 +131,8 @@ def _summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     early = [r["earlier_failure"] for r in rows if r["earlier_failure"] is not None]
     idx = resamples(len(early))
     named_pct = [f["named_pct_life"] for f in faults if f["named_pct_life"] is not None]
+    seconds = [max(r["faults"], key=lambda f: f["onset"]) for r in rows]
+    second_delay = [f["named"] - f["onset"] for f in seconds if f["named"] is not None]
     return {"patterns": len(rows),
             "faults_alarmed": _share(sum(f["alarmed"] is not None for f in faults),
                                      len(faults)),
@@ -143,6 +145,9 @@ def _summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
             "named_ever": _share(sum(r["named_ever"] for r in rows), len(rows)),
             "named_pct_life_mean": (sum(named_pct) / len(named_pct) if named_pct
                                     else None),
+            # the later fault: flights from its onset to its mode named on its unit
+            "second_named_flights_mean": (sum(second_delay) / len(second_delay)
+                                          if second_delay else None),
             "earlier_failure": {
                 "n": len(early),
                 **mean_ci("ph", [e["ph"] for e in early], idx),
