@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import Engine, create_engine, inspect
@@ -520,33 +522,43 @@ def test_concurrent_fault_injections_one_live_per_mode_of_an_actuator_from_0017(
     upgrade(url)  # leave it at head for the next test on this database
 
 
+def _alarm_json_column_across(url: str, before: str, column: str, value: Any) -> Engine:
+    """An alarm raised at revision ``before`` and one raised after the next revision, which
+    adds the JSON ``alarms.column``: the first has none (null), the second keeps ``value``;
+    going down to ``before`` drops the column and keeps both alarms. Returns the engine, at
+    ``before``."""
+    import json
+
+    import sqlalchemy as sa
+
+    engine = _one_actuator_at(url, before, "WL1")
+    with engine.begin() as conn:
+        _alarm_and_version(conn, 1, "open", "ready")
+    upgrade(url)
+    with engine.begin() as conn:
+        _alarm_and_version(conn, 2, "open", "ready")
+        conn.execute(sa.text(f"UPDATE alarms SET {column} = :v WHERE id = 2"),
+                     {"v": json.dumps(value)})
+        rows = dict(conn.execute(sa.text(f"SELECT id, {column} FROM alarms")).all())
+    assert rows[1] is None
+    assert (json.loads(rows[2]) if isinstance(rows[2], str) else rows[2]) == value
+    downgrade(url, before)
+    assert column not in {c["name"] for c in inspect(engine).get_columns("alarms")}
+    with engine.begin() as conn:
+        assert conn.execute(sa.text("SELECT COUNT(*) FROM alarms")).scalar() == 2
+    return engine
+
+
 def test_an_alarm_keeps_its_ambiguity_group_from_0018(settings: Settings) -> None:
     """0018 adds ``alarms.isolation``: an alarm raised before has none (null), one raised
     after keeps its units and probabilities; going down drops the column and keeps the
     alarms and their constraints."""
-    import json
-
     import pytest
     import sqlalchemy as sa
     from sqlalchemy.exc import IntegrityError
 
     url = _fresh_url(settings)
-    engine = _one_actuator_at(url, "0017", "WL1")
-    with engine.begin() as conn:
-        _alarm_and_version(conn, 1, "open", "ready")
-    upgrade(url)
-    group = {"WL1": 0.8, "WL2": 0.2}
-    with engine.begin() as conn:
-        _alarm_and_version(conn, 2, "open", "ready")
-        conn.execute(sa.text("UPDATE alarms SET isolation = :g WHERE id = 2"),
-                     {"g": json.dumps(group)})
-        rows = dict(conn.execute(sa.text("SELECT id, isolation FROM alarms")).all())
-    assert rows[1] is None
-    assert (json.loads(rows[2]) if isinstance(rows[2], str) else rows[2]) == group
-    downgrade(url, "0017")
-    assert "isolation" not in {c["name"] for c in inspect(engine).get_columns("alarms")}
-    with engine.begin() as conn:
-        assert conn.execute(sa.text("SELECT COUNT(*) FROM alarms")).scalar() == 2
+    engine = _alarm_json_column_across(url, "0017", "isolation", {"WL1": 0.8, "WL2": 0.2})
     with pytest.raises(IntegrityError, match="ck_alarms_status"), engine.begin() as conn:
         conn.execute(sa.text("UPDATE alarms SET status = 'snoozed' WHERE id = 1"))
     engine.dispose()
@@ -557,28 +569,9 @@ def test_an_alarm_keeps_its_ambiguity_group_from_0018(settings: Settings) -> Non
 def test_an_alarm_keeps_its_modes_present_from_0019(settings: Settings) -> None:
     """0019 adds ``alarms.modes``: an alarm raised before has none (null), one raised after
     keeps every mode present; going down drops the column and keeps the alarms."""
-    import json
-
-    import sqlalchemy as sa
-
     url = _fresh_url(settings)
-    engine = _one_actuator_at(url, "0018", "WL1")
-    with engine.begin() as conn:
-        _alarm_and_version(conn, 1, "open", "ready")
-    upgrade(url)
     modes = [{"mode": "TTS", "probability": 0.9, "rul_median_flights": 40.0},
              {"mode": "DMD", "probability": 0.7, "rul_median_flights": None}]
-    with engine.begin() as conn:
-        _alarm_and_version(conn, 2, "open", "ready")
-        conn.execute(sa.text("UPDATE alarms SET modes = :m WHERE id = 2"),
-                     {"m": json.dumps(modes)})
-        rows = dict(conn.execute(sa.text("SELECT id, modes FROM alarms")).all())
-    assert rows[1] is None
-    assert (json.loads(rows[2]) if isinstance(rows[2], str) else rows[2]) == modes
-    downgrade(url, "0018")
-    assert "modes" not in {c["name"] for c in inspect(engine).get_columns("alarms")}
-    with engine.begin() as conn:
-        assert conn.execute(sa.text("SELECT COUNT(*) FROM alarms")).scalar() == 2
-    engine.dispose()
+    _alarm_json_column_across(url, "0018", "modes", modes).dispose()
     downgrade(url, "base")
     upgrade(url)  # leave it at head for the next test on this database
