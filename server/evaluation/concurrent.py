@@ -116,4 +116,8 @@ def concurrent_markdown(summary: Mapping[str, Any]) -> str:
              f"{_mean(s['earlier_failure'], 'ph_cone')} | "
              f"{_mean(s['earlier_failure'], 'ra', 100.0)} | {_share(s['spurious'])} |"
              for name, s in rows]
-    return "\n".join([head, *lines])
+    modes = ["", "| earlier failure's mode | patterns | PH (Saxena) | RA [%] |",
+             "|---|---|---|---|"]
+    modes += [f"| {m} | {e['n']} | {_mean(e, 'ph')} | {_mean(e, 'ra', 100.0)} |"
+              for m, e in summary.get("earlier_failure_by_mode", {}).items()]
+    return "\n".join([head, *lines, *modes])

@@ -157,14 +157,29 @@ def _summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
                                sum(r["unit_flights_in_alarm"] for r in rows))}
 
 
+def _by_failing_mode(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The earlier failure's PH and RA per its mode: beside a single fault's of that mode."""
+    by: dict[str, list[Mapping[str, Any]]] = defaultdict(list)
+    for r in rows:
+        if r["earlier_failure"] is not None:
+            by[r["earlier_failure"]["mode"]].append(r["earlier_failure"])
+    out = {}
+    for mode, early in sorted(by.items()):
+        idx = resamples(len(early))
+        out[mode] = {"n": len(early), **mean_ci("ph", [e["ph"] for e in early], idx),
+                     **mean_ci("ra", [nan_if_none(e["ra"]) for e in early], idx)}
+    return out
+
+
 def score_concurrent(traces: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     """Per combination kind and over all: the shares with their exact 90 % intervals, the
-    earlier failure's PH and RA with bootstrap intervals over patterns; every pattern's
-    facts under ``patterns``."""
+    earlier failure's PH and RA with bootstrap intervals over patterns (also per the failing
+    fault's mode); every pattern's facts under ``patterns``."""
     rows = [score_pattern(t) for t in traces]
     by: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for r in rows:
         by[r["combination"]].append(r)
     return {"level": LEVEL, "all": _summary(rows),
             "combinations": {k: _summary(v) for k, v in sorted(by.items())},
+            "earlier_failure_by_mode": _by_failing_mode(rows),
             "patterns": rows}
