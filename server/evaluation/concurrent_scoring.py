@@ -9,9 +9,11 @@ unit failed of the other fault, censoring it):
   first flight up to its end that confirmed its mode on its unit (as the alarm's class, or
   present beside it: :mod:`server.phm.classification.confirmation`);
 - the *half flight* is the first fault's onset plus half its life (to its failure; a censored
-  first fault's planned span); the pattern is *named at half* when, on the last flight at or
-  before it, every fault's unit names that fault's mode (patterns whose second fault starts
-  after the half flight cannot be, and are counted apart);
+  first fault's planned span); the pattern is *named by half* when every fault was named on a
+  flight at or before it, and *named at half* when, on the last flight at or before it, every
+  fault's unit still names that fault's mode (the set is provisional: a mode may drop out and
+  come back); patterns whose second fault starts after the half flight can be neither, and
+  are counted apart;
 - the *earlier failure* is the first fault to fail; its unit's RUL (the leading mode's
   prognosis) is scored against it as a single fault's is (:func:`.scoring.pattern_prognosis`:
   Saxena's horizon, the cone's, RA);
@@ -114,6 +116,8 @@ def score_pattern(trace: Mapping[str, Any]) -> dict[str, Any]:
     wrong, total = _spurious(trace)
     return {"id": trace["id"], "combination": trace["combination"], "faults": faults,
             "half_flight": half, "eligible_at_half": eligible,
+            "named_by_half": (all(f["named"] is not None and f["named"] <= half
+                                  for f in faults) if eligible else None),
             "named_at_half": _named_at(at_half, faults) if eligible else None,
             "named_ever": all(f["named"] is not None for f in faults),
             "earlier_failure": _earlier_failure(trace, faults),
@@ -139,6 +143,8 @@ def _summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
             "faults_named": _share(sum(f["named"] is not None for f in faults), len(faults)),
             "faults_confirmed": _share(sum(f["confirmed"] is not None for f in faults),
                                        len(faults)),
+            "named_by_half": _share(sum(bool(r["named_by_half"]) for r in eligible),
+                                    len(eligible)),
             "named_at_half": _share(sum(bool(r["named_at_half"]) for r in eligible),
                                     len(eligible)),
             "second_after_half": len(rows) - len(eligible),

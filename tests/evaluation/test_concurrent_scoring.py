@@ -50,7 +50,8 @@ def test_two_modes_of_one_unit_named_by_the_first_half_life() -> None:
     tts, dmd = row["faults"]
     assert (tts["alarmed"], tts["named"], dmd["alarmed"], dmd["named"]) == (14, 14, 20, 28)
     assert row["half_flight"] == 30.0 and row["eligible_at_half"]
-    assert row["named_at_half"] is True and row["named_ever"] is True
+    assert row["named_at_half"] is True and row["named_by_half"] is True
+    assert row["named_ever"] is True
     early = row["earlier_failure"]
     assert (early["mode"], early["position"], early["detected_index"]) == ("TTS", "WL1", 14)
     assert early["ra"] > 0.99 and early["ph"] == 0.9  # (50 - 14) / 40: from the alarm on
@@ -74,6 +75,7 @@ def test_a_second_mode_named_late_or_on_the_wrong_unit() -> None:
 
     row = score_pattern(_trace(faults, late, 50))
     assert row["faults"][1]["named"] == 40 and row["named_at_half"] is False
+    assert row["named_by_half"] is False
     assert row["named_ever"] is True
     # DMD named beside MTEL on WT, which carries no DMD (WL1 does): spurious on 45-50 (the
     # leading mode on a unit without a fault is an alarm, counted as isolation, not here)
@@ -82,9 +84,25 @@ def test_a_second_mode_named_late_or_on_the_wrong_unit() -> None:
                    _fault("DMD", "WT", 35, failure=None, end=50)]
     row = score_pattern(_trace(faults_late, late, 50))
     assert row["eligible_at_half"] is False and row["named_at_half"] is None
+    assert row["named_by_half"] is None
     # WT now carries the DMD it names; WL1 names a DMD it no longer carries, 40-50
     assert row["spurious_unit_flights"] == 11
     summary = score_concurrent([_trace(faults, late, 50), _trace(faults_late, late, 50)])
     assert summary["all"]["named_at_half"]["n"] == 1
     assert summary["all"]["second_after_half"] == 1
     assert summary["combinations"]["TTS+DMD"]["faults_alarmed"]["hits"] == 4
+
+
+def test_a_mode_named_before_the_half_flight_and_dropped_on_it() -> None:
+    """Named by the half flight, not still named on it: the provisional set dropped it."""
+    faults = [_fault("TTS", "WL1", 10, failure=50, end=50),
+              _fault("DMD", "WL1", 20, failure=None, end=50)]
+
+    def flicker(i: int) -> dict[str, Any]:
+        if i < 14:
+            return {}
+        return {"WL1": _unit(["TTS", "DMD"] if 24 <= i < 30 else ["TTS"], rul=50.0 - i)}
+
+    row = score_pattern(_trace(faults, flicker, 50))
+    assert row["faults"][1]["named"] == 24
+    assert (row["named_by_half"], row["named_at_half"]) == (True, False)
