@@ -55,3 +55,17 @@ def test_a_mode_beside_the_leader_is_confirmed_by_the_rule_on_its_own_evidence()
     assert runs == {}
     runs, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.9})
     assert (runs, held) == ({"DMD": 1}, [])
+
+
+def test_a_mode_confirmed_as_the_class_is_not_confirmed_again_beside_a_new_leader() -> None:
+    """The class TTS was confirmed; DMD now leads and TTS stands beside it long enough: no
+    second confirmation of TTS (one event per mode and alarm)."""
+    from server.phm.chain.run import _confirm_others
+
+    h = ActuatorHealth("WL1", DetectionState.new("WL1", ["WL1.F_TTS", "WL1.F_DMD"]))
+    h.confirmed_mode, h.modes = "TTS", ["DMD", "TTS"]
+    for _ in range(3):
+        assert _confirm_others(h, {"TTS": 0.99, "DMD": 0.99}) == []
+    h.modes = ["DMD", "TTS", "MTEL"]
+    confirmed = [_confirm_others(h, {"TTS": 0.99, "MTEL": 0.95}) for _ in range(2)]
+    assert confirmed == [[], ["MTEL"]] and h.confirmed_modes == ["MTEL"]

@@ -289,9 +289,9 @@ def _confirm(h: ActuatorHealth, lead: str | None, probs: dict[str, float] | None
 
 def _confirm_others(h: ActuatorHealth, own: dict[str, float]) -> list[str]:
     """Advance the confirmation of the modes beside the leading one; those it confirms on this
-    flight (each once per alarm)."""
+    flight (each once per alarm: a mode confirmed as the alarm's class is not again)."""
     h.mode_runs, held = advance_others(CONFIRMATION, h.mode_runs, h.modes, own)
-    now = [m for m in held if m not in h.confirmed_modes]
+    now = [m for m in held if m not in h.confirmed_modes and m != h.confirmed_mode]
     h.confirmed_modes += now
     return now
 
