@@ -22,6 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from scipy.special import expit
 from sklearn.linear_model import LogisticRegression
 
 from server.campaigns import campaign_store, load_campaign, read_manifest
@@ -127,7 +128,7 @@ def main() -> None:
     con, single = unit_flights(model, args.concurrent), unit_flights(model, args.single)
     variants = {"platt": (clf.decision_function, clf.mode_proba_from_decision),
                 "superposed": (superposed_model(model, args.design, args.pairs),
-                               lambda d: 1.0 / (1.0 + np.exp(-d)))}
+                               expit)}
     for name, (decision, proba) in variants.items():
         for t in THRESHOLDS:
             c = score(con, classes, decision, proba, t)

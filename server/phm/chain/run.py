@@ -137,7 +137,9 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         with timed("classification"):
             lead = h.fault_mode  # the last classified flight's leading mode
             probs = _classify(model, h, position) if det.alarm else None
+            own = _name_modes(model, h) if probs else None
             confirmed = _confirm(h, lead, probs)
+            others = _confirm_others(h, own or {}) if probs else []
         with timed("prognosis"):
             ruls = (prognose_modes(model, h, generic, position, index, base=base, seed=seed)
                     if det.alarm else {})
@@ -146,10 +148,9 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         out[position].confirmed = confirmed
         out[position].ruls, out[position].rul_mode = ruls, rul_mode
         if probs:
-            own = _own_probabilities(model, h)
             out[position].mode_probabilities = own
             out[position].modes = list(h.modes)
-            out[position].confirmed_others = _confirm_others(h, own or {})
+            out[position].confirmed_others = others
             out[position].confirmed_modes = list(h.confirmed_modes)
         if judged is not None:
             _note_sensors(out[position], judged, position)
@@ -210,9 +211,8 @@ def _track_calendar(h: ActuatorHealth, index: int, started_at: datetime | None) 
 
 def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, float] | None:
     """Class probabilities from the class evidence accumulated since the alarm (older flights
-    decayed), and the modes present (``h.modes``): the leading one and every other at the
-    mode-set threshold; each has its own filter (chain.prognose), a mode new to the set one
-    restarted from the stored history.
+    decayed); the leading mode's filter, if it had one as a mode present beside the previous
+    leader (:func:`_name_modes`, chain.prognose), carries on.
 
     The flights since the alarm are not independent views of the fault: their features are
     windowed over several flights and one fault drives them all. Multiplying their calibrated
@@ -248,9 +248,16 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     probs = {c: float(p) for c, p in zip(classes, floored, strict=True)}
     mode = max(probs, key=lambda c: probs[c])
     h.fault_mode = mode  # its filter, if it had one as a mode present, carries on
-    own = _own_probabilities(model, h)
-    h.modes = [mode] if own is None else modes_present(mode, own)
     return probs
+
+
+def _name_modes(model: PhmModel, h: ActuatorHealth) -> dict[str, float] | None:
+    """Set the modes present (``h.modes``: the leading one and every other at the mode-set
+    threshold) and return each mode's own probability (None without per-mode calibration:
+    the leading mode alone)."""
+    own = _own_probabilities(model, h)
+    h.modes = [str(h.fault_mode)] if own is None else modes_present(str(h.fault_mode), own)
+    return own
 
 
 def _decayed(acc: dict[str, float] | None, classes: list[str], values: np.ndarray
@@ -265,7 +272,7 @@ def _own_probabilities(model: PhmModel, h: ActuatorHealth) -> dict[str, float] |
     """Each mode's own probability of being present, from its decision values pooled over the
     flights since the alarm (their decayed mean); None without per-mode calibration."""
     clf = model.classifier
-    if (clf is None or getattr(clf, "mode_calibration_", None) is None
+    if (clf is None or clf.mode_calibration_ is None
             or not h.mode_decision or not h.class_weight):
         return None
     classes = [str(c) for c in clf.classes_.tolist()]

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
+from scipy.special import expit
 from sklearn.exceptions import NotFittedError
 from sklearn.linear_model import LogisticRegression
 from sklearn.preprocessing import StandardScaler
@@ -122,10 +123,6 @@ def _fit_mode_calibration(D: np.ndarray, yi: np.ndarray,
         fit = LogisticRegression(C=config.mode_calibration_C).fit(D[ok, k:k + 1], target)
         out[k] = float(fit.coef_[0, 0]), float(fit.intercept_[0])
     return out
-
-
-def _sigmoid(x: np.ndarray) -> np.ndarray:
-    return 0.5 * (1.0 + np.tanh(0.5 * x))  # overflow-free logistic
 
 
 def _fit_scaler(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -388,7 +385,7 @@ class FaultClassifier:
         if cal is None:
             raise NotFittedError("this classifier keeps no per-mode calibration (a document "
                                  "written before it was fitted): retrain it")
-        return _sigmoid(cal[:, 0] * np.asarray(D, dtype=np.float64) + cal[:, 1])
+        return expit(cal[:, 0] * np.asarray(D, dtype=np.float64) + cal[:, 1])
 
     def mode_proba(self, X: np.ndarray) -> np.ndarray:
         """Each mode's own probability of being present (see the module docstring),
