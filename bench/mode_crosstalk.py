@@ -1,51 +1,54 @@
-"""How much of a second mode's own feature the leading mode's cross-talk explains.
+"""The design's cross-talk limits at each quantile of a grid, for choosing the quantile.
 
-A DMD beside a leading TTS is rarely named (docs/RESULTS.md, section 6): the one-vs-rest SVM
-learned from single faults that a high ``F_TTS`` argues against DMD, because a TTS moves
-``F_DMD`` too. This measures whether ``F_DMD`` itself still tells them apart: on every
-unit-flight in alarm led by ``--lead`` (a concurrent and a single-fault design campaign,
-replayed with the shipped model as :mod:`bench.mode_superposition` does), the second mode's own
-feature in the classifier's input on flights that carry it against flights that do not (ROC
-AUC), and how many carrying flights lie above the non-carrying flights' quantiles: a rule that
-names the second mode when its own feature is beyond the leader's cross-talk.
+A second mode joins the modes present when its own feature, pooled since the alarm, is beyond
+the leading mode's cross-talk: a quantile of that pooled feature over the design's single
+faults of the leading mode (:mod:`server.phm.classification.crosstalk`). This fits the limits
+on a design campaign's classifier rows (the model's fleet reference and detector, as training
+does) at every quantile of ``--quantiles`` and writes them; ``bench/mode_sets.py --crosstalk``
+scores each on other design seeds' evaluations.
 
-    python bench/mode_crosstalk.py CONCURRENT_DIR SINGLE_DIR [--lead TTS --second DMD]
+    python bench/mode_crosstalk.py DESIGN_DIR --out CT.json [--model-json M.json]
+        [--quantiles 0.9,0.95,...]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+from pathlib import Path
 
-import numpy as np
-from mode_superposition import unit_flights
-from sklearn.metrics import roc_auc_score
-
+from server.campaigns import load_campaign
 from server.demo_model import load_demo_model
-from server.phm.chain import PhmModel
-from server.vocabulary import GENERIC_FEATURES, OWN_FEATURE
+from server.phm.chain import CHAIN, PhmModel, read_model_document
+from server.phm.classification.crosstalk import fit_crosstalk
+from server.phm.prognosis import PrognoserConfig
+from server.phm.training import training_rows
+
+QUANTILES = (0.9, 0.95, 0.98, 0.99, 0.995, 0.999, 1.0)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("concurrent")
-    ap.add_argument("single")
-    ap.add_argument("--lead", default="TTS")
-    ap.add_argument("--second", default="DMD")
+    ap.add_argument("design")
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--model-json", type=Path,
+                    help="the model whose reference and detector make the rows "
+                         "(default: the shipped one)")
+    ap.add_argument("--quantiles", default=",".join(map(str, QUANTILES)))
     args = ap.parse_args()
-    model = PhmModel.from_dict(load_demo_model()["payload"])
-    recs = unit_flights(model, args.concurrent) + unit_flights(model, args.single)
-    col = list(GENERIC_FEATURES).index(OWN_FEATURE[args.second])
-    led = [r for r in recs if r["lead"] == args.lead]
-    with_ = np.array([r["x"][col] for r in led if args.second in r["true"]])
-    without = np.array([r["x"][col] for r in led if args.second not in r["true"]])
-    labels = np.r_[np.ones(with_.size), np.zeros(without.size)]
-    print(f"{args.lead}-led unit-flights: {with_.size} carrying {args.second}, "
-          f"{without.size} not; ROC AUC of {OWN_FEATURE[args.second]}: "
-          f"{roc_auc_score(labels, np.r_[with_, without]):.3f}")
-    for q in (0.9, 0.95, 0.99):
-        t = float(np.quantile(without, q))
-        print(f"above the non-carrying flights' {100 * q:.0f} % quantile ({t:.2f}): "
-              f"{int((with_ > t).sum())} of {with_.size}")
+    doc = (json.loads(args.model_json.read_text()) if args.model_json
+           else load_demo_model()["payload"])
+    model = read_model_document(doc)
+    bare = PhmModel(model.baseline, model.detector, None, {}, PrognoserConfig())
+    rows = training_rows(load_campaign(args.design, jobs=2), bare)
+    fits = {q: fit_crosstalk(rows["X"], rows["y"], rows["groups"],
+                             decay=CHAIN.class_evidence_decay, quantile=float(q)).to_dict()
+            for q in args.quantiles.split(",")}
+    args.out.write_text(json.dumps({"design": str(args.design), "rows": len(rows["y"]),
+                                    "fits": fits}, indent=1) + "\n")
+    for q, f in fits.items():
+        print(q, {lead: {m: round(t, 2) for m, t in row.items()}
+                  for lead, row in f["limits"].items()})
 
 
 if __name__ == "__main__":

@@ -21,6 +21,13 @@ fewest modes a unit does not carry (ties: the highest).
     python bench/mode_sets.py --concurrent C.json [C.json ...] --single E.json [E.json ...]
         [--target 0.9] [--spurious 0.05] [--out F.json]
 
+With ``--crosstalk CT.json`` (``bench/mode_crosstalk.py``: the design's cross-talk limits at
+each quantile of a grid) the grid is over the quantile instead, at the service's threshold
+(``MODE_SET``), and "none" (no limits) beside it: a mode also joins when its own feature,
+pooled since the alarm (kept in the traces), is beyond the leading mode's limit. The choice is
+the same rule with the quantile in the threshold's place (the highest, the most conservative,
+that meets the target; no limits ranking above every quantile).
+
 Score the chosen threshold on a concurrent verification campaign once, with ``hmsm evaluate``
 (the service's rule is ``MODE_SET``).
 """
@@ -34,7 +41,8 @@ from pathlib import Path
 from typing import Any
 
 from server.evaluation.concurrent_scoring import score_concurrent
-from server.phm.classification.modes import ModeSetRule, modes_present
+from server.phm.classification.crosstalk import CrossTalk
+from server.phm.classification.modes import MODE_SET, ModeSetRule, modes_present
 from server.phm.metrics import proportion_interval
 
 THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
@@ -45,18 +53,28 @@ def _load(paths: list[Path]) -> list[dict[str, Any]]:
     return [t for p in paths for t in json.loads(p.read_text())["patterns"]]
 
 
-def _with_rule(traces: list[dict[str, Any]], rule: ModeSetRule) -> list[dict[str, Any]]:
+def _named(unit: dict[str, Any], rule: ModeSetRule, crosstalk: CrossTalk | None) -> list[str]:
+    """A unit-flight's modes present under ``rule`` and the cross-talk limits."""
+    lead = unit["fault_mode"]
+    beyond = ([] if crosstalk is None
+              else crosstalk.beyond(lead, unit.get("own_features") or {}))
+    return modes_present(lead, unit["own"], rule, beyond)
+
+
+def _with_rule(traces: list[dict[str, Any]], rule: ModeSetRule,
+               crosstalk: CrossTalk | None = None) -> list[dict[str, Any]]:
     """The concurrent traces with every unit's modes recomputed under ``rule``."""
     out = copy.deepcopy(traces)
     for t in out:
         for f in t["flights"]:
             for unit in f["units"].values():
                 if unit.get("own") and unit.get("fault_mode"):
-                    unit["modes"] = modes_present(unit["fault_mode"], unit["own"], rule)
+                    unit["modes"] = _named(unit, rule, crosstalk)
     return out
 
 
-def _single_spurious(traces: list[dict[str, Any]], rule: ModeSetRule) -> dict[str, Any]:
+def _single_spurious(traces: list[dict[str, Any]], rule: ModeSetRule,
+                     crosstalk: CrossTalk | None = None) -> dict[str, Any]:
     """Flights in alarm of a single fault's unit naming a mode beside its own."""
     wrong = total = 0
     for t in traces:
@@ -65,20 +83,30 @@ def _single_spurious(traces: list[dict[str, Any]], rule: ModeSetRule) -> dict[st
         for f in t["flights"]:
             if f["alarm"] and f.get("own") and f.get("fault_mode"):
                 total += 1
-                named = modes_present(f["fault_mode"], f["own"], rule)
-                wrong += any(m != t["mode"] for m in named[1:])
+                wrong += any(m != t["mode"] for m in _named(f, rule, crosstalk)[1:])
     return {"hits": wrong, "n": total, "share": wrong / total if total else None,
             "interval": proportion_interval(wrong, total) if total else None}
 
 
+def _row(concurrent: list[dict[str, Any]], single: list[dict[str, Any]], rule: ModeSetRule,
+         crosstalk: CrossTalk | None) -> dict[str, Any]:
+    s = score_concurrent(_with_rule(concurrent, rule, crosstalk))["all"]
+    return {"threshold": rule.threshold, "named_at_half": s["named_at_half"],
+            "faults_named": s["faults_named"], "concurrent_spurious": s["spurious"],
+            "single_spurious": _single_spurious(single, rule, crosstalk)}
+
+
 def grid(concurrent: list[dict[str, Any]], single: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    rows = []
-    for threshold in THRESHOLDS:
-        rule = ModeSetRule(threshold)
-        s = score_concurrent(_with_rule(concurrent, rule))["all"]
-        rows.append({"threshold": threshold, "named_at_half": s["named_at_half"],
-                     "faults_named": s["faults_named"], "concurrent_spurious": s["spurious"],
-                     "single_spurious": _single_spurious(single, rule)})
+    return [_row(concurrent, single, ModeSetRule(t), None) for t in THRESHOLDS]
+
+
+def crosstalk_grid(concurrent: list[dict[str, Any]], single: list[dict[str, Any]],
+                   fits: dict[str, Any]) -> list[dict[str, Any]]:
+    """At the service's threshold: no limits, then the limits at each quantile of ``fits``."""
+    rows = [{**_row(concurrent, single, MODE_SET, None), "quantile": None}]
+    for q, fit in sorted(fits.items(), key=lambda kv: -float(kv[0])):
+        rows.append({**_row(concurrent, single, MODE_SET, CrossTalk.from_dict(fit)),
+                     "quantile": float(q)})
     return rows
 
 
@@ -97,22 +125,40 @@ def choose(rows: list[dict[str, Any]], target: float, spurious: float
                key=lambda r: (r["concurrent_spurious"]["hits"], -r["threshold"])), False
 
 
+def _label(row: dict[str, Any]) -> str:
+    if "quantile" in row:
+        return "no cross-talk limits" if row["quantile"] is None else f"quantile {row['quantile']}"
+    return f"threshold {row['threshold']:.2f}"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--concurrent", nargs="+", type=Path, required=True)
     ap.add_argument("--single", nargs="+", type=Path, required=True)
     ap.add_argument("--target", type=float, default=0.9)
     ap.add_argument("--spurious", type=float, default=0.05)
+    ap.add_argument("--crosstalk", type=Path,
+                    help="the design's cross-talk limits per quantile (bench/mode_crosstalk.py):"
+                         " grid over the quantile at the service's threshold")
     ap.add_argument("--out", type=Path)
     args = ap.parse_args()
-    rows = grid(_load(args.concurrent), _load(args.single))
+    concurrent, single = _load(args.concurrent), _load(args.single)
+    if args.crosstalk:
+        fits = json.loads(args.crosstalk.read_text())["fits"]
+        rows = crosstalk_grid(concurrent, single, fits)
+        # the choice below ranks by "threshold", the most conservative highest: the quantile,
+        # no limits above every quantile
+        for r in rows:
+            r["threshold"] = 2.0 if r["quantile"] is None else r["quantile"]
+    else:
+        rows = grid(concurrent, single)
     for r in rows:
         h, c, s = r["named_at_half"], r["concurrent_spurious"], r["single_spurious"]
-        print(f"threshold {r['threshold']:.2f}: named at half {h['hits']}/{h['n']}, "
+        print(f"{_label(r)}: named at half {h['hits']}/{h['n']}, "
               f"faults named {r['faults_named']['hits']}/{r['faults_named']['n']}, "
               f"spurious concurrent {c['hits']}/{c['n']}, single {s['hits']}/{s['n']}")
     chosen, met = choose(rows, args.target, args.spurious)
-    print("chosen:", None if chosen is None else chosen["threshold"],
+    print("chosen:", None if chosen is None else _label(chosen),
           "(target met)" if met else "(target not met at any threshold)")
     if args.out:
         args.out.write_text(json.dumps({"target": args.target, "spurious": args.spurious,

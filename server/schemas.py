@@ -791,6 +791,9 @@ class ModePresentRead(BaseModel):
     confirmed: bool = Field(default=False, description="confirmed: the leading one as the "
                             "alarm's class, another as present beside it (its own probability "
                             "held on consecutive flights); else provisional")
+    by_feature: bool = Field(default=False, description="named by its own feature, beyond what "
+                             "the leading mode's faults alone gave it in the design, while its "
+                             "own probability is below the mode-set threshold")
 
 
 class AlarmRead(BaseModel):

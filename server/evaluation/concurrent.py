@@ -30,6 +30,7 @@ __all__ = ["run_concurrent_pattern", "evaluate_concurrent", "concurrent_markdown
 def _unit(o: ActuatorOutcome) -> dict[str, Any]:
     return {"new_alarm": o.new_alarm, "probs": o.class_probabilities,
             "fault_mode": o.fault_mode, "modes": list(o.modes), "own": o.mode_probabilities,
+            "own_features": dict(o.own_features) or None,
             "confirmed": o.confirmed, "confirmed_others": list(o.confirmed_others),
             "isolation": dict(o.isolation) if o.new_alarm else None,
             "rul": None if o.rul is None else o.rul.to_dict()}

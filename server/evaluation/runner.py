@@ -118,6 +118,8 @@ def run_pattern(model: PhmModel, pattern: Pattern, *, timer: ChainTimer | None =
             # a single fault is scored by bench/mode_sets.py)
             "modes": list(o.modes) if o is not None and o.modes else None,
             "own": o.mode_probabilities if o is not None else None,
+            "own_features": dict(o.own_features) if o is not None and o.own_features
+            else None,
             "rul": o.rul.to_dict() if o is not None and o.rul is not None else None,
             "sensor": sorted({f"{x['channel']} {x['metric']}" for v in out.values()
                               for x in v.sensor_findings}),

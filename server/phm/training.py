@@ -30,6 +30,7 @@ import numpy as np
 from scipy.stats import spearmanr
 
 from .chain import (
+    CHAIN,
     GENERIC_FEATURES,
     OWN_FEATURE,
     PROGRESSIVE,
@@ -42,6 +43,7 @@ from .chain import (
     surface_of,
 )
 from .classification import train_classifier
+from .classification.crosstalk import fit_crosstalk
 from .dataset import Campaign, FlightRecord, Pattern, healthy_flights
 from .detection import UNITS, DetectionResult, update_units
 from .detection_model import fit_detection
@@ -557,8 +559,10 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
     study = sensor_study_pairs(campaign)
     sensors = fit_sensor_model([f for _, seq in healthy_flights(campaign) for f in seq],
                                study, detection.baseline)
+    crosstalk = fit_crosstalk(rows["X"], rows["y"], rows["groups"],
+                              decay=CHAIN.class_evidence_decay)
     model = PhmModel(detection.baseline, detection.detector, classifier, specs,
-                     PrognoserConfig(), climate, sensors)
+                     PrognoserConfig(), climate, sensors, crosstalk)
     t_end = time.perf_counter()
     tick("done", 1.0)
     n_flights = sum(len(p.flights) for p in campaign.patterns)

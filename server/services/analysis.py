@@ -34,6 +34,7 @@ from server.models import (
     utcnow,
 )
 from server.phm.chain import ActuatorHealth, ActuatorOutcome, PhmModel, analyze_flight
+from server.phm.classification.modes import named_by_feature
 from server.phm.features import FlightFeatures
 from server.phm.prognosis import RulDistribution
 from server.services.urgency import RUL_LOW_QUANTILE
@@ -269,13 +270,16 @@ def _store_prognosis(session: Session, flight: Flight, act: Actuator, out: Actua
 def _modes_present(out: ActuatorOutcome, confirmed: str | None) -> list[dict[str, Any]] | None:
     """The alarm's ``modes``: each mode present with its own probability, median RUL and
     whether it is confirmed (the leading one as the alarm's class, ``confirmed``; another
-    as present beside it)."""
+    as present beside it) and whether its own feature named it (beyond the leading mode's
+    cross-talk, its own probability below the threshold)."""
     if not out.modes:
         return None
     own, ruls = out.mode_probabilities or {}, out.ruls
+    by_feature = named_by_feature(out.modes, own)
     return [{"mode": m, "probability": _finite(own.get(m)),
              "rul_median_flights": _finite(ruls[m].median) if m in ruls else None,
-             "confirmed": m == confirmed or m in out.confirmed_modes}
+             "confirmed": m == confirmed or m in out.confirmed_modes,
+             "by_feature": m in by_feature}
             for m in out.modes]
 
 

@@ -24,9 +24,9 @@ from tests.web.seed import add_alarm, rul_document
 
 
 def _outcome(mode: str | None, *, new: bool, index: int, confirmed: str | None = None,
-             second: str | None = None) -> SimpleNamespace:
+             second: str | None = None, second_own: float = 0.9) -> SimpleNamespace:
     """The parts of a chain outcome ``_store_alarm`` reads (``second``: another mode present,
-    with RULs for both: the unit's the earlier)."""
+    with RULs for both: the unit's the earlier; ``second_own`` its own probability)."""
     modes = [m for m in (mode, second) if m]
     ruls = ({m: RulDistribution.from_dict(rul_document(index, median, 0.5, 0.1, [0.0, 100.0],
                                                        [1.0]))
@@ -35,7 +35,9 @@ def _outcome(mode: str | None, *, new: bool, index: int, confirmed: str | None =
                            class_probabilities={mode: 0.8} if mode else None,
                            max_confidence=0.99, alarm_features=["WT.F_MTEL"],
                            isolation={"WT": 1.0} if new else {}, confirmed=confirmed,
-                           modes=modes, mode_probabilities=dict.fromkeys(modes, 0.9),
+                           modes=modes,
+                           mode_probabilities={m: second_own if m == second else 0.9
+                                               for m in modes},
                            ruls=ruls, confirmed_others=[second] if second and confirmed else [],
                            confirmed_modes=[second] if second and confirmed else [])
 
@@ -82,11 +84,14 @@ def test_an_alarm_lists_every_mode_present_and_follows_them(  # type: ignore[no-
         flight = s.scalar(select(Flight).where(Flight.tail == aircraft))
         act = s.get(Actuator, act_id)
         analysis._store_alarm(s, flight, act, _outcome("TTS", new=True, index=30,
-                                                       second="DMD"), None)
+                                                       second="DMD", second_own=0.2), None)
         alarm_id = s.scalar(select(Alarm.id).where(Alarm.actuator_id == act_id))
+    # DMD named below the threshold: by its own feature, beyond TTS's cross-talk
     assert _alarm_item(client, keys, alarm_id)["modes"] == [
-        {"mode": "TTS", "probability": 0.9, "rul_median_flights": 40.0, "confirmed": False},
-        {"mode": "DMD", "probability": 0.9, "rul_median_flights": 25.0, "confirmed": False}]
+        {"mode": "TTS", "probability": 0.9, "rul_median_flights": 40.0, "confirmed": False,
+         "by_feature": False},
+        {"mode": "DMD", "probability": 0.2, "rul_median_flights": 25.0, "confirmed": False,
+         "by_feature": True}]
     with session_scope(factory) as s:  # both confirmed on one flight: two events
         analysis._store_alarm(s, flight, s.get(Actuator, act_id),
                               _outcome("TTS", new=False, index=31, second="DMD",
@@ -100,7 +105,8 @@ def test_an_alarm_lists_every_mode_present_and_follows_them(  # type: ignore[no-
         analysis._store_alarm(s, flight, s.get(Actuator, act_id),
                               _outcome("TTS", new=False, index=32), None)
     assert _alarm_item(client, keys, alarm_id)["modes"] == [
-        {"mode": "TTS", "probability": 0.9, "rul_median_flights": None, "confirmed": True}]
+        {"mode": "TTS", "probability": 0.9, "rul_median_flights": None, "confirmed": True,
+         "by_feature": False}]
 
 
 def test_a_closed_alarm_claims_no_live_urgency(app, client, keys, aircraft) -> None:  # type: ignore[no-untyped-def]

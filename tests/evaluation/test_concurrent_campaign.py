@@ -116,3 +116,40 @@ def test_the_cli_refuses_a_scale_without_concurrent_patterns(
     args = build_parser().parse_args(["campaign", "--kind", "concurrent", "--out", "d",
                                       "--scale", "ci", "--per-mode", "1"])
     assert (args.kind, args.per_mode) == ("concurrent", 1)
+
+
+def test_a_mode_beyond_the_leaders_cross_talk_is_named_beside_it(
+        campaign: tuple[Path, dict[str, Any]]) -> None:
+    """The chain names a progressive mode whose pooled own feature is beyond the leading
+    mode's limit: with every limit at -inf every progressive mode joins a progressive leader;
+    at +inf the set is the own probabilities' alone; the traces keep the pooled features."""
+    import math
+    from dataclasses import replace
+
+    from server.demo_model import load_demo_model
+    from server.evaluation.concurrent import run_concurrent_pattern
+    from server.phm.chain import read_model_document
+    from server.phm.classification.crosstalk import CrossTalk
+    from server.phm.classification.modes import modes_present
+    from server.vocabulary import PROGRESSIVE
+
+    out, _ = campaign
+    model = read_model_document(load_demo_model()["payload"])
+    pattern = load_campaign(out).patterns[0]
+
+    def limits(value: float) -> CrossTalk:
+        return CrossTalk(0.99, {lead: {m: value for m in PROGRESSIVE if m != lead}
+                                for lead in PROGRESSIVE})
+
+    wide = run_concurrent_pattern(replace(model, crosstalk=limits(-math.inf)), pattern)
+    shut = run_concurrent_pattern(replace(model, crosstalk=limits(math.inf)), pattern)
+    led = 0
+    for fw, fs in zip(wide["flights"], shut["flights"], strict=True):
+        for pos, unit in fs["units"].items():
+            if not unit.get("own") or unit["fault_mode"] not in PROGRESSIVE:
+                continue
+            led += 1
+            assert set(unit["own_features"]) >= set(PROGRESSIVE)
+            assert unit["modes"] == modes_present(unit["fault_mode"], unit["own"])
+            assert set(fw["units"][pos]["modes"]) >= set(PROGRESSIVE)
+    assert led > 0

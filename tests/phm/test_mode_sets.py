@@ -19,6 +19,10 @@ def test_the_leader_comes_first_then_every_other_mode_at_the_threshold() -> None
     # the leading mode stays in the set even when its own probability is below the threshold
     assert modes_present("MTEL", own, ModeSetRule(0.9)) == ["MTEL", "TTS"]
     assert modes_present("TTS", own, ModeSetRule(1.0)) == ["TTS"]
+    # a mode beyond the leader's cross-talk joins whatever its own probability, the leader
+    # never twice
+    assert modes_present("TTS", own, ModeSetRule(0.9), beyond=["MTEL", "TTS"]) == [
+        "TTS", "MTEL"]
     with pytest.raises(ValueError, match="threshold"):
         ModeSetRule(0.0)
     assert 0.0 < MODE_SET.threshold <= 1.0
@@ -28,15 +32,18 @@ def test_the_modes_and_pooled_decisions_survive_a_restart_and_a_rearm_clears_the
     h = ActuatorHealth("WL1", DetectionState.new("WL1", ["WL1.F_TTS", "WL1.F_DMD"]))
     h.mode_decision, h.modes, h.fault_mode = {"TTS": 3.0, "DMD": 1.5}, ["TTS", "DMD"], "TTS"
     h.mode_runs, h.confirmed_modes = {"DMD": 3}, ["DMD"]
+    h.own_feature = {"TTS": 4.0, "DMD": 2.5}
     back = ActuatorHealth.from_dict(json.loads(json.dumps(h.to_dict())))
-    assert (back.mode_decision, back.modes, back.mode_runs, back.confirmed_modes) == (
-        h.mode_decision, h.modes, h.mode_runs, h.confirmed_modes)
-    old = {k: v for k, v in h.to_dict().items() if k not in ("mode_decision", "modes")}
-    assert (ActuatorHealth.from_dict(old).mode_decision, ActuatorHealth.from_dict(old).modes
-            ) == (None, [])
+    assert (back.mode_decision, back.modes, back.mode_runs, back.confirmed_modes,
+            back.own_feature) == (h.mode_decision, h.modes, h.mode_runs, h.confirmed_modes,
+                                  h.own_feature)
+    old = {k: v for k, v in h.to_dict().items()
+           if k not in ("mode_decision", "modes", "own_feature")}
+    assert (ActuatorHealth.from_dict(old).mode_decision, ActuatorHealth.from_dict(old).modes,
+            ActuatorHealth.from_dict(old).own_feature) == (None, [], None)
     back.rearm()
-    assert (back.mode_decision, back.modes, back.mode_runs, back.confirmed_modes) == (
-        None, [], {}, [])
+    assert (back.mode_decision, back.modes, back.mode_runs, back.confirmed_modes,
+            back.own_feature) == (None, [], {}, [], None)
 
 
 def test_a_mode_beside_the_leader_is_confirmed_by_the_rule_on_its_own_evidence() -> None:

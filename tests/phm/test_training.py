@@ -42,10 +42,12 @@ def test_model_from_json_analyses_flights_exactly_as_trained(design_campaign_dir
         oa = analyze_flight(a, r.features, ha, flight_index=r.index + 1)[pattern.position]
         ob = analyze_flight(b, r.features, hb, flight_index=r.index + 1)[pattern.position]
         assert oa.z == ob.z and oa.class_probabilities == ob.class_probabilities
+        assert (oa.modes, oa.own_features) == (ob.modes, ob.own_features)
         assert (oa.rul is None) == (ob.rul is None)
         if oa.rul is not None:
             assert oa.rul.quantiles == ob.rul.quantiles
     assert oa.alarm and oa.fault_mode == "TTS" and oa.rul is not None
+    assert a.crosstalk is not None and a.crosstalk == b.crosstalk  # fitted, read back
     # the filter starts at the alarm: the healthy flights before it are not fused
     health = ha[pattern.position]
     onset = int(pattern.onset_flight)

@@ -124,13 +124,16 @@ def test_the_header_names_the_open_alarms_mode_even_without_a_prognosis(
 def test_two_modes_on_one_unit_show_with_their_probabilities_and_rul(
         app, client, keys, seeded, aircraft) -> None:  # type: ignore[no-untyped-def]
     """An alarm whose unit carries two modes lists both, the leading one first, each with its
-    own probability and median RUL, a mode not yet confirmed marked provisional, in the inbox,
+    own probability and median RUL (one named by its own feature says so), a mode not yet
+    confirmed marked provisional, in the inbox,
     on the actuator page and in the API; an alarm with one mode lists none."""
     factory = app.state.session_factory
     both = [{"mode": "TTS", "probability": 0.97, "rul_median_flights": 120.0,
-             "confirmed": True},
+             "confirmed": True},  # stored before the flag
             {"mode": "DMD", "probability": 0.74, "rul_median_flights": 80.4,
-             "confirmed": False}]
+             "confirmed": False, "by_feature": False},
+            {"mode": "MTEL", "probability": 0.08, "rul_median_flights": 300.0,
+             "confirmed": False, "by_feature": True}]
     two = add_alarm(factory, tail=aircraft, position="WT", fault_mode="TTS", rul=80.4,
                     modes=both)
     one = add_alarm(factory, tail=aircraft, position="WL1", fault_mode="MTEL",
@@ -138,12 +141,14 @@ def test_two_modes_on_one_unit_show_with_their_probabilities_and_rul(
     sign_in(client, keys["viewer"])
     inbox = client.get("/alarms").text
     text = ('modes present: TTS 0.97 (RUL 120) · DMD 0.74 (RUL 80) '
-            '<span class="provisional">provisional</span>')
+            '<span class="provisional">provisional</span> · MTEL <span class="by-feature"')
     assert text in inbox[inbox.index(f'id="alarm-{two}"'):].split("</tr>")[0]
     assert "modes present" not in inbox[inbox.index(f'id="alarm-{one}"'):].split("</tr>")[0]
     items = client.get("/api/v1/alarms", headers={
         "Authorization": f"Bearer {keys['viewer']}"}).json()["items"]
-    assert {a["id"]: a["modes"] for a in items}[two] == both
+    # a mode stored without the flag (an alarm before it) reads as named by its probability
+    assert {a["id"]: a["modes"] for a in items}[two] == [
+        {"by_feature": False, **m} for m in both]
     act = next(a["actuator_id"] for a in items if a["id"] == two)
     assert text in client.get(f"/actuators/{act}").text
 

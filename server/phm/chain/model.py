@@ -10,6 +10,7 @@ from typing import Any
 
 from ..baselines import FleetBaseline
 from ..classification import FaultClassifier
+from ..classification.crosstalk import CrossTalk
 from ..detection import DetectionState, FaultDetector
 from ..prognosis import MeasurementModel, PrognoserConfig
 from ..prognosis.calibration import BandCalibration
@@ -103,6 +104,9 @@ class PhmModel:
     #: healthy bands of the signal-quality figures and the features' noise sensitivity;
     #: None (a document without them): no sensor findings, every feature judged as it is
     sensors: SensorModel | None = None
+    #: the design's cross-talk limits of a second mode's own feature; None (a document
+    #: without them): a second mode is named by its own probability alone
+    crosstalk: CrossTalk | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": MODEL_FORMAT, "baseline": self.baseline.to_dict(),
@@ -111,7 +115,8 @@ class PhmModel:
                 "measurement": {m: s.to_dict() for m, s in self.measurement.items()},
                 "prognoser": self.prognoser.to_dict(),
                 "climate": None if self.climate is None else self.climate.to_dict(),
-                "sensors": None if self.sensors is None else self.sensors.to_dict()}
+                "sensors": None if self.sensors is None else self.sensors.to_dict(),
+                **({} if self.crosstalk is None else {"crosstalk": self.crosstalk.to_dict()})}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> PhmModel:
@@ -126,7 +131,8 @@ class PhmModel:
                    {m: MeasurementSpec.from_dict(s) for m, s in d["measurement"].items()},
                    PrognoserConfig.from_dict(dict(d["prognoser"])),
                    None if d.get("climate") is None else SeasonalClimate.from_dict(d["climate"]),
-                   None if d.get("sensors") is None else SensorModel.from_dict(d["sensors"]))
+                   None if d.get("sensors") is None else SensorModel.from_dict(d["sensors"]),
+                   None if d.get("crosstalk") is None else CrossTalk.from_dict(d["crosstalk"]))
 
     def new_health(self, position: str) -> ActuatorHealth:
         known = set(self.detector.feature_names_)

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from server.vocabulary import FAULT_MODES, GENERIC_FEATURES, OWN_FEATURE
+
 from ..baselines import OutsideDesign
 from ..classification.confirmation import CONFIRMATION, advance, advance_others
 from ..classification.modes import modes_present
@@ -28,6 +30,8 @@ from .state import ActuatorHealth
 
 __all__ = ["MeasurementHook", "ActuatorOutcome", "analyze_flight"]
 
+#: each mode's own feature's column in the classifier's input
+OWN_COLUMN = {m: GENERIC_FEATURES.index(OWN_FEATURE[m]) for m in FAULT_MODES}
 #: (position, measurement values) -> the values the prognosis sees: see :func:`analyze_flight`
 MeasurementHook = Callable[[str, dict[str, float]], dict[str, float]]
 #: times a named stage of the chain: ``with stage("prognosis"): ...``
@@ -71,6 +75,9 @@ class ActuatorOutcome:
     #: the modes present, the leading one first (server.phm.classification.modes); empty
     #: when not classified
     modes: list[str] = field(default_factory=list)
+    #: each mode's own feature in the classifier's input, pooled since the alarm (empty: not
+    #: classified): a mode beyond the leading one's cross-talk is present too
+    own_features: dict[str, float] = field(default_factory=dict)
     #: each progressive mode present's RUL; ``rul`` is the earliest of them (the unit's) and
     #: ``rul_mode`` its mode
     ruls: dict[str, RulDistribution] = field(default_factory=dict)
@@ -149,6 +156,7 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         out[position].ruls, out[position].rul_mode = ruls, rul_mode
         if probs:
             out[position].mode_probabilities = own
+            out[position].own_features = pooled_own_features(h)
             out[position].modes = list(h.modes)
             out[position].confirmed_others = others
             out[position].confirmed_modes = list(h.confirmed_modes)
@@ -224,6 +232,7 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     if model.classifier is None:
         return None
     vector = classifier_vector(h.detection, position)[np.newaxis, :]
+    _pool_own_features(h, vector[0])
     logp = model.classifier.raw_log_proba(vector)[0]
     classes = [str(c) for c in model.classifier.classes_.tolist()]
     decision = model.classifier.decision_function(vector)[0]
@@ -256,8 +265,33 @@ def _name_modes(model: PhmModel, h: ActuatorHealth) -> dict[str, float] | None:
     threshold) and return each mode's own probability (None without per-mode calibration:
     the leading mode alone)."""
     own = _own_probabilities(model, h)
-    h.modes = [str(h.fault_mode)] if own is None else modes_present(str(h.fault_mode), own)
+    lead = str(h.fault_mode)
+    if own is None:
+        h.modes = [lead]
+        return None
+    beyond = ([] if model.crosstalk is None
+              else model.crosstalk.beyond(lead, pooled_own_features(h)))
+    h.modes = modes_present(lead, own, beyond=beyond)
     return own
+
+
+def pooled_own_features(h: ActuatorHealth) -> dict[str, float]:
+    """Each mode's own feature pooled over the flights since the alarm (their decayed mean);
+    empty before the first classified flight."""
+    if not h.own_feature or not h.class_weight:
+        return {}
+    return {m: v / h.class_weight for m, v in h.own_feature.items()}
+
+
+def _pool_own_features(h: ActuatorHealth, vector: np.ndarray) -> None:
+    """Add this flight's own feature of each mode to their decayed sums (before the flight's
+    weight joins ``class_weight``, as the decision values are)."""
+    values = [float(vector[OWN_COLUMN[m]]) for m in FAULT_MODES]
+    if h.own_feature is None and h.class_log_prob is not None:
+        # a state stored before the own features were kept: its past flights taken as this one
+        h.own_feature = {m: (h.class_weight or 0.0) * v
+                         for m, v in zip(FAULT_MODES, values, strict=True)}
+    h.own_feature = _decayed(h.own_feature, list(FAULT_MODES), np.asarray(values))
 
 
 def _decayed(acc: dict[str, float] | None, classes: list[str], values: np.ndarray

@@ -34,6 +34,11 @@ class ActuatorHealth:
     #: ``class_log_prob`` (pooled by ``class_weight``): each mode's own probability of being
     #: present (server.phm.classification.modes); None before the first classified flight
     mode_decision: dict[str, float] | None = None
+    #: per mode, the decayed sum of its own feature in the classifier's input over the same
+    #: flights (pooled by ``class_weight``): a mode beyond the leading mode's cross-talk is
+    #: present too (server.phm.classification.crosstalk); None before the first classified
+    #: flight
+    own_feature: dict[str, float] | None = None
     #: the modes present on the last classified flight, the leading one first
     modes: list[str] = field(default_factory=list)
     #: per mode beside the leading one, its run of consecutive classified flights in the set;
@@ -78,6 +83,7 @@ class ActuatorHealth:
         self.class_weight = None
         self.fault_mode = None
         self.mode_decision = None
+        self.own_feature = None
         self.modes = []
         self.mode_runs = {}
         self.confirmed_modes = []
@@ -91,7 +97,8 @@ class ActuatorHealth:
                 "alarm_index": self.alarm_index,
                 "class_log_prob": self.class_log_prob, "class_weight": self.class_weight,
                 "fault_mode": self.fault_mode, "mode_decision": self.mode_decision,
-                "modes": list(self.modes), "mode_runs": dict(self.mode_runs),
+                "own_feature": self.own_feature, "modes": list(self.modes),
+                "mode_runs": dict(self.mode_runs),
                 "confirmed_modes": list(self.confirmed_modes), "class_run": self.class_run,
                 "confirmed_mode": self.confirmed_mode,
                 "prognoses": self.prognoses,
@@ -115,7 +122,7 @@ class ActuatorHealth:
                    alarm_index=None if d.get("alarm_index") is None else int(d["alarm_index"]),
                    class_log_prob=d.get("class_log_prob"), class_weight=d.get("class_weight"),
                    fault_mode=d.get("fault_mode"), mode_decision=d.get("mode_decision"),
-                   modes=[str(m) for m in d.get("modes") or []],
+                   own_feature=d.get("own_feature"), modes=[str(m) for m in d.get("modes") or []],
                    mode_runs={str(m): int(n) for m, n in (d.get("mode_runs") or {}).items()},
                    confirmed_modes=[str(m) for m in d.get("confirmed_modes") or []],
                    class_run=int(d.get("class_run") or 0),

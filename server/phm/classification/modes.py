@@ -5,18 +5,19 @@ lubricant ages).
 The softmax of :class:`~.estimator.FaultClassifier` names one mode: its probabilities compete,
 so two modes present at once share the mass and neither need lead clearly. Each mode's own
 probability (Platt's sigmoid on its one-vs-rest decision value, pooled over the flights since
-the alarm by the chain) does not compete: the set is the leading mode and every other mode at
-or above ``threshold``, the most probable first. The set is provisional on each flight, as the
+the alarm by the chain) does not compete: the set is the leading mode, every other mode at or
+above ``threshold`` and every mode whose own feature is beyond the leading mode's cross-talk
+(:mod:`.crosstalk`), the most probable first. The set is provisional on each flight, as the
 leading mode is; the threshold is chosen on concurrent design campaigns (``bench/mode_sets.py``,
 docs/TUNING.md).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-__all__ = ["ModeSetRule", "MODE_SET", "modes_present"]
+__all__ = ["ModeSetRule", "MODE_SET", "modes_present", "named_by_feature"]
 
 
 @dataclass(frozen=True)
@@ -33,10 +34,18 @@ class ModeSetRule:
 MODE_SET = ModeSetRule()
 
 
-def modes_present(leader: str, own: Mapping[str, float], rule: ModeSetRule = MODE_SET
-                  ) -> list[str]:
+def modes_present(leader: str, own: Mapping[str, float], rule: ModeSetRule = MODE_SET,
+                  beyond: Sequence[str] = ()) -> list[str]:
     """The leading mode, then every other mode whose own probability in ``own`` is at least
-    the rule's threshold, the most probable first."""
-    others = sorted((m for m, q in own.items() if m != leader and q >= rule.threshold),
-                    key=lambda m: -own[m])
-    return [leader, *others]
+    the rule's threshold or that is in ``beyond`` (its own feature beyond the leading mode's
+    cross-talk), the most probable first."""
+    others = {m for m, q in own.items() if q >= rule.threshold} | set(beyond)
+    others.discard(leader)
+    return [leader, *sorted(others, key=lambda m: (-own.get(m, 0.0), m))]
+
+
+def named_by_feature(modes: Sequence[str], own: Mapping[str, float],
+                     rule: ModeSetRule = MODE_SET) -> list[str]:
+    """The modes beside the leading one in ``modes`` whose own probability is below the
+    rule's threshold: named by their own feature beyond the leading mode's cross-talk."""
+    return [m for m in modes[1:] if own.get(m, 0.0) < rule.threshold]
