@@ -19,6 +19,7 @@ __all__ = [
     "WINGLET_PAIR",
     "FAULT_MODES",
     "PROGRESSIVE",
+    "SHARED_SIGNAL_PATH",
     "ABRUPT",
     "ACTUATOR_FEATURES",
     "GENERIC_FEATURES",
@@ -60,6 +61,12 @@ SENSORS: tuple[str, ...] = tuple(dict.fromkeys(SENSOR_OF_SIGNAL.values()))
 FAULT_MODES: tuple[str, ...] = ("TTS", "DMD", "SE", "BDO", "MTEL", "MTWEAR", "REWEAR")
 #: modes that progress from onset to a failure threshold (the prognosis runs on these)
 PROGRESSIVE: tuple[str, ...] = ("TTS", "DMD", "MTEL", "MTWEAR", "REWEAR")
+#: pairs of progressive modes of one actuator that share a signal path, so that one moves
+#: the other's own feature: the screw's gap and the lubricant's drag in the mechanical
+#: efficiency, a short and the magnets in the motor's current, the rod end's play and the
+#: screw's gap in the LVDT
+SHARED_SIGNAL_PATH: tuple[tuple[str, str], ...] = (
+    ("MTWEAR", "MTEL"), ("TTS", "DMD"), ("REWEAR", "MTWEAR"))
 #: modes imposed a priori at a constant severity (replace now, no RUL)
 ABRUPT: tuple[str, ...] = tuple(m for m in FAULT_MODES if m not in PROGRESSIVE)
 

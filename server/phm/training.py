@@ -30,7 +30,6 @@ import numpy as np
 from scipy.stats import spearmanr
 
 from .chain import (
-    CHAIN,
     GENERIC_FEATURES,
     OWN_FEATURE,
     PROGRESSIVE,
@@ -559,8 +558,7 @@ def train_phm_model(campaign: Campaign, *, seed: int = 0, progress: Progress | N
     study = sensor_study_pairs(campaign)
     sensors = fit_sensor_model([f for _, seq in healthy_flights(campaign) for f in seq],
                                study, detection.baseline)
-    crosstalk = fit_crosstalk(rows["X"], rows["y"], rows["groups"],
-                              decay=CHAIN.class_evidence_decay)
+    crosstalk = fit_crosstalk(rows["X"], rows["y"])
     model = PhmModel(detection.baseline, detection.detector, classifier, specs,
                      PrognoserConfig(), climate, sensors, crosstalk)
     t_end = time.perf_counter()

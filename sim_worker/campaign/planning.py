@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from server.vocabulary import POSITIONS, SENSORS, WINGLET_PAIR
+from server.vocabulary import POSITIONS, SENSORS, SHARED_SIGNAL_PATH, WINGLET_PAIR
 
 from ..conditions import NO_CONDITIONS, Conditions
 from ..faults import A_PRIORI, MODES, PROGRESSIVE, draw_span
@@ -77,12 +77,15 @@ class Combination:
     positions: tuple[tuple[str, str], ...]
 
 
-_SAME = tuple((p, p) for p in POSITIONS)
+def _same_unit(modes: tuple[str, str]) -> Combination:
+    """Two modes sharing a signal path on one actuator, on every position that takes both."""
+    where = WINGLET_PAIR if "REWEAR" in modes else POSITIONS  # a rod end: winglet drives only
+    return Combination("+".join(modes), modes, tuple((p, p) for p in where))
+
+
 #: the concurrent campaign's kinds of pattern, in manifest order
 COMBINATIONS: tuple[Combination, ...] = (
-    Combination("MTWEAR+MTEL", ("MTWEAR", "MTEL"), _SAME),
-    Combination("TTS+DMD", ("TTS", "DMD"), _SAME),
-    Combination("REWEAR+MTWEAR", ("REWEAR", "MTWEAR"), tuple((p, p) for p in WINGLET_PAIR)),
+    *(_same_unit(pair) for pair in SHARED_SIGNAL_PATH),
     Combination("WT+WL", None, (("WT", "WL1"), ("WT", "WL2"))),
     Combination("WL1+WL2", None, (WINGLET_PAIR,)),
 )

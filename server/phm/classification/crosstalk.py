@@ -5,12 +5,20 @@ and with it ``F_DMD``, the dynamic-model deviation. Taught on single faults, the
 learned that a high ``F_TTS`` argues against DMD, so a DMD beside a leading TTS keeps a low own
 probability (:mod:`.modes`). Its own feature still tells them apart: on the unit's flights in
 alarm, a mode's own feature (pooled since the alarm as the chain pools the class evidence)
-above the values the leading mode's faults alone gave it in the design names it present.
+above every value the leading mode's faults alone gave it in the design names it present.
 
-The limit per leading mode ``L`` and mode ``m`` is a quantile of ``m``'s pooled own feature over
-the design's single faults of ``L``, on their flights in alarm (the classifier's training
-rows, :func:`server.phm.training.training_rows`): the design's cross-talk. The quantile is
-chosen on other design seeds (``bench/mode_sets.py``, docs/TUNING.md ``CROSSTALK``).
+Only between modes that share a signal path (:data:`~server.vocabulary.SHARED_SIGNAL_PATH`):
+the cross-talk a single-fault design can measure. Beyond them the design's limits do not hold
+(a short on one winglet drive beside a partner's magnet fault moves its screw-gap and rod-end
+features past every value of the design's shorts), and naming every mode beyond its limit named
+a mode the unit does not carry on 12 % of single faults' flights in alarm (docs/TUNING.md).
+
+The limit per leading mode ``L`` and mode ``m`` is a quantile of ``m``'s own feature over the
+design's single faults of ``L``, on their flights in alarm (the classifier's training rows,
+:func:`server.phm.training.training_rows`), taken flight by flight: a design renders a fault
+run every 21st flight, and pooling its flights averages more independent noise than the chain
+pools flight by flight, so pooled limits sit too low (docs/TUNING.md). The quantile is chosen on
+other design seeds (``bench/mode_sets.py --crosstalk``, docs/TUNING.md ``CROSSTALK``).
 """
 
 from __future__ import annotations
@@ -21,15 +29,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.signal import lfilter
 
-from server.vocabulary import GENERIC_FEATURES, OWN_FEATURE, PROGRESSIVE
+from server.vocabulary import GENERIC_FEATURES, OWN_FEATURE, SHARED_SIGNAL_PATH
 
-__all__ = ["CrossTalk", "CROSSTALK_QUANTILE", "fit_crosstalk", "pooled_means"]
+__all__ = ["CrossTalk", "CROSSTALK_QUANTILE", "fit_crosstalk"]
 
 #: the quantile of the design's cross-talk a second mode's pooled own feature must exceed:
-#: chosen on design seeds (bench/mode_sets.py, docs/TUNING.md)
-CROSSTALK_QUANTILE = 0.99
+#: its highest value, chosen on design seeds (bench/mode_sets.py, docs/TUNING.md)
+CROSSTALK_QUANTILE = 1.0
 #: a leading mode needs this many training rows (flights in alarm) for its limits: fewer say
 #: nothing about a high quantile
 MIN_ROWS = 50
@@ -37,8 +44,9 @@ MIN_ROWS = 50
 
 @dataclass(frozen=True)
 class CrossTalk:
-    """The design's cross-talk limits: per leading mode, per other mode, the quantile of the
-    other mode's pooled own feature on the leading mode's single faults."""
+    """The design's cross-talk limits: per leading mode, per mode sharing a signal path with
+    it, the quantile of that mode's own feature on the leading mode's single faults' flights
+    in alarm."""
 
     quantile: float
     limits: Mapping[str, Mapping[str, float]]
@@ -63,35 +71,19 @@ class CrossTalk:
                        for lead, row in d["limits"].items()})
 
 
-def pooled_means(X: np.ndarray, groups: Sequence[Any] | np.ndarray, decay: float) -> np.ndarray:
-    """Each row's decayed mean over its group's rows so far, ``s_k / w_k`` with
-    ``s_k = decay s_(k-1) + x_k`` and ``w_k = decay w_(k-1) + 1``: the chain's pooling of the
-    evidence since an alarm. A group's rows are contiguous and in flight order."""
-    X = np.asarray(X, dtype=np.float64)
-    g = np.asarray(groups)
-    out = np.empty_like(X)
-    if not len(g):
-        return out
-    starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]])
-    for s, e in zip(starts, np.r_[starts[1:], len(g)], strict=True):
-        num = lfilter([1.0], [1.0, -decay], np.nan_to_num(X[s:e]), axis=0)
-        den = lfilter([1.0], [1.0, -decay], np.ones(e - s))
-        out[s:e] = num / den[:, np.newaxis]
-    return out
-
-
-def fit_crosstalk(X: np.ndarray, y: Sequence[Any] | np.ndarray,
-                  groups: Sequence[Any] | np.ndarray, *, decay: float,
+def fit_crosstalk(X: np.ndarray, y: Sequence[Any] | np.ndarray, *,
                   quantile: float = CROSSTALK_QUANTILE,
-                  modes: Sequence[str] = PROGRESSIVE) -> CrossTalk:
+                  pairs: Sequence[tuple[str, str]] = SHARED_SIGNAL_PATH) -> CrossTalk:
     """The limits from classifier rows (``X``: one row per flight in alarm of a single fault,
-    columns :data:`~server.vocabulary.GENERIC_FEATURES`; ``y`` its mode; ``groups`` its
-    pattern), among the progressive ``modes``."""
-    pooled = pooled_means(X, groups, decay)
+    columns :data:`~server.vocabulary.GENERIC_FEATURES`; ``y`` its mode), for each of the
+    ``pairs`` both ways."""
+    X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y).astype(str)
-    cols = {m: list(GENERIC_FEATURES).index(OWN_FEATURE[m]) for m in modes}
-    limits = {lead: {m: float(np.quantile(pooled[y == lead, cols[m]], quantile))
-                     for m in modes if m != lead}
-              for lead in modes if int((y == lead).sum()) >= MIN_ROWS}
+    col = {m: list(GENERIC_FEATURES).index(OWN_FEATURE[m]) for pair in pairs for m in pair}
+    limits: dict[str, dict[str, float]] = {}
+    for lead, m in [*pairs, *((b, a) for a, b in pairs)]:
+        values = X[y == lead, col[m]]
+        values = values[np.isfinite(values)]
+        if values.size >= MIN_ROWS:
+            limits.setdefault(lead, {})[m] = float(np.quantile(values, quantile))
     return CrossTalk(quantile, limits)
-
