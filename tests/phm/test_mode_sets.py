@@ -76,3 +76,27 @@ def test_a_mode_confirmed_as_the_class_is_not_confirmed_again_beside_a_new_leade
     h.modes = ["DMD", "TTS", "MTEL"]
     confirmed = [_confirm_others(h, {"TTS": 0.99, "MTEL": 0.95}) for _ in range(2)]
     assert confirmed == [[], ["MTEL"]] and h.confirmed_modes == ["MTEL"]
+
+
+def test_own_features_pool_as_the_decisions_and_an_older_state_starts_at_this_flight() -> None:
+    """Two flights pooled as the chain pools (decayed mean); a state stored before the own
+    features were kept takes its past flights as this one, so the pooled mean is this flight's."""
+    import numpy as np
+
+    from server.phm.chain.config import CHAIN
+    from server.phm.chain.run import OWN_COLUMN, _pool_own_features, pooled_own_features
+
+    h = ActuatorHealth("WL1", DetectionState.new("WL1", ["WL1.F_TTS", "WL1.F_DMD"]))
+    x1, x2 = np.arange(7.0), np.arange(7.0) + 1.0
+    for x in (x1, x2):  # as _classify: the flight's values, then its weight
+        _pool_own_features(h, x)
+        h.class_weight = CHAIN.class_evidence_decay * (h.class_weight or 0.0) + 1.0
+    d = CHAIN.class_evidence_decay
+    expect = (d * x1 + x2) / (d + 1.0)
+    assert pooled_own_features(h) == pytest.approx(
+        {m: expect[c] for m, c in OWN_COLUMN.items()})
+    old = ActuatorHealth("WL1", DetectionState.new("WL1", ["WL1.F_TTS"]))
+    old.class_log_prob, old.class_weight = {"TTS": -0.1}, 3.0
+    _pool_own_features(old, x2)
+    old.class_weight = d * old.class_weight + 1.0
+    assert pooled_own_features(old) == pytest.approx({m: x2[c] for m, c in OWN_COLUMN.items()})

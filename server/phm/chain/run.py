@@ -232,7 +232,6 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     if model.classifier is None:
         return None
     vector = classifier_vector(h.detection, position)[np.newaxis, :]
-    _pool_own_features(h, vector[0])
     logp = model.classifier.raw_log_proba(vector)[0]
     classes = [str(c) for c in model.classifier.classes_.tolist()]
     decision = model.classifier.decision_function(vector)[0]
@@ -246,6 +245,7 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
         h.mode_decision = {c: h.class_weight * float(v)
                            for c, v in zip(classes, decision, strict=True)}
     h.mode_decision = _decayed(h.mode_decision, classes, decision)
+    _pool_own_features(h, vector[0])
     h.class_log_prob = acc
     h.class_weight = CHAIN.class_evidence_decay * h.class_weight + 1.0
     pooled = {c: v / h.class_weight for c, v in acc.items()}

@@ -1,6 +1,6 @@
 """A second mode named by its own feature: beyond what the leading mode's fault alone gives it.
 
-A fault moves more than its own feature: a thread-to-thread short raises the motor's current
+A fault moves more than its own feature: a turn-to-turn short raises the motor's current
 and with it ``F_DMD``, the dynamic-model deviation. Taught on single faults, the one-vs-rest SVM
 learned that a high ``F_TTS`` argues against DMD, so a DMD beside a leading TTS keeps a low own
 probability (:mod:`.modes`). Its own feature still tells them apart: on the unit's flights in
