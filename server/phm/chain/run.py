@@ -261,9 +261,9 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
 
 
 def _name_modes(model: PhmModel, h: ActuatorHealth) -> dict[str, float] | None:
-    """Set the modes present (``h.modes``: the leading one and every other at the mode-set
-    threshold) and return each mode's own probability (None without per-mode calibration:
-    the leading mode alone)."""
+    """Set the modes present (``h.modes``: the leading one, every other at the mode-set
+    threshold and every one beyond the leading mode's cross-talk) and return each mode's own
+    probability (None without per-mode calibration: the leading mode alone)."""
     own = _own_probabilities(model, h)
     lead = str(h.fault_mode)
     if own is None:
