@@ -64,7 +64,14 @@ def test_a_live_analysis_shows_its_stages_queue_and_heartbeat_in_metrics(
                 page = http.get("/api/v1/flights?status=analyzed&limit=1", headers=admin)
                 return page.json()["total"] == 4
 
+            def attempts_recorded() -> bool:
+                # the worker records an attempt in a transaction of its own, just after the
+                # job's: a scrape may fall between the two
+                return value(_scrape(http), "hmsm_job_attempts_total", kind=KIND,
+                             outcome="done") == 4
+
             wait_until(analysed, 240, "the four flights analysed", every_s=0.5)
+            wait_until(attempts_recorded, 30, "the four attempts recorded", every_s=0.2)
             live = _scrape(http)
             beats = {dict(labels)["worker"]: v for (name, labels), v in live.items()
                      if name == "hmsm_worker_last_heartbeat_timestamp_seconds"}
