@@ -7,13 +7,15 @@ design campaign's classifier rows (the model's fleet reference and detector, as 
 at every quantile of ``--quantiles`` and writes them; ``bench/mode_sets.py --crosstalk`` scores
 each on other design seeds' evaluations.
 
-The two alternatives measured against the service's fit (docs/TUNING.md, ``CROSSTALK``):
+The alternatives measured against the service's fit (docs/TUNING.md, ``CROSSTALK``):
+``--flat`` (one limit per pair, not following the leading mode's own feature), ``--milder Q``
+(the floor at the leader's quantile Q instead of ``MILDER``; ``--milder none``: no floor),
 ``--all-pairs`` (limits between every two progressive modes, not only those sharing a signal
 path) and ``--pooled`` (the design's rows pooled per pattern as the chain pools its flights,
 ``CHAIN.class_evidence_decay``, instead of flight by flight).
 
     python bench/mode_crosstalk.py DESIGN_DIR --out CT.json [--model-json M.json]
-        [--quantiles 0.9,0.95,...] [--all-pairs] [--pooled]
+        [--quantiles 0.9,0.95,...] [--flat | --milder Q] [--all-pairs] [--pooled]
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from scipy.signal import lfilter
 from server.campaigns import load_campaign
 from server.demo_model import load_demo_model
 from server.phm.chain import CHAIN, PhmModel, read_model_document
-from server.phm.classification.crosstalk import fit_crosstalk
+from server.phm.classification.crosstalk import MILDER, fit_crosstalk
 from server.phm.prognosis import PrognoserConfig
 from server.phm.training import training_rows
 from server.vocabulary import PROGRESSIVE, SHARED_SIGNAL_PATH
@@ -58,6 +60,8 @@ def main() -> None:
     ap.add_argument("--quantiles", default=",".join(map(str, QUANTILES)))
     ap.add_argument("--all-pairs", action="store_true")
     ap.add_argument("--pooled", action="store_true")
+    ap.add_argument("--flat", action="store_true")
+    ap.add_argument("--milder", default=str(MILDER))
     args = ap.parse_args()
     doc = (json.loads(args.model_json.read_text()) if args.model_json
            else load_demo_model()["payload"])
@@ -68,13 +72,16 @@ def main() -> None:
          else rows["X"])
     pairs = (tuple(itertools.combinations(PROGRESSIVE, 2)) if args.all_pairs
              else SHARED_SIGNAL_PATH)
-    fits = {q: fit_crosstalk(X, rows["y"], quantile=float(q), pairs=pairs).to_dict()
+    milder = None if args.milder == "none" else float(args.milder)
+    fits = {q: fit_crosstalk(X, rows["y"], quantile=float(q), pairs=pairs,
+                             conditional=not args.flat, milder=milder).to_dict()
             for q in args.quantiles.split(",")}
     args.out.write_text(json.dumps({"design": str(args.design), "rows": len(rows["y"]),
                                     "pooled": args.pooled, "all_pairs": args.all_pairs,
-                                    "fits": fits}, indent=1) + "\n")
+                                    "flat": args.flat, "milder": milder, "fits": fits},
+                                   indent=1) + "\n")
     for q, f in fits.items():
-        print(q, {lead: {m: round(t, 2) for m, t in row.items()}
+        print(q, {lead: {m: f"{t['at']:.2f} + {t['slope']:.2f} x" for m, t in row.items()}
                   for lead, row in f["limits"].items()})
 
 

@@ -129,7 +129,7 @@ def test_a_mode_beyond_the_leaders_cross_talk_is_named_beside_it(
     from server.demo_model import load_demo_model
     from server.evaluation.concurrent import run_concurrent_pattern
     from server.phm.chain import read_model_document
-    from server.phm.classification.crosstalk import CrossTalk
+    from server.phm.classification.crosstalk import CrossTalk, CrossTalkLimit
     from server.phm.classification.modes import modes_present
     from server.vocabulary import PROGRESSIVE
 
@@ -138,8 +138,8 @@ def test_a_mode_beyond_the_leaders_cross_talk_is_named_beside_it(
     pattern = load_campaign(out).patterns[0]
 
     def limits(value: float) -> CrossTalk:
-        return CrossTalk(0.99, {lead: {m: value for m in PROGRESSIVE if m != lead}
-                                for lead in PROGRESSIVE})
+        return CrossTalk(0.99, {lead: {m: CrossTalkLimit(value) for m in PROGRESSIVE
+                                       if m != lead} for lead in PROGRESSIVE})
 
     wide = run_concurrent_pattern(replace(model, crosstalk=limits(-math.inf)), pattern)
     shut = run_concurrent_pattern(replace(model, crosstalk=limits(math.inf)), pattern)
