@@ -5,7 +5,7 @@ and with it ``F_DMD``, the dynamic-model deviation. Taught on single faults, the
 learned that a high ``F_TTS`` argues against DMD, so a DMD beside a leading TTS keeps a low own
 probability (:mod:`.modes`). Its own feature still tells them apart: on the unit's flights in
 alarm, a mode's own feature (pooled since the alarm as the chain pools the class evidence)
-above every value the leading mode's faults alone gave it in the design names it present.
+above what the leading mode's faults alone gave it in the design names it present.
 
 The cross-talk grows with the leading fault: a mild short lifts ``F_DMD`` a little, a severe
 one a lot. So the limit follows the leading mode's own feature ``x`` (pooled likewise):
