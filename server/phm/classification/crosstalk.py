@@ -123,15 +123,16 @@ class CrossTalk:
                        for lead, row in d["limits"].items()})
 
 
-def _limit(lead: np.ndarray, values: np.ndarray, quantile: float,
-           milder: float | None) -> CrossTalkLimit:
+def _limit(lead: np.ndarray, values: np.ndarray, quantile: float, milder: float | None,
+           follow: bool) -> CrossTalkLimit:
     """The ``quantile`` of ``values`` above their least-squares line on ``lead`` (slope
     clipped at 0: cross-talk adds to a feature, and a falling limit extrapolated past the
     design's strongest faults would name a mode on every stronger one), not below the
     ``quantile`` of ``values`` on the milder half of the leader's flights (where the healthy
     scatter, not the cross-talk, sets the feature and the line extrapolated below them
-    would name a mode on a mild leader's noise)."""
-    slope = max(float(np.polyfit(lead, values, 1)[0]), 0.0) if np.ptp(lead) > 0.0 else 0.0
+    would name a mode on a mild leader's noise); without ``follow``, the quantile itself."""
+    slope = (max(float(np.polyfit(lead, values, 1)[0]), 0.0)
+             if follow and np.ptp(lead) > 0.0 else 0.0)
     if slope == 0.0:
         return CrossTalkLimit(float(np.quantile(values, quantile)))
     floor = (-math.inf if milder is None
@@ -156,7 +157,6 @@ def fit_crosstalk(X: np.ndarray, y: Sequence[Any] | np.ndarray, *,
         x, v = X[y == lead, col[lead]], X[y == lead, col[m]]
         keep = np.isfinite(v) & (np.isfinite(x) if conditional else True)
         if keep.sum() >= MIN_ROWS:
-            limits.setdefault(lead, {})[m] = (
-                _limit(x[keep], v[keep], quantile, milder) if conditional
-                else CrossTalkLimit(float(np.quantile(v[keep], quantile))))
+            limits.setdefault(lead, {})[m] = _limit(x[keep], v[keep], quantile, milder,
+                                                    conditional)
     return CrossTalk(quantile, limits)
