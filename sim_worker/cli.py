@@ -137,6 +137,10 @@ def add_campaign_arguments(camp: argparse.ArgumentParser) -> argparse.ArgumentPa
                       help="plan N fault patterns per mode instead of the scale's (a campaign "
                       "of its own: its patterns are seeded differently); --per-mode then "
                       "flies the first of them")
+    camp.add_argument("--step-flights", type=int, default=None, metavar="N",
+                      help="fly each step fault's (SE, BDO) pattern for N flights instead of "
+                      "the scale's (onset where the scale puts it; the first flights are the "
+                      "same): how many flights a step fault takes to be found")
     camp.add_argument("--recordings", default=None, metavar="S[,S...]",
                       help="recording lengths [s] every rendered flight draws its own from, "
                       "e.g. 120 (every flight 120 s) or 60,90,120,180,240,300 (a fleet mixing "
@@ -222,7 +226,8 @@ def run_campaign_command(args: argparse.Namespace, sink: object | None = None,
                             sink=sink, executor=executor,  # type: ignore[arg-type]
                             per_mode=args.per_mode,
                             recordings_s=parse_recordings(args.recordings),
-                            patterns_per_mode=args.patterns_per_mode)
+                            patterns_per_mode=args.patterns_per_mode,
+                            step_flights=args.step_flights)
 
 
 def parse_recordings(text: str | None) -> tuple[float, ...] | None:

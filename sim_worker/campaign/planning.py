@@ -161,18 +161,22 @@ def _healthy_length(cfg: ScaleConfig, seed: int, code: int, j: int) -> int:
 
 
 def plan_campaign(kind: str, seed: int, scale: str, *, per_mode: int | None = None,
-                  patterns_per_mode: int | None = None) -> list[PatternSpec]:
+                  patterns_per_mode: int | None = None,
+                  step_flights: int | None = None) -> list[PatternSpec]:
     """All patterns of the campaign, in manifest order. ``per_mode``: every healthy pattern
     but only the first ``per_mode`` patterns of each fault mode (0: the healthy ones alone),
     each numbered and seeded as in the whole campaign, so they fly the same flights.
     ``patterns_per_mode`` plans that many fault patterns per mode (concurrent: per combination
     kind) instead of the scale's (a campaign of its own: the patterns are numbered, and so
-    seeded, differently)."""
+    seeded, differently). ``step_flights``: the length of the step faults' (SE, BDO) patterns
+    instead of the scale's (their first flights are the same)."""
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {KINDS}")
     cfg = kind_config(scale, kind)
     if patterns_per_mode is not None:
         cfg = replace(cfg, patterns_per_mode=patterns_per_mode)
+    if step_flights is not None:
+        cfg = replace(cfg, apriori_flights=step_flights)
     code = _KIND_CODE[kind]
     if kind == "concurrent":
         return _plan_concurrent(cfg, seed, code, per_mode)

@@ -139,7 +139,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
                  executor: Executor | None = None,
                  per_mode: int | None = None,
                  recordings_s: Iterable[float] | None = None,
-                 patterns_per_mode: int | None = None) -> dict[str, Any]:
+                 patterns_per_mode: int | None = None,
+                 step_flights: int | None = None) -> dict[str, Any]:
     """Write a campaign and its manifest; returns the manifest.
 
     Manifest (``DIR/manifest.json``)::
@@ -182,6 +183,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
     same flights as in the whole campaign.
     ``patterns_per_mode`` plans that many fault patterns per mode instead of the scale's
     (numbered and seeded as a campaign of its own; ``per_mode`` then takes the first of them).
+    ``step_flights`` overrides the length of the step faults' (SE, BDO) patterns: the same
+    flights, more of them after onset (how long a step fault takes to be found).
     ``recordings_s`` overrides the scale's recording lengths: every rendered flight draws its
     own from them (one value: every flight that long); a scale that varies them, and its
     test-station condition blocks, records each flight's under ``"recording_s"`` and
@@ -207,7 +210,7 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
         raise ValueError(f"per_mode must be a count of patterns (>= 0), got {per_mode!r}")
     faults = canonical_sensor_faults(sensor_faults)
     cfg = scale_config(scale, kind, render_every, span_flights, span_draw, recordings_s,
-                       patterns_per_mode)
+                       patterns_per_mode, step_flights)
     sink = sink if sink is not None else ParquetSink()
     from tqdm import tqdm
 
@@ -226,7 +229,8 @@ def run_campaign(kind: str, out_dir: str | Path | CampaignStore, *, seed: int,
         return finished
     warm_up()  # compile (or load the cache) once before forking workers
     specs = plan_campaign(kind, seed, scale, per_mode=per_mode,
-                          patterns_per_mode=cfg.patterns_per_mode)
+                          patterns_per_mode=cfg.patterns_per_mode,
+                          step_flights=cfg.apriori_flights)
     fleet = fleet_for(kind, seed, **options)
     store = _Progress(out, settings)
     results = {s.number: r for s in specs if (r := store.done(s)) is not None}
@@ -277,7 +281,8 @@ def snapshot_campaign(out_dir: str | Path | CampaignStore, snap_dir: str | Path 
     cfg = ScaleConfig(**fields)
     specs = plan_campaign(settings["kind"], settings["seed"], settings["scale"],
                           per_mode=settings.get("per_mode"),
-                          patterns_per_mode=cfg.patterns_per_mode)
+                          patterns_per_mode=cfg.patterns_per_mode,
+                          step_flights=cfg.apriori_flights)
     store = _Progress(out, settings)
     done = [r for s in specs if (r := store.done(s)) is not None]
     fleet = fleet_for(settings["kind"], settings["seed"],

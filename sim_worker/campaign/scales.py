@@ -144,6 +144,11 @@ SCALES: dict[str, dict[str, ScaleConfig]] = {
 #: patterns' two-digit ids
 MAX_PATTERNS_PER_MODE = 99
 
+#: the longest step-fault (SE, BDO) pattern a campaign flies (``--step-flights``): a step
+#: fault stays until its unit is replaced, and how many flights it takes to be found at the
+#: demo's 60 s recordings is measured on patterns of tens of flights
+MAX_STEP_FLIGHTS = 400
+
 
 def kind_config(scale: str, kind: str) -> ScaleConfig:
     """The scale's campaign of ``kind``; a scale without one is refused, naming those with."""
@@ -159,8 +164,16 @@ def scale_config(scale: str, kind: str, render_every: int | None,
                  span_flights: tuple[float, float] | None,
                  span_draw: str | None = None,
                  recordings_s: Iterable[float] | None = None,
-                 patterns_per_mode: int | None = None) -> ScaleConfig:
+                 patterns_per_mode: int | None = None,
+                 step_flights: int | None = None) -> ScaleConfig:
     cfg = kind_config(scale, kind)
+    if step_flights is not None:
+        if isinstance(step_flights, bool) or not isinstance(step_flights, int) \
+                or not cfg.apriori_onset < step_flights <= MAX_STEP_FLIGHTS:
+            raise ValueError(f"step-fault patterns must be an int of {cfg.apriori_onset + 1}.."
+                             f"{MAX_STEP_FLIGHTS} flights (onset at flight "
+                             f"{cfg.apriori_onset}), got {step_flights!r}")
+        cfg = replace(cfg, apriori_flights=step_flights)
     if patterns_per_mode is not None:
         if isinstance(patterns_per_mode, bool) or not isinstance(patterns_per_mode, int) \
                 or not 1 <= patterns_per_mode <= MAX_PATTERNS_PER_MODE:

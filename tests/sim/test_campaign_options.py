@@ -346,3 +346,26 @@ def test_a_campaign_can_plan_more_fault_patterns_per_mode_than_its_scale() -> No
     args = build_parser().parse_args(["campaign", "--kind", "design", "--out", "x",
                                       "--patterns-per-mode", "12"])
     assert args.patterns_per_mode == 12
+
+
+def test_step_fault_patterns_can_fly_longer_than_their_scale() -> None:
+    """``--step-flights`` lengthens the SE and BDO patterns alone (a step fault stays until
+    its unit is replaced: how many flights it takes to be found); every pattern keeps its
+    number, seed and onset, so its first flights are the scale's."""
+    from sim_worker.campaign.scales import MAX_STEP_FLIGHTS, scale_config
+
+    short = {s.id: s for s in plan_campaign("verification", 1, "ci")}
+    long = plan_campaign("verification", 1, "ci", step_flights=20)
+    assert [s.id for s in long] == list(short)
+    for s in long:
+        was = short[s.id]
+        assert (s.number, s.seed, s.onset) == (was.number, was.seed, was.onset)
+        assert s.n_flights == (20 if s.mode in ("SE", "BDO") else was.n_flights)
+    cfg = scale_config("ci", "verification", None, None, step_flights=20)
+    assert cfg.apriori_flights == 20
+    for bad in (cfg.apriori_onset, MAX_STEP_FLIGHTS + 1, True, 20.0):
+        with pytest.raises(ValueError, match="step-fault patterns"):
+            scale_config("ci", "verification", None, None, step_flights=bad)  # type: ignore[arg-type]
+    args = build_parser().parse_args(["campaign", "--kind", "verification", "--out", "x",
+                                      "--step-flights", "24"])
+    assert args.step_flights == 24
