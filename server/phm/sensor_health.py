@@ -31,7 +31,7 @@ chain uses the findings to judge the features that read the channel
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -235,14 +235,20 @@ class NoiseSensitivity:
       the number of windows; per unit of ``e w`` the residual moves by ``bias_[g][s]``, the
       mean paired difference per unit ``e w``. Sensors add.
     * **Bias of a magnitude judged on its log** (``F_SE``, ``F_BDO``: amplitudes that noise
-      inflates in power): a sensor's noise adds power in proportion to its excess, so
-      ``exp(2 dlog) - 1 = power_[g][s] e`` per sensor, the noisier sensors' shares add in
-      power and the log shift is ``log(1 + sum_s power_[g][s] e_s) / 2``, not the sum of
-      each sensor's log shift (the shipped design's study, ``WT.F_SE`` with its three
-      sensors doubled: 1.62 residual units, the log shifts summed 2.20). ``dlog`` is the
-      residual's difference times the feature's log scale. No ``w``: taken as mostly noise,
-      the healthy magnitude's noise share is the same at any number of windows (an
-      assumption, not measured).
+      inflates in power): a sensor's noise adds power to the flight's own, ``F^2 = F0^2 +
+      N``, ``N = sum_s noise_power_[g][s] e_s`` in units of the healthy power the baseline
+      expects (``z = 0``), so the noisier sensors add in power, and what is taken off is
+      the flight's own share of it: ``F0^2 = F^2 - N``, on the log ``log(1 - N exp(-2 s
+      z)) / 2`` for a flight at residual ``z`` (``s`` the feature's log scale). A healthy
+      flight loses the whole shift, a fault's larger power little of it (a constant shift
+      took the healthy flights' 1.6 residual units off a static eccentricity's flights too
+      and hid it). The shift is never more than a flight at the healthy power loses,
+      ``log(1 + N) / 2``: a quiet flight's ``F0^2`` estimate can fall to 0 or below.
+      ``noise_power_`` is the study's mean ``(exp(2 s z_study) - exp(2 s z_twin)) / e``.
+      No ``w``: taken as mostly noise, the healthy magnitude's noise share is the same at
+      any number of windows (an assumption, not measured). A document fitted before
+      (``power``: shares of the twin's power, a constant shift ``log(1 + sum_s power_s
+      e_s) / 2``) is judged as it was fitted.
     * **Added scatter** per unit ``e w``, ``variance_[g][s]``: what the study flights' scatter
       gains over their twins', measured, not derived from a noise model:
       ``var(z_s) - var(z_t) = var(d) + 2 cov(d, z_t)`` for the pair difference ``d`` less
@@ -257,6 +263,7 @@ class NoiseSensitivity:
     def __post_init__(self) -> None:
         self.bias_: dict[str, dict[str, float]] = {}
         self.power_: dict[str, dict[str, float]] = {}
+        self.noise_power_: dict[str, dict[str, float]] = {}
         self.variance_: dict[str, dict[str, float]] = {}
         self.log_scale_: dict[str, float] = {}
 
@@ -280,7 +287,8 @@ class NoiseSensitivity:
                         _Pair(zs, zt, e, weights.get(name, 1.0),
                               self.log_scale_.get(name, 0.0)))
         self.bias_ = {g: {} for g in FEATURE_SENSORS}
-        self.power_ = {g: {} for g in FEATURE_SENSORS}
+        self.power_ = {}
+        self.noise_power_ = {g: {} for g in FEATURE_SENSORS}
         self.variance_ = {g: {} for g in FEATURE_SENSORS}
         by_generic: dict[tuple[str, str], list[list[_Pair]]] = {}
         for (name, sensor, _), rows in groups.items():
@@ -290,24 +298,31 @@ class NoiseSensitivity:
             if g not in FEATURE_SENSORS or sensor not in FEATURE_SENSORS[g]:
                 continue
             if sets[0][0].log_scale > 0:
-                self.power_[g][sensor] = _power_share(sets)
+                noise = self.noise_power_[g][sensor] = _noise_power(sets)
+                self.variance_[g][sensor] = _added_variance(
+                    sets, lambda p, n=noise: _power_shift(n * p.e, p.z_study * p.log_scale)
+                    / p.log_scale)
             else:
-                self.bias_[g][sensor] = _bias(sets)
-            self.variance_[g][sensor] = _added_variance(sets, self.bias_[g].get(sensor, 0.0))
+                bias = self.bias_[g][sensor] = _bias(sets)
+                self.variance_[g][sensor] = _added_variance(sets, lambda p, b=bias: b * p.e * p.w)
         return self
 
     def fitted(self) -> bool:
         """Whether the study gave any coefficient (pairs too few or too alike give none)."""
         return any(self.variance_.values())
 
-    def effect(self, name: str, excess: Mapping[str, float],
-               weight: float = 1.0) -> tuple[float, float]:
+    def effect(self, name: str, excess: Mapping[str, float], weight: float = 1.0,
+               z: float = 0.0) -> tuple[float, float]:
         """``(bias, added variance)`` of feature ``name`` (``"WT.F_SE"``) on a flight of
         evidence weight ``weight`` for the sensors' excess noise variances ``excess``
-        (sensor -> r^2 - 1), in residual units."""
+        (sensor -> r^2 - 1), in residual units; ``z``: the flight's residual (a magnitude on
+        its log loses the noise's share of its own power)."""
         generic = name.split(".", 1)[1]
         var = sum(self.variance_.get(generic, {}).get(s, 0.0) * e for s, e in excess.items())
         scale = self.log_scale_.get(name, 0.0)
+        if scale > 0 and generic in self.noise_power_:
+            noise = sum(self.noise_power_[generic].get(s, 0.0) * e for s, e in excess.items())
+            return _power_shift(noise, z * scale) / scale, var * weight
         if scale > 0 and generic in self.power_:
             power = sum(self.power_[generic].get(s, 0.0) * e for s, e in excess.items())
             # a share below -1 is no power; the floor keeps the log finite
@@ -316,8 +331,11 @@ class NoiseSensitivity:
         return bias * weight, var * weight
 
     def to_dict(self) -> dict[str, Any]:
-        return {"bias": self.bias_, "power": self.power_, "variance": self.variance_,
-                "log_scale": self.log_scale_}
+        out = {"bias": self.bias_, "noise_power": self.noise_power_,
+               "variance": self.variance_, "log_scale": self.log_scale_}
+        if self.power_:
+            out["power"] = self.power_
+        return out
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> NoiseSensitivity:
@@ -326,6 +344,7 @@ class NoiseSensitivity:
         obj = cls()
         obj.bias_ = _coefficients(d["bias"])
         obj.power_ = _coefficients(d.get("power", {}))
+        obj.noise_power_ = _coefficients(d.get("noise_power", {}))
         obj.variance_ = _coefficients(d["variance"])
         obj.log_scale_ = {k: float(v) for k, v in d.get("log_scale", {}).items()}
         return obj
@@ -360,22 +379,36 @@ def _bias(sets: Sequence[Sequence[_Pair]]) -> float:
                                        for rows in sets for p in rows]))
 
 
-def _power_share(sets: Sequence[Sequence[_Pair]]) -> float:
-    """A log feature's added power per unit ``e``: ``exp(2 dlog) - 1`` over ``e``, ``dlog``
-    the pair's log difference; 0 unless beyond three standard errors."""
+def _noise_power(sets: Sequence[Sequence[_Pair]]) -> float:
+    """A log feature's added power per unit ``e``, in units of the healthy power the baseline
+    expects: ``(exp(2 s z_study) - exp(2 s z_twin)) / e``; 0 unless beyond three standard
+    errors."""
     return _significant_mean(np.array([
-        math.expm1(2.0 * (p.z_study - p.z_twin) * p.log_scale) / p.e
-        for rows in sets for p in rows]))
+        (math.exp(2.0 * p.z_study * p.log_scale) - math.exp(2.0 * p.z_twin * p.log_scale))
+        / p.e for rows in sets for p in rows]))
 
 
-def _added_variance(sets: Sequence[Sequence[_Pair]], bias: float) -> float:
+def _power_shift(noise: float, log_value: float) -> float:
+    """How far added noise power ``noise`` (in healthy power units) moved the log of a
+    magnitude now ``log_value`` above the healthy one: ``-log(1 - noise exp(-2 log_value))
+    / 2``, at most ``log(1 + noise) / 2``, the shift at the healthy power (a quiet flight's
+    own power is known no better)."""
+    at_healthy = 0.5 * math.log(max(1.0 + noise, _MIN_POWER_RATIO))
+    own = 1.0 - noise * math.exp(-2.0 * log_value)
+    if noise <= 0.0 or own <= 0.0:
+        return at_healthy
+    return min(-0.5 * math.log(own), at_healthy)
+
+
+def _added_variance(sets: Sequence[Sequence[_Pair]], bias: Callable[[_Pair], float]) -> float:
     """Added flight scatter per unit ``e w``: ``var(d) + 2 cov(d, z_twin)`` within each group
-    (``d`` the pair difference less its linear bias), pooled, over the groups' ``sum e w``;
-    0 when negative."""
+    (``d`` the pair difference less the study flight's bias as judged, ``bias(pair)``),
+    pooled, over the groups' ``sum e w``; 0 when negative. A magnitude's debiased power
+    scatters more than its raw one where the noise's share is large: measured here."""
     num, den = 0.0, 0.0
     for rows in sets:
         zt = np.array([p.z_twin for p in rows])
-        d = np.array([p.z_study - p.z_twin - bias * p.e * p.w for p in rows])
+        d = np.array([p.z_study - p.z_twin - bias(p) for p in rows])
         d, zt = d - d.mean(), zt - zt.mean()
         num += float(np.sum(d * (d + 2.0 * zt)))
         den += float(sum(p.e * p.w for p in rows))
@@ -464,7 +497,7 @@ class SensorModel:
             if compensate and any(v > 0 for v in e.values()):
                 # compensate is only true with a sensitivity model
                 bias, var = self.sensitivity.effect(  # type: ignore[union-attr]
-                    name, e, (evidence or {}).get(name, 1.0))
+                    name, e, (evidence or {}).get(name, 1.0), z[name])
                 out[name] = z[name] - bias
                 extra[name] = var
         return SensorJudgement(findings, out, extra, aside)

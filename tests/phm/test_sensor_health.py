@@ -237,30 +237,62 @@ def test_added_scatter_is_what_the_study_flights_gain_not_a_scaled_copy() -> Non
     assert s.bias_["F_TTS"]["current"] == 0.0
 
 
-def test_a_magnitude_on_its_log_adds_its_sensors_in_power() -> None:
-    """F_SE's power is the current sensor's noise (share 0.6) and the voltage sensor's (0.4):
-    each sensor doubled alone moves its log by log(1 + 3 share) / 2; both doubled move it by
-    log(4) / 2, less than the two shifts summed, and the scatter stays as it was."""
-    rng = np.random.default_rng(22)
-    shares = {"current": 0.6, "voltage": 0.4}
+def _power_study(rng: np.random.Generator, shares: dict[str, float],
+                 n: int = 100) -> NoiseSensitivity:
+    """A study of F_SE whose noise adds power: doubling a sensor (e = 3) adds ``3 share`` of
+    the healthy power (1) to each twin flight's own power, whatever that is."""
     pairs = []
     for sensor, share in shares.items():
-        for k in range(100):
+        for k in range(n):
             log_twin = rng.normal(0.0, LOG_SCALE)
-            log_study = log_twin + 0.5 * math.log1p(3.0 * share) + rng.normal(0.0, 0.01)
+            power = math.exp(2.0 * log_twin) + 3.0 * share
+            log_study = 0.5 * math.log(power) + rng.normal(0.0, 0.01)
             study, twin = _study_pair(rng, sensor, log_twin / LOG_SCALE,
                                       log_study / LOG_SCALE)
             pairs.append((sensor, f"{sensor}{k % 4}", _named(study, "WT.F_SE"),
                           _named(twin, "WT.F_SE")))
-    s = NoiseSensitivity().fit(pairs, _Baseline(["WT.F_SE"]))
-    assert s.power_["F_SE"] == pytest.approx(shares, abs=0.05)
-    assert s.variance_["F_SE"]["current"] < 0.01
+    return NoiseSensitivity().fit(pairs, _Baseline(["WT.F_SE"]))
+
+
+def test_a_magnitude_on_its_log_adds_its_sensors_in_power() -> None:
+    """F_SE's noise power is the current sensor's (share 0.6) and the voltage sensor's
+    (0.4): a healthy flight with both doubled moves its log by log(1 + 3) / 2, less than
+    the two sensors' shifts summed."""
+    shares = {"current": 0.6, "voltage": 0.4}
+    s = _power_study(np.random.default_rng(22), shares)
+    assert s.noise_power_["F_SE"] == pytest.approx(shares, abs=0.05)
     both, _ = s.effect("WT.F_SE", {"current": 3.0, "voltage": 3.0})
     alone = sum(s.effect("WT.F_SE", {sensor: 3.0})[0] for sensor in shares)
     assert both * LOG_SCALE == pytest.approx(0.5 * math.log(4.0), abs=0.03)
     assert alone > 1.3 * both
     again = NoiseSensitivity.from_dict(s.to_dict())
     assert again.effect("WT.F_SE", {"current": 3.0}) == s.effect("WT.F_SE", {"current": 3.0})
+
+
+def test_a_fault_keeps_its_own_power_when_the_noise_is_taken_off() -> None:
+    """A static eccentricity's flight carries 20 times the healthy power: with both sensors
+    doubled (3 healthy powers added) its judged value is its own power's, log(21) / 2; a
+    constant shift of the healthy flights' log(4) / 2 would have taken 0.63 off its log.
+    A flight quieter than the noise alone is shifted no further than a healthy one."""
+    s = _power_study(np.random.default_rng(23), {"current": 0.6, "voltage": 0.4})
+    e = {"current": 3.0, "voltage": 3.0}
+    z = 0.5 * math.log(21.0 + 3.0) / LOG_SCALE
+    bias, _ = s.effect("WT.F_SE", e, z=z)
+    assert (z - bias) * LOG_SCALE == pytest.approx(0.5 * math.log(21.0), abs=0.02)
+    healthy, _ = s.effect("WT.F_SE", e)
+    quiet, _ = s.effect("WT.F_SE", e, z=-3.0)
+    assert quiet == healthy
+
+
+def test_a_document_of_twin_relative_power_shares_is_judged_as_it_was_fitted() -> None:
+    """A document written before the additive noise power (``power``: shares of the twin's
+    power) shifts every flight by log(1 + sum share e) / 2, whatever the flight's power."""
+    doc = {"bias": {}, "variance": {}, "log_scale": {"WT.F_SE": LOG_SCALE},
+           "power": {"F_SE": {"current": 1.0}}}
+    old = NoiseSensitivity.from_dict(doc)
+    want = 0.5 * math.log(4.0) / LOG_SCALE
+    assert old.effect("WT.F_SE", {"current": 3.0}, z=5.0)[0] == pytest.approx(want)
+    assert NoiseSensitivity.from_dict(old.to_dict()).to_dict() == old.to_dict()
 
 
 def test_noise_sensitivity_recovers_a_known_bias_and_scatter() -> None:
