@@ -299,12 +299,10 @@ class NoiseSensitivity:
                 continue
             if sets[0][0].log_scale > 0:
                 noise = self.noise_power_[g][sensor] = _noise_power(sets)
-                self.variance_[g][sensor] = _added_variance(
-                    sets, lambda p, n=noise: _power_shift(n * p.e, p.z_study * p.log_scale)
-                    / p.log_scale)
+                self.variance_[g][sensor] = _added_variance(sets, _log_bias(noise))
             else:
                 bias = self.bias_[g][sensor] = _bias(sets)
-                self.variance_[g][sensor] = _added_variance(sets, lambda p, b=bias: b * p.e * p.w)
+                self.variance_[g][sensor] = _added_variance(sets, _linear_bias(bias))
         return self
 
     def fitted(self) -> bool:
@@ -398,6 +396,16 @@ def _power_shift(noise: float, log_value: float) -> float:
     if noise <= 0.0 or own <= 0.0:
         return at_healthy
     return min(-0.5 * math.log(own), at_healthy)
+
+
+def _linear_bias(bias: float) -> Callable[[_Pair], float]:
+    """A study flight's bias as judged, for a feature judged on its value."""
+    return lambda p: bias * p.e * p.w
+
+
+def _log_bias(noise: float) -> Callable[[_Pair], float]:
+    """A study flight's bias as judged, for a magnitude judged on its log."""
+    return lambda p: _power_shift(noise * p.e, p.z_study * p.log_scale) / p.log_scale
 
 
 def _added_variance(sets: Sequence[Sequence[_Pair]], bias: Callable[[_Pair], float]) -> float:
