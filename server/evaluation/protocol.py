@@ -82,7 +82,8 @@ def _campaign_args(args: argparse.Namespace, kind: str, seed: int, out: Path,
                               span_range=span_range, span_draw=None,
                               no_progress=args.no_progress, bases=None,
                               noise_scale=1.0, sensor_fault=None, per_mode=args.per_mode,
-                              recordings=None, patterns_per_mode=None)
+                              recordings=None, patterns_per_mode=None,
+                              step_flights=None)
 
 
 def _evaluate_args(args: argparse.Namespace, model: Path, campaign: Path, out: Path
