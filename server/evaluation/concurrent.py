@@ -107,15 +107,16 @@ def concurrent_markdown(summary: Mapping[str, Any]) -> str:
     interval, the earlier failure's PH and RA with bootstrap intervals."""
     head = ("| combination | patterns | faults alarmed | faults named | faults confirmed | both "
             "named by the first's half life | still named at it | second after it | earlier "
-            "failure: PH | PH cone | RA [%] | spurious modes (unit-flights) |\n"
-            + "|---" * 12 + "|")
+            "failure: PH | PH cone | RA [%] | spurious modes (unit-flights) | spurious "
+            "confirmations |\n" + "|---" * 13 + "|")
     rows = [*summary["combinations"].items(), ("all", summary["all"])]
     lines = [f"| {name} | {s['patterns']} | {_share(s['faults_alarmed'])} | "
              f"{_share(s['faults_named'])} | {_share(s['faults_confirmed'])} | "
              f"{_share(s['named_by_half'])} | {_share(s['named_at_half'])} | "
              f"{s['second_after_half']} | {_mean(s['earlier_failure'], 'ph')} | "
              f"{_mean(s['earlier_failure'], 'ph_cone')} | "
-             f"{_mean(s['earlier_failure'], 'ra', 100.0)} | {_share(s['spurious'])} |"
+             f"{_mean(s['earlier_failure'], 'ra', 100.0)} | {_share(s['spurious'])} | "
+             f"{_share(s['spurious_confirmations']) if 'spurious_confirmations' in s else '-'} |"
              for name, s in rows]
     modes = ["", "| earlier failure's mode | patterns | PH (Saxena) | RA [%] |",
              "|---|---|---|---|"]

@@ -18,7 +18,8 @@ unit failed of the other fault, censoring it):
   prognosis) is scored against it as a single fault's is (:func:`.scoring.pattern_prognosis`:
   Saxena's horizon, the cone's, RA);
 - a mode named on a unit that does not carry it on that flight is a *spurious* naming (unit
-  flights in alarm).
+  flights in alarm), and a mode confirmed on a unit that does not carry it on that flight a
+  *spurious confirmation* (of all confirmations: each is one event per unit, mode and alarm).
 """
 
 from __future__ import annotations
@@ -68,16 +69,35 @@ def _named_at(flight: Mapping[str, Any] | None, faults: Sequence[Mapping[str, An
         for f in faults)
 
 
+def _carried(trace: Mapping[str, Any]) -> dict[int, set[tuple[str, str]]]:
+    """Per flight index, the (unit, mode) pairs the aircraft carries."""
+    return {int(f["index"]): {(x["position"], x["mode"]) for x in f["faults"]}
+            for f in trace["truth"]["flights"]}
+
+
 def _spurious(trace: Mapping[str, Any]) -> tuple[int, int]:
     """(unit-flights in alarm naming a mode the unit does not carry, unit-flights in alarm)."""
-    carried = {int(f["index"]): {(x["position"], x["mode"]) for x in f["faults"]}
-               for f in trace["truth"]["flights"]}
+    carried = _carried(trace)
     wrong = total = 0
     for f in trace["flights"]:
         here = carried.get(int(f["index"]), set())
         for pos, unit in f["units"].items():
             total += 1
             wrong += any((pos, m) not in here for m in unit["modes"][1:])
+    return wrong, total
+
+
+def _confirmations(trace: Mapping[str, Any]) -> tuple[int, int]:
+    """(confirmations of a mode the unit does not carry on that flight, confirmations)."""
+    carried = _carried(trace)
+    wrong = total = 0
+    for f in trace["flights"]:
+        here = carried.get(int(f["index"]), set())
+        for pos, unit in f["units"].items():
+            modes = ([unit["confirmed"]] if unit.get("confirmed") else []) + list(
+                unit.get("confirmed_others") or [])
+            total += len(modes)
+            wrong += sum((pos, m) not in here for m in modes)
     return wrong, total
 
 
@@ -114,6 +134,7 @@ def score_pattern(trace: Mapping[str, Any]) -> dict[str, Any]:
     eligible = all(f["onset"] < half for f in faults)
     at_half = next((f for f in reversed(flights) if int(f["index"]) <= half), None)
     wrong, total = _spurious(trace)
+    wrong_confirmed, confirmations = _confirmations(trace)
     return {"id": trace["id"], "combination": trace["combination"], "faults": faults,
             "half_flight": half, "eligible_at_half": eligible,
             "named_by_half": (all(f["named"] is not None and f["named"] <= half
@@ -121,7 +142,8 @@ def score_pattern(trace: Mapping[str, Any]) -> dict[str, Any]:
             "named_at_half": _named_at(at_half, faults) if eligible else None,
             "named_ever": all(f["named"] is not None for f in faults),
             "earlier_failure": _earlier_failure(trace, faults),
-            "spurious_unit_flights": wrong, "unit_flights_in_alarm": total}
+            "spurious_unit_flights": wrong, "unit_flights_in_alarm": total,
+            "spurious_confirmations": wrong_confirmed, "confirmations": confirmations}
 
 
 def _share(hits: int, n: int) -> dict[str, Any]:
@@ -160,7 +182,9 @@ def _summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
                 **mean_ci("ph_cone", [e["ph_cone"] for e in early], idx),
                 **mean_ci("ra", [nan_if_none(e["ra"]) for e in early], idx)},
             "spurious": _share(sum(r["spurious_unit_flights"] for r in rows),
-                               sum(r["unit_flights_in_alarm"] for r in rows))}
+                               sum(r["unit_flights_in_alarm"] for r in rows)),
+            "spurious_confirmations": _share(sum(r["spurious_confirmations"] for r in rows),
+                                             sum(r["confirmations"] for r in rows))}
 
 
 def _by_failing_mode(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:

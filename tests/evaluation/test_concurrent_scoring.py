@@ -106,3 +106,25 @@ def test_a_mode_named_before_the_half_flight_and_dropped_on_it() -> None:
     row = score_pattern(_trace(faults, flicker, 50))
     assert row["faults"][1]["named"] == 24
     assert (row["named_by_half"], row["named_at_half"]) == (True, False)
+
+
+def test_a_confirmation_of_a_mode_the_unit_does_not_carry_is_spurious() -> None:
+    """WL1 carries TTS from 10 and confirms it at 15 (its class) and DMD beside it at 30: DMD
+    starts on WT, not WL1, so that confirmation is spurious: 1 of 2."""
+    faults = [_fault("TTS", "WL1", 10, failure=50, end=50),
+              _fault("DMD", "WT", 20, failure=None, end=50)]
+
+    def units(i: int) -> dict[str, Any]:
+        if i < 14:
+            return {}
+        unit = _unit(["TTS", "DMD"] if i >= 29 else ["TTS"], rul=50.0 - i)
+        unit["confirmed"] = "TTS" if i == 15 else None
+        unit["confirmed_others"] = ["DMD"] if i == 30 else []
+        return {"WL1": unit}
+
+    row = score_pattern(_trace(faults, units, 50))
+    assert (row["spurious_confirmations"], row["confirmations"]) == (1, 2)
+    assert row["faults"][0]["confirmed"] == 15 and row["faults"][1]["confirmed"] is None
+    summary = score_concurrent([_trace(faults, units, 50)])["all"]
+    assert (summary["spurious_confirmations"]["hits"],
+            summary["spurious_confirmations"]["n"]) == (1, 2)

@@ -64,6 +64,21 @@ def test_a_mode_beside_the_leader_is_confirmed_by_the_rule_on_its_own_evidence()
     assert (runs, held) == ({"DMD": 1}, [])
 
 
+def test_a_mode_named_by_its_own_feature_is_confirmed_while_its_feature_stays_beyond() -> None:
+    """A DMD beside a short named by its feature (own probability far below the rule's): its
+    second flight in the set confirms it while its feature is beyond the short's cross-talk on
+    that flight, not when only the probability is asked."""
+    from server.phm.classification.confirmation import ConfirmationRule, advance_others
+
+    rule = ConfirmationRule(flights=2, probability=0.9)
+    runs, held = advance_others(rule, {}, ["TTS", "DMD"], {"DMD": 0.1}, beyond=["DMD"])
+    assert held == []
+    _, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.1})
+    assert held == []  # in the set, neither probable nor beyond on this flight
+    _, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.1}, beyond=["DMD"])
+    assert held == ["DMD"]
+
+
 def test_a_mode_confirmed_as_the_class_is_not_confirmed_again_beside_a_new_leader() -> None:
     """The class TTS was confirmed; DMD now leads and TTS stands beside it long enough: no
     second confirmation of TTS (one event per mode and alarm)."""
@@ -72,9 +87,9 @@ def test_a_mode_confirmed_as_the_class_is_not_confirmed_again_beside_a_new_leade
     h = ActuatorHealth("WL1", DetectionState.new("WL1", ["WL1.F_TTS", "WL1.F_DMD"]))
     h.confirmed_mode, h.modes = "TTS", ["DMD", "TTS"]
     for _ in range(3):
-        assert _confirm_others(h, {"TTS": 0.99, "DMD": 0.99}) == []
+        assert _confirm_others(h, {"TTS": 0.99, "DMD": 0.99}, []) == []
     h.modes = ["DMD", "TTS", "MTEL"]
-    confirmed = [_confirm_others(h, {"TTS": 0.99, "MTEL": 0.95}) for _ in range(2)]
+    confirmed = [_confirm_others(h, {"TTS": 0.99, "MTEL": 0.95}, []) for _ in range(2)]
     assert confirmed == [[], ["MTEL"]] and h.confirmed_modes == ["MTEL"]
 
 

@@ -144,9 +144,9 @@ def analyze_flight(model: PhmModel, features: FlightFeatures,
         with timed("classification"):
             lead = h.fault_mode  # the last classified flight's leading mode
             probs = _classify(model, h, position) if det.alarm else None
-            own = _name_modes(model, h) if probs else None
+            own, beyond = _name_modes(model, h) if probs else (None, [])
             confirmed = _confirm(h, lead, probs)
-            others = _confirm_others(h, own or {}) if probs else []
+            others = _confirm_others(h, own or {}, beyond) if probs else []
         with timed("prognosis"):
             ruls = (prognose_modes(model, h, generic, position, index, base=base, seed=seed)
                     if det.alarm else {})
@@ -260,19 +260,21 @@ def _classify(model: PhmModel, h: ActuatorHealth, position: str) -> dict[str, fl
     return probs
 
 
-def _name_modes(model: PhmModel, h: ActuatorHealth) -> dict[str, float] | None:
+def _name_modes(model: PhmModel, h: ActuatorHealth
+                ) -> tuple[dict[str, float] | None, list[str]]:
     """Set the modes present (``h.modes``: the leading one, every other at the mode-set
     threshold and every one beyond the leading mode's cross-talk) and return each mode's own
-    probability (None without per-mode calibration: the leading mode alone)."""
+    probability (None without per-mode calibration: the leading mode alone) and the modes
+    beyond the cross-talk."""
     own = _own_probabilities(model, h)
     lead = str(h.fault_mode)
     if own is None:
         h.modes = [lead]
-        return None
+        return None, []
     beyond = ([] if model.crosstalk is None
               else model.crosstalk.beyond(lead, pooled_own_features(h)))
     h.modes = modes_present(lead, own, beyond=beyond)
-    return own
+    return own, beyond
 
 
 def pooled_own_features(h: ActuatorHealth) -> dict[str, float]:
@@ -328,10 +330,11 @@ def _confirm(h: ActuatorHealth, lead: str | None, probs: dict[str, float] | None
     return None
 
 
-def _confirm_others(h: ActuatorHealth, own: dict[str, float]) -> list[str]:
+def _confirm_others(h: ActuatorHealth, own: dict[str, float], beyond: list[str]
+                    ) -> list[str]:
     """Advance the confirmation of the modes beside the leading one; those it confirms on this
     flight (each once per alarm: a mode confirmed as the alarm's class is not again)."""
-    h.mode_runs, held = advance_others(CONFIRMATION, h.mode_runs, h.modes, own)
+    h.mode_runs, held = advance_others(CONFIRMATION, h.mode_runs, h.modes, own, beyond)
     now = [m for m in held if m not in h.confirmed_modes and m != h.confirmed_mode]
     h.confirmed_modes += now
     return now

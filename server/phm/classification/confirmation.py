@@ -11,12 +11,16 @@ event. One function serves the chain (flight by flight, :func:`advance`) and the
 
 A second mode present beside the leading one (:mod:`.modes`) is confirmed by the same rule on
 its own evidence (:func:`advance_others`): in the set on ``flights`` consecutive classified
-flights, its own probability on the last of them at least ``probability``.
+flights, and on the last of them its own probability at least ``probability`` or its own
+feature beyond the leading mode's cross-talk (:mod:`.crosstalk`). The second is the evidence
+that named it when the classifier's probability could not (a DMD beside a short: the short
+moves the DMD feature, and the one-vs-rest SVM weighs it against DMD), so asking the
+probability as well would leave such a mode provisional for ever.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 __all__ = ["ConfirmationRule", "CONFIRMATION", "advance", "advance_others",
@@ -55,13 +59,15 @@ def advance(rule: ConfirmationRule, lead: str | None, run: int,
 
 
 def advance_others(rule: ConfirmationRule, runs: Mapping[str, int], modes: Sequence[str],
-                   own: Mapping[str, float]) -> tuple[dict[str, int], list[str]]:
+                   own: Mapping[str, float], beyond: Collection[str] = ()
+                   ) -> tuple[dict[str, int], list[str]]:
     """One classified flight for the modes beside the leading one (``modes[1:]``): each one's
     run of consecutive flights in the set (a mode that left it starts again), and those for
-    which the rule holds now."""
+    which the rule holds now (``beyond``: the modes whose own feature is beyond the leading
+    mode's cross-talk on this flight)."""
     new = {m: runs.get(m, 0) + 1 for m in modes[1:]}
-    return new, [m for m, n in new.items()
-                 if n >= rule.flights and own.get(m, 0.0) >= rule.probability]
+    return new, [m for m, n in new.items() if n >= rule.flights
+                 and (own.get(m, 0.0) >= rule.probability or m in beyond)]
 
 
 def first_confirmation(rule: ConfirmationRule,
