@@ -789,8 +789,9 @@ class ModePresentRead(BaseModel):
     rul_median_flights: float | None = Field(description="median RUL of its own prognosis "
                                              "(null: a step fault, or none yet)")
     confirmed: bool = Field(default=False, description="confirmed: the leading one as the "
-                            "alarm's class, another as present beside it (its own probability "
-                            "held on consecutive flights); else provisional")
+                            "alarm's class, another as present beside it (its own probability, "
+                            "or its own feature beyond the leading mode's cross-talk, held on "
+                            "consecutive flights); else provisional")
     by_feature: bool = Field(default=False, description="named by its own feature, beyond what "
                              "the leading mode's faults alone gave it in the design, while its "
                              "own probability is below the mode-set threshold")
