@@ -66,17 +66,21 @@ def test_a_mode_beside_the_leader_is_confirmed_by_the_rule_on_its_own_evidence()
 
 def test_a_mode_named_by_its_own_feature_is_confirmed_while_its_feature_stays_beyond() -> None:
     """A DMD beside a short named by its feature (own probability far below the rule's): its
-    second flight in the set confirms it while its feature is beyond the short's cross-talk on
-    that flight, not when only the probability is asked."""
+    third flight in the set (the rule's feature flights) confirms it while its feature is
+    beyond the short's cross-talk on that flight; the probability's two flights do not."""
     from server.phm.classification.confirmation import ConfirmationRule, advance_others
 
-    rule = ConfirmationRule(flights=2, probability=0.9)
-    runs, held = advance_others(rule, {}, ["TTS", "DMD"], {"DMD": 0.1}, beyond=["DMD"])
-    assert held == []
+    rule = ConfirmationRule(flights=2, probability=0.9, feature_flights=3)
+    runs: dict[str, int] = {}
+    for _ in range(2):
+        runs, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.1}, beyond=["DMD"])
+        assert held == []
     _, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.1})
     assert held == []  # in the set, neither probable nor beyond on this flight
     _, held = advance_others(rule, runs, ["TTS", "DMD"], {"DMD": 0.1}, beyond=["DMD"])
     assert held == ["DMD"]
+    with pytest.raises(ValueError):
+        ConfirmationRule(feature_flights=0)
 
 
 def test_a_mode_confirmed_as_the_class_is_not_confirmed_again_beside_a_new_leader() -> None:

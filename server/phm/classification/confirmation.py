@@ -9,13 +9,15 @@ for a slow one. The alarm is raised at the first flight either way; the confirma
 event. One function serves the chain (flight by flight, :func:`advance`) and the evaluation
 (whole sequences, :func:`first_confirmation`), so the two cannot disagree.
 
-A second mode present beside the leading one (:mod:`.modes`) is confirmed by the same rule on
-its own evidence (:func:`advance_others`): in the set on ``flights`` consecutive classified
-flights, and on the last of them its own probability at least ``probability`` or its own
-feature beyond the leading mode's cross-talk (:mod:`.crosstalk`). The second is the evidence
-that named it when the classifier's probability could not (a DMD beside a short: the short
-moves the DMD feature, and the one-vs-rest SVM weighs it against DMD), so asking the
-probability as well would leave such a mode provisional for ever.
+A second mode present beside the leading one (:mod:`.modes`) is confirmed on its own evidence
+(:func:`advance_others`): in the set on ``flights`` consecutive classified flights with its own
+probability at least ``probability`` on the last of them, or in the set on ``feature_flights``
+consecutive flights with its own feature beyond the leading mode's cross-talk
+(:mod:`.crosstalk`) on the last. The feature is the evidence that named it when the
+classifier's probability could not (a DMD beside a short: the short moves the DMD feature, and
+the one-vs-rest SVM weighs it against DMD), so asking the probability would leave such a mode
+provisional for ever; it asks more flights, since a limit is crossed by one odd flight more
+easily than a probability is held (chosen on a concurrent design, docs/TUNING.md).
 """
 
 from __future__ import annotations
@@ -33,14 +35,18 @@ class ConfirmationRule:
     flights: int = 2
     #: its pooled probability on the last of them, at least
     probability: float = 0.9
+    #: consecutive classified flights a mode beside the leading one, named by its own feature
+    #: beyond the leader's cross-talk, must stand in the set
+    feature_flights: int = 6
 
     def __post_init__(self) -> None:
-        if self.flights < 1 or not 0.0 <= self.probability <= 1.0:
+        if min(self.flights, self.feature_flights) < 1 or not 0.0 <= self.probability <= 1.0:
             raise ValueError("a confirmation needs at least one flight and a probability "
                              "in [0, 1]")
 
 
-#: the rule the service runs (first cut: not yet chosen on design seeds; docs/TUNING.md)
+#: the rule the service runs (docs/TUNING.md: the leading mode's first cut, the feature path's
+#: run length chosen on a concurrent design)
 CONFIRMATION = ConfirmationRule()
 
 
@@ -66,8 +72,9 @@ def advance_others(rule: ConfirmationRule, runs: Mapping[str, int], modes: Seque
     which the rule holds now (``beyond``: the modes whose own feature is beyond the leading
     mode's cross-talk on this flight)."""
     new = {m: runs.get(m, 0) + 1 for m in modes[1:]}
-    return new, [m for m, n in new.items() if n >= rule.flights
-                 and (own.get(m, 0.0) >= rule.probability or m in beyond)]
+    return new, [m for m, n in new.items()
+                 if (n >= rule.flights and own.get(m, 0.0) >= rule.probability)
+                 or (n >= rule.feature_flights and m in beyond)]
 
 
 def first_confirmation(rule: ConfirmationRule,
