@@ -25,7 +25,7 @@ unit failed of the other fault, censoring it):
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
 from server.phm.metrics import proportion_interval
@@ -69,36 +69,31 @@ def _named_at(flight: Mapping[str, Any] | None, faults: Sequence[Mapping[str, An
         for f in faults)
 
 
-def _carried(trace: Mapping[str, Any]) -> dict[int, set[tuple[str, str]]]:
-    """Per flight index, the (unit, mode) pairs the aircraft carries."""
-    return {int(f["index"]): {(x["position"], x["mode"]) for x in f["faults"]}
-            for f in trace["truth"]["flights"]}
+def _unit_flights(trace: Mapping[str, Any]
+                  ) -> Iterator[tuple[str, Mapping[str, Any], set[tuple[str, str]]]]:
+    """Each unit in alarm on each flight: (its position, what it said, the (unit, mode)
+    pairs the aircraft carries on that flight)."""
+    carried = {int(f["index"]): {(x["position"], x["mode"]) for x in f["faults"]}
+               for f in trace["truth"]["flights"]}
+    for f in trace["flights"]:
+        here = carried.get(int(f["index"]), set())
+        for pos, unit in f["units"].items():
+            yield pos, unit, here
 
 
 def _spurious(trace: Mapping[str, Any]) -> tuple[int, int]:
     """(unit-flights in alarm naming a mode the unit does not carry, unit-flights in alarm)."""
-    carried = _carried(trace)
-    wrong = total = 0
-    for f in trace["flights"]:
-        here = carried.get(int(f["index"]), set())
-        for pos, unit in f["units"].items():
-            total += 1
-            wrong += any((pos, m) not in here for m in unit["modes"][1:])
-    return wrong, total
+    named = [any((pos, m) not in here for m in unit["modes"][1:])
+             for pos, unit, here in _unit_flights(trace)]
+    return sum(named), len(named)
 
 
 def _confirmations(trace: Mapping[str, Any]) -> tuple[int, int]:
     """(confirmations of a mode the unit does not carry on that flight, confirmations)."""
-    carried = _carried(trace)
-    wrong = total = 0
-    for f in trace["flights"]:
-        here = carried.get(int(f["index"]), set())
-        for pos, unit in f["units"].items():
-            modes = ([unit["confirmed"]] if unit.get("confirmed") else []) + list(
-                unit.get("confirmed_others") or [])
-            total += len(modes)
-            wrong += sum((pos, m) not in here for m in modes)
-    return wrong, total
+    wrong = [(pos, m) not in here for pos, unit, here in _unit_flights(trace)
+             for m in ([unit["confirmed"]] if unit.get("confirmed") else [])
+             + list(unit.get("confirmed_others") or [])]
+    return sum(wrong), len(wrong)
 
 
 def _earlier_failure(trace: Mapping[str, Any], faults: Sequence[Mapping[str, Any]]
