@@ -16,8 +16,8 @@ consecutive flights with its own feature beyond the leading mode's cross-talk
 (:mod:`.crosstalk`) on the last. The feature is the evidence that named it when the
 classifier's probability could not (a DMD beside a short: the short moves the DMD feature, and
 the one-vs-rest SVM weighs it against DMD), so asking the probability would leave such a mode
-provisional for ever; it asks more flights, since a limit is crossed by one odd flight more
-easily than a probability is held (chosen on a concurrent design, docs/TUNING.md).
+provisional for ever. It asks more flights: on the concurrent design, 2 confirmed an MTEL
+beside a winglet drive's MTWEAR that was not there (docs/TUNING.md).
 """
 
 from __future__ import annotations
