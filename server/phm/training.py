@@ -48,6 +48,7 @@ from .detection import UNITS, DetectionResult, update_units
 from .detection_model import fit_detection
 from .features import FlightFeatures
 from .prognosis import MeasurementModel, PrognoserConfig
+from .prognosis.config import RATE_WEIGHTINGS, RateWeighting
 from .prognosis.degradation import MIN_LEVEL_GAP
 from .prognosis.hypotheses import RateHypothesis, band_names, fit_rate_hypotheses
 from .season import SeasonalClimate, StressClock, day_of_year
@@ -105,6 +106,8 @@ class TrainingConfig:
     rate_band_edges: tuple[float, ...] = (30.0, 100.0, 300.0, 1000.0)
     #: [-] each band's rate prior sd is its moments' times this (:mod:`.prognosis.hypotheses`)
     hypothesis_inflation: float = 1.0
+    #: how the bank's hypotheses are weighed (``PrognoserConfig.rate_weighting``)
+    rate_weighting: RateWeighting = "predictive"
     #: the long-term prediction's severity random walk: "filter", the filter's process noise;
     #: "design", the design runs' own flight-to-flight scatter about their fitted laws
     prediction_noise: str = "filter"
@@ -112,6 +115,9 @@ class TrainingConfig:
     guard_horizon: int = 10
 
     def __post_init__(self) -> None:
+        if self.rate_weighting not in RATE_WEIGHTINGS:
+            raise ValueError(f"rate_weighting must be one of {list(RATE_WEIGHTINGS)}, got "
+                             f"{self.rate_weighting!r}")
         if self.prediction_noise not in ("filter", "design"):
             raise ValueError(f"prediction_noise must be 'filter' or 'design', got "
                              f"{self.prediction_noise!r}")
@@ -365,6 +371,8 @@ def _level_config(base: PrognoserConfig, law: dict[str, Any], training: Training
                      rate_prior_tail=0.0 if law.get("hypotheses") else training.rate_prior_tail,
                      rate_hypotheses=tuple(RateHypothesis.from_dict(h)
                                            for h in law.get("hypotheses") or ()),
+                     rate_weighting=training.rate_weighting if law.get("hypotheses")
+                     else "predictive",
                      prediction_noise_std=_prediction_noise(law, training),
                      guard_horizon=training.guard_horizon)
     return config

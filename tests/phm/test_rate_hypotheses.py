@@ -177,3 +177,68 @@ def test_the_calibration_layer_groups_by_leading_hypothesis() -> None:
     assert layer.margins_for(math.nan, "fast")[0] == 0
     assert layer.margins_for(1.0, None)[0] == -1
     assert type(layer).from_dict(layer.to_dict()) == layer
+
+
+EVIDENCE = replace(BANK, rate_weighting="evidence")
+
+
+def test_without_forgetting_the_evidence_is_the_product_of_the_predictive_likelihoods() -> None:
+    """With no forgetting the bands' evidence and the product of each RLS's predictive
+    likelihoods are the same number (the Kalman filter's prediction-error decomposition):
+    the two weightings agree to rounding, and part ways only where the RLS forgets."""
+    exact = {w: replace(BANK, rate_weighting=w, rls_forgetting=1.0, rls_max_trace=1e12)
+             for w in ("predictive", "evidence")}
+    z = _series(150, seed=3)
+    weights = {}
+    for w, cfg in exact.items():
+        pf = ParticleFilterPrognoser(cfg, MODEL)
+        state = pf.initial_state(cfg, MODEL, 5)
+        for k in range(40):
+            state = pf.update(state, float(z[k]), 2 * k)  # every other flight: dk = 2
+        assert state.mixture is not None
+        weights[w] = state.mixture.log_weights
+    np.testing.assert_allclose(weights["evidence"], weights["predictive"], atol=1e-6)
+
+
+def test_the_evidence_names_the_band_the_rate_lies_in_when_the_law_is_misfit() -> None:
+    """A life that accelerates beyond the law (its rate doubles over the life, as a wear
+    fault's does when its clearance opens): the predictive weights drift towards the fast
+    band, whose wide prior follows the misfit best (0.04 at 40 flights, 0.17 at 160), while
+    the evidence keeps the medium band, whose prior holds the rate the measurements show."""
+    life = 200
+    k = np.arange(life + 1, dtype=float)
+    r = _rate(life) * (0.7 + 0.6 * k / life)  # from 0.7x to 1.3x the mean rate
+    h = (H0 + OFFSET) * np.exp(np.cumsum(np.r_[0.0, r[:-1]])) - OFFSET
+    z = MODEL.predict(h) + 0.01 * np.random.default_rng(7).standard_normal(k.size)
+    leads = {}
+    for cfg in (BANK, EVIDENCE):
+        pf = ParticleFilterPrognoser(cfg, MODEL)
+        state = pf.initial_state(cfg, MODEL, 5)
+        for i in range(int(0.8 * life)):
+            state = pf.update(state, float(z[i]), i)
+        lead = pf.predict(state).hypothesis
+        assert lead is not None
+        leads[cfg.rate_weighting] = lead
+    assert leads["evidence"]["name"] == "medium"
+    assert leads["evidence"]["weights"]["medium"] > 0.9
+    assert leads["evidence"]["weights"]["fast"] < 0.5 * leads["predictive"]["weights"]["fast"]
+
+
+def test_an_evidence_state_restores_and_the_weighting_is_validated() -> None:
+    z = _series(80, seed=4)
+    pf = ParticleFilterPrognoser(EVIDENCE, MODEL)
+    state = pf.initial_state(EVIDENCE, MODEL, 5)
+    for k in range(20):
+        state = pf.update(state, float(z[k]), k)
+    again = type(state).from_json(state.to_json())
+    assert again.mixture is not None and again.mixture.evidence is not None
+    a, b = pf.update(state, float(z[20]), 20), pf.update(again, float(z[20]), 20)
+    assert a.mixture is not None and b.mixture is not None
+    np.testing.assert_array_equal(a.mixture.log_weights, b.mixture.log_weights)
+    assert "rate_weighting" not in BANK.to_dict()
+    assert PrognoserConfig.from_json(EVIDENCE.to_json()) == EVIDENCE
+    assert pf.digest != ParticleFilterPrognoser(BANK, MODEL).digest
+    with pytest.raises(ValueError, match="rate_weighting"):
+        replace(BANK, rate_weighting="vote")
+    with pytest.raises(ValueError, match="needs rate_hypotheses"):
+        replace(WIDE, rate_weighting="evidence")

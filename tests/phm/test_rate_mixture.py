@@ -114,7 +114,7 @@ def test_identical_components_update_as_one_rls() -> None:
     theta, cov = np.array([0.2, 0.01]), np.diag([0.5, 1e-4])
     mix = RateMixture(np.tile(theta, (3, 1)), np.tile(cov, (3, 1, 1)), np.log(np.full(3, 1 / 3)))
     step = RlsMeasurement(mix.theta, mix.cov, np.array([3.0, 0.0]), 0.9, 0.995)
-    new, resid_var = mix.update(step, 1.2, 10.0, mix.log_weights)
+    new, resid_var = mix.update(step, 1.2, 10.0, mix.log_weights, 1.0)
     want = rls_update(theta, cov, 1.2, step.phi, step.y, step.forgetting, 10.0)
     got_theta, got_cov = new.moments()
     assert np.allclose(got_theta, want[0]) and np.allclose(got_cov, want[1])

@@ -190,7 +190,8 @@ def test_the_rate_margins_set_how_far_a_filter_may_leave_the_design_rates(
                                          ("fast_rate_margin", float("nan")),
                                          ("rate_prior_inflation", 0.0),
                                          ("level_forgetting", 1.2),
-                                         ("prior_weight_bounds", (1.0, 0.1))])
+                                         ("prior_weight_bounds", (1.0, 0.1)),
+                                         ("rate_weighting", "vote")])
 def test_training_constants_out_of_range_are_refused(field: str, value: object) -> None:
     from server.phm.training import TrainingConfig
 

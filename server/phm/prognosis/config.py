@@ -22,9 +22,12 @@ import numpy as np
 from .hypotheses import RateHypothesis
 from .laws import LAWS, DegradationLaw, ExponentialLaw, law_for
 
-__all__ = ["RATE_BASES", "PrognoserConfig", "RateBasis"]
+__all__ = ["RATE_BASES", "RATE_WEIGHTINGS", "PrognoserConfig", "RateBasis", "RateWeighting"]
 
 RateBasis = Literal["constant", "affine", "quadratic", "exponential"]
+#: how a bank of rate hypotheses is weighed (``PrognoserConfig.rate_weighting``)
+RateWeighting = Literal["predictive", "evidence"]
+RATE_WEIGHTINGS: tuple[str, ...] = ("predictive", "evidence")
 
 #: number of RLS parameters of each growth-rate basis (:data:`.laws.LAWS`): ``dh/dk = theta .
 #: phi(h)``, or for ``"exponential"`` theta = (a, r) of the log-level line ``ln(h + c) = a + r k``
@@ -139,6 +142,12 @@ class PrognoserConfig:
         by its own RLS and weighted by its predictive likelihood (:mod:`.mixture`); the RUL
         distribution names the leading one. Empty: ``rate_prior_tail`` decides. Left out of
         the config document when empty.
+    rate_weighting:
+        How the bank's hypotheses are weighed (:mod:`.mixture`): ``"predictive"``, each by
+        its own RLS's predictive likelihood of every new measurement, forgotten at the RLS's
+        rate; ``"evidence"``, each by its band's prior kept whole against the measurements'
+        discounted information (the Bayesian evidence of the band). Left out of the config
+        document at ``"predictive"``.
     guard_horizon:
         Flights ahead of the online guard's feature forecasts (:mod:`.guard`); 0: no guard.
     guard_gain:
@@ -176,6 +185,7 @@ class PrognoserConfig:
     prediction_noise_std: float | None = None
     rate_prior_tail: float = 0.0
     rate_hypotheses: tuple[RateHypothesis, ...] = ()
+    rate_weighting: RateWeighting = "predictive"
     guard_horizon: int = 0
     guard_gain: float = 0.1
     guard_miss_rate: float = 0.1
@@ -261,6 +271,11 @@ class PrognoserConfig:
             raise ValueError("rate_hypotheses replace rate_prior_tail: set one of them")
         if len({h.name for h in bank}) != len(bank):
             raise ValueError("rate_hypotheses need distinct names")
+        if self.rate_weighting not in RATE_WEIGHTINGS:
+            raise ValueError(f"rate_weighting must be one of {list(RATE_WEIGHTINGS)}, got "
+                             f"{self.rate_weighting!r}")
+        if self.rate_weighting == "evidence" and not bank:
+            raise ValueError("rate_weighting 'evidence' weighs a bank: it needs rate_hypotheses")
         if any(math.copysign(1.0, h.rate) != math.copysign(1.0, self.growth_offset)
                for h in bank):
             raise ValueError("every rate hypothesis's rate has the sign of growth_offset "
@@ -361,7 +376,8 @@ class PrognoserConfig:
 
 #: fields written to the config document only when they differ from these defaults
 _LEFT_OUT_AT_DEFAULT: dict[str, Any] = {
-    "guard_horizon": 0, "guard_gain": 0.1, "guard_miss_rate": 0.1}
+    "guard_horizon": 0, "guard_gain": 0.1, "guard_miss_rate": 0.1,
+    "rate_weighting": "predictive"}
 
 #: fields of the retired joint state-parameter filter; a document that sets any is refused
 _RETIRED = frozenset({"joint_rate", "rate_prior_log_std", "rate_kernel_shrinkage"})

@@ -50,6 +50,7 @@ __all__ = [
     "growth_rate",
     "level_measurement",
     "level_rls_update",
+    "level_shift",
     "log_level_observation",
     "regressor",
     "rls_update",
@@ -162,6 +163,11 @@ def log_level_observation(h_obs: float, h_ref: float, sigma_h: float, offset: fl
     return math.log(abs(base)) + (h_obs - h_ref) / base, sigma_h / abs(base)
 
 
+def level_shift(dk: float) -> NDArray[np.float64]:
+    """The log-level line's transition over ``dk`` units of the clock: (a, r) -> (a + r dk, r)."""
+    return np.array([[1.0, dk], [0.0, 1.0]])
+
+
 def level_measurement(
     theta: NDArray[np.float64],
     cov: NDArray[np.float64],
@@ -175,7 +181,7 @@ def level_measurement(
     regressor [1 / sigma_y, 0] and observation y / sigma_y, and the forgetting ``lambda ** dk``
     (memory counted in the clock, whatever the spacing of the measurements). theta (p,) or
     (K, p) and cov (p, p) or (K, p, p): one line or the components of a mixture prior."""
-    shift = np.array([[1.0, dk], [0.0, 1.0]])
+    shift = level_shift(dk)
     theta = np.stack([theta[..., 0] + dk * theta[..., 1], theta[..., 1]], axis=-1)
     cov = shift @ cov @ shift.T
     phi = np.array([1.0 / sigma_y, 0.0])

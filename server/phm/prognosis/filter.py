@@ -46,7 +46,7 @@ from .degradation import bound_mid_rate, growth_rate, rls_update
 from .guard import GuardState, forecast, score
 from .hypotheses import leading_hypothesis
 from .measurement import MeasurementModel
-from .mixture import RateMixture
+from .mixture import BandEvidence, RateMixture
 from .predictor import RulDistribution, propagate_to_threshold, summarise_rul
 
 __all__ = [
@@ -391,8 +391,11 @@ class ParticleFilterPrognoser:
             if mixture is not None:
                 firsts = [self.law.first_measurement(t, c, s0, spread)
                           for t, c in zip(mixture.theta, mixture.cov, strict=True)]
-                mixture = RateMixture(np.array([t for t, _ in firsts]),
-                                      np.array([c for _, c in firsts]), mixture.log_weights)
+                thetas = np.array([t for t, _ in firsts])
+                covs = np.array([c for _, c in firsts])
+                mixture = RateMixture(thetas, covs, mixture.log_weights,
+                                      BandEvidence.start(thetas, covs)
+                                      if self.config.rate_weighting == "evidence" else None)
                 theta, cov = mixture.moments()
             guard = self._forecast(state.guard, k, h, theta, np.full(n, 1.0 / n), rng)
             return replace(
@@ -499,7 +502,7 @@ class ParticleFilterPrognoser:
         step = self.law.rls_measurement(replace(state, theta=mix.theta, cov=mix.cov), estimate,
                                         z, dk, mm, cfg)
         mix, resid_var = mix.update(step, state.resid_var, cfg.rls_max_trace,
-                                    self._prior_mixture.log_weights)
+                                    self._prior_mixture.log_weights, dk)
         theta, cov = mix.moments()
         return theta, cov, resid_var, mix
 

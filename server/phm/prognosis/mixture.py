@@ -15,6 +15,25 @@ The weights forget at the RLS's own rate, towards the prior weights w0, so a com
 lost its weight early can win it back when the fault changes pace. The filter propagates its
 particles with the mixture's mean and draws the prediction's rates from the mixture
 (:meth:`.laws.ExponentialLaw.parameter_samples`).
+
+Those predictive weights favour the component whose RLS adapts best, not the one whose band
+holds the rate the measurements show: each RLS forgets its own prior, so after a few tens of
+flights every component finds about the same rate and the weights follow the spread of each
+one's predictions (a wear fault of 100-240 flights led "fast" while its rate lay in the
+medium band). A bank weighed by ``"evidence"`` (``PrognoserConfig.rate_weighting``,
+:class:`BandEvidence`) keeps each band's prior whole, as it stood after the first
+measurement (theta_k, P_k in the frame of that flight), and discounts only the measurements,
+at the RLS's forgetting: with g_i the regressor carried back to that frame and lambda_i the
+forgetting since measurement i,
+
+    J = sum_i lambda_i g_i g_i',   b = sum_i lambda_i g_i y_i
+    L_k = P_k^-1 + J,   m_k = L_k^-1 (P_k^-1 theta_k + b)
+    log w_k = log w0_k - (theta_k' P_k^-1 theta_k - m_k' L_k m_k) / (2 s2)
+              - (ln det P_k + ln det L_k) / 2,  normalised
+
+the log-evidence of each band's prior for the discounted measurements (terms common to every
+band dropped), s2 the RLS residual variance floored at 1 as the prediction floors it. The
+components' own RLS, which the prediction draws from, are unchanged.
 """
 
 from __future__ import annotations
@@ -26,12 +45,68 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .degradation import rls_update_batch
+from .degradation import level_shift, rls_update_batch
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (laws imports this module)
     from .laws import RlsMeasurement
 
-__all__ = ["RateMixture"]
+__all__ = ["BandEvidence", "RateMixture"]
+
+
+@dataclass(frozen=True)
+class BandEvidence:
+    """What a bank weighed by evidence keeps: every band's prior after the first measurement,
+    (K, p) and (K, p, p), in the frame of that flight; the measurements' discounted
+    information ``info`` (p, p) and ``score`` (p,) in that frame; the clock since [units]."""
+
+    prior_theta: NDArray[np.float64]
+    prior_cov: NDArray[np.float64]
+    info: NDArray[np.float64]
+    score: NDArray[np.float64]
+    clock: float = 0.0
+
+    @classmethod
+    def start(cls, theta: NDArray[np.float64], cov: NDArray[np.float64]) -> BandEvidence:
+        """The bands' priors ``theta`` (K, p), ``cov`` (K, p, p) at the first measurement."""
+        p = theta.shape[1]
+        return cls(np.array(theta, dtype=float), np.array(cov, dtype=float),
+                   np.zeros((p, p)), np.zeros(p))
+
+    def add(self, phi: NDArray[np.float64], y: float, forgetting: float, dk: float
+            ) -> BandEvidence:
+        """One measurement ``y`` on regressor ``phi`` ``dk`` clock units on, the information
+        so far discounted by ``forgetting``."""
+        clock = self.clock + dk
+        g = level_shift(clock).T @ phi  # the regressor in the first measurement's frame
+        return BandEvidence(self.prior_theta, self.prior_cov,
+                            forgetting * self.info + np.outer(g, g),
+                            forgetting * self.score + g * y, clock)
+
+    def log_weights(self, prior_log_weights: NDArray[np.float64], resid_var: float
+                    ) -> NDArray[np.float64]:
+        """Normalised log-weights: the prior weights times each band's evidence."""
+        prec = np.linalg.inv(self.prior_cov)
+        eta = prec @ self.prior_theta[..., np.newaxis] + self.score[:, np.newaxis]
+        post_prec = prec + self.info
+        mean = np.linalg.solve(post_prec, eta)
+        quad = (np.einsum("ki,kij,kj->k", self.prior_theta, prec, self.prior_theta)
+                - np.einsum("kij,kij->k", mean, eta))
+        log_det = np.linalg.slogdet(self.prior_cov)[1] + np.linalg.slogdet(post_prec)[1]
+        log_w = prior_log_weights - quad / (2.0 * max(resid_var, 1.0)) - 0.5 * log_det
+        log_w -= log_w.max()
+        return log_w - math.log(np.exp(log_w).sum())
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"prior_theta": self.prior_theta.tolist(), "prior_cov": self.prior_cov.tolist(),
+                "info": self.info.tolist(), "score": self.score.tolist(), "clock": self.clock}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> BandEvidence:
+        def arr(key: str) -> NDArray[np.float64]:
+            return np.asarray(data[key], dtype=float)
+
+        return cls(arr("prior_theta"), arr("prior_cov"), arr("info"), arr("score"),
+                   float(data["clock"]))
 
 
 @dataclass(frozen=True)
@@ -42,6 +117,7 @@ class RateMixture:
     theta: NDArray[np.float64]
     cov: NDArray[np.float64]
     log_weights: NDArray[np.float64]
+    evidence: BandEvidence | None = None
 
     def __post_init__(self) -> None:
         k = self.log_weights.shape
@@ -63,12 +139,14 @@ class RateMixture:
         return mean, 0.5 * (cov + cov.T)
 
     def update(self, step: RlsMeasurement, resid_var: float, max_trace: float,
-               prior_log_weights: NDArray[np.float64]) -> tuple[RateMixture, float]:
+               prior_log_weights: NDArray[np.float64], dk: float
+               ) -> tuple[RateMixture, float]:
         """One RLS step of every component at once (``step``: a :class:`.laws.RlsMeasurement`
         whose theta (K, p) and cov (K, p, p) are the components' and whose regressor,
-        observation and forgetting they share), the weights by their predictive likelihoods;
-        returns the mixture and the new residual variance (the components' own, averaged
-        with the new weights)."""
+        observation and forgetting they share, ``dk`` clock units after the last), the
+        weights by their predictive likelihoods or, with :attr:`evidence`, by each band's
+        evidence; returns the mixture and the new residual variance (the components' own,
+        averaged with the new weights)."""
         s2 = max(resid_var, 1e-300)
         lam = step.forgetting
         # the predictive spread of each component, before its update
@@ -80,17 +158,30 @@ class RateMixture:
         log_lik = -0.5 * (err * err / var + np.array([math.log(v) for v in var]))
         theta, cov, variances = rls_update_batch(step.theta, step.cov, resid_var, step.phi,
                                                  step.y, lam, max_trace)
-        log_w = lam * self.log_weights + (1.0 - lam) * prior_log_weights + log_lik
-        log_w -= log_w.max()
-        log_w -= math.log(np.exp(log_w).sum())
-        mix = RateMixture(theta, cov, log_w)
+        evidence = self.evidence
+        if evidence is None:
+            log_w = lam * self.log_weights + (1.0 - lam) * prior_log_weights + log_lik
+            log_w -= log_w.max()
+            log_w -= math.log(np.exp(log_w).sum())
+            mix = RateMixture(theta, cov, log_w)
+            return mix, float(mix.weights @ variances)
+        evidence = evidence.add(step.phi, step.y, lam, dk)
+        # the residual variance the evidence is read with: the components' own, averaged
+        # with the weights they had (the new ones need it)
+        s2_new = float(self.weights @ variances)
+        mix = RateMixture(theta, cov, evidence.log_weights(prior_log_weights, s2_new), evidence)
         return mix, float(mix.weights @ variances)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"theta": self.theta.tolist(), "cov": self.cov.tolist(),
-                "log_weights": self.log_weights.tolist()}
+        out = {"theta": self.theta.tolist(), "cov": self.cov.tolist(),
+               "log_weights": self.log_weights.tolist()}
+        if self.evidence is not None:  # absent otherwise: states without it read as before
+            out["evidence"] = self.evidence.to_dict()
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> RateMixture:
+        evidence = data.get("evidence")
         return cls(np.asarray(data["theta"], dtype=float), np.asarray(data["cov"], dtype=float),
-                   np.asarray(data["log_weights"], dtype=float))
+                   np.asarray(data["log_weights"], dtype=float),
+                   None if evidence is None else BandEvidence.from_dict(evidence))
