@@ -242,3 +242,22 @@ def test_an_evidence_state_restores_and_the_weighting_is_validated() -> None:
         replace(BANK, rate_weighting="vote")
     with pytest.raises(ValueError, match="needs rate_hypotheses"):
         replace(WIDE, rate_weighting="evidence")
+
+
+def test_a_misfit_law_weakens_the_measurements_not_the_bands_priors() -> None:
+    """Measurements six times noisier than the measurement model says (the RLS's residual
+    variance about 6): a 70-flight life still leads "fast" (0.95), the band its rate lies in.
+    Were the bands' priors scaled with that variance, as the RLS's own normalisation scales
+    them, the narrower medium band would lead (0.64) by its Occam factor."""
+    life = 70
+    k = np.arange(life + 1, dtype=float)
+    h = (H0 + OFFSET) * np.exp(_rate(life) * k) - OFFSET
+    z = MODEL.predict(h) + 6 * MODEL.noise_std * np.random.default_rng(2).standard_normal(
+        k.size)
+    pf = ParticleFilterPrognoser(EVIDENCE, MODEL)
+    state = pf.initial_state(EVIDENCE, MODEL, 5)
+    for i in range(0, int(0.6 * life), 2):
+        state = pf.update(state, float(z[i]), i)
+    assert state.resid_var > 4.0
+    lead = pf.predict(state).hypothesis
+    assert lead is not None and lead["name"] == "fast" and lead["weight"] > 0.9

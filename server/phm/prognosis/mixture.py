@@ -27,12 +27,15 @@ at the RLS's forgetting: with g_i the regressor carried back to that frame and l
 forgetting since measurement i,
 
     J = sum_i lambda_i g_i g_i',   b = sum_i lambda_i g_i y_i
-    L_k = P_k^-1 + J,   m_k = L_k^-1 (P_k^-1 theta_k + b)
-    log w_k = log w0_k - (theta_k' P_k^-1 theta_k - m_k' L_k m_k) / (2 s2)
+    L_k = P_k^-1 + J / s2,   m_k = L_k^-1 (P_k^-1 theta_k + b / s2)
+    log w_k = log w0_k - (theta_k' P_k^-1 theta_k - m_k' L_k m_k) / 2
               - (ln det P_k + ln det L_k) / 2,  normalised
 
 the log-evidence of each band's prior for the discounted measurements (terms common to every
-band dropped), s2 the RLS residual variance floored at 1 as the prediction floors it. The
+band dropped). s2 is the RLS residual variance floored at 1 (as the prediction floors it): a
+misfit of the law makes the measurements say less, not the band's prior say more (in the
+RLS's own normalisation the prior scales with s2; a chain's misfit of s2 = 15 then widened
+every band's prior four-fold and the narrowest band won by its Occam factor alone). The
 components' own RLS, which the prediction draws from, are unchanged.
 """
 
@@ -85,14 +88,15 @@ class BandEvidence:
     def log_weights(self, prior_log_weights: NDArray[np.float64], resid_var: float
                     ) -> NDArray[np.float64]:
         """Normalised log-weights: the prior weights times each band's evidence."""
+        s2 = max(resid_var, 1.0)
         prec = np.linalg.inv(self.prior_cov)
-        eta = prec @ self.prior_theta[..., np.newaxis] + self.score[:, np.newaxis]
-        post_prec = prec + self.info
+        eta = prec @ self.prior_theta[..., np.newaxis] + (self.score / s2)[:, np.newaxis]
+        post_prec = prec + self.info / s2
         mean = np.linalg.solve(post_prec, eta)
         quad = (np.einsum("ki,kij,kj->k", self.prior_theta, prec, self.prior_theta)
                 - np.einsum("kij,kij->k", mean, eta))
         log_det = np.linalg.slogdet(self.prior_cov)[1] + np.linalg.slogdet(post_prec)[1]
-        log_w = prior_log_weights - quad / (2.0 * max(resid_var, 1.0)) - 0.5 * log_det
+        log_w = prior_log_weights - 0.5 * quad - 0.5 * log_det
         log_w -= log_w.max()
         return log_w - math.log(np.exp(log_w).sum())
 
