@@ -106,8 +106,9 @@ class TrainingConfig:
     rate_band_edges: tuple[float, ...] = (30.0, 100.0, 300.0, 1000.0)
     #: [-] each band's rate prior sd is its moments' times this (:mod:`.prognosis.hypotheses`)
     hypothesis_inflation: float = 1.0
-    #: how the bank's hypotheses are weighed (``PrognoserConfig.rate_weighting``)
-    rate_weighting: RateWeighting = "predictive"
+    #: how the bank's hypotheses are weighed (``PrognoserConfig.rate_weighting``): each band by
+    #: its evidence, its prior kept whole (docs/TUNING.md)
+    rate_weighting: RateWeighting = "evidence"
     #: the long-term prediction's severity random walk: "filter", the filter's process noise;
     #: "design", the design runs' own flight-to-flight scatter about their fitted laws
     prediction_noise: str = "filter"
