@@ -139,7 +139,7 @@ class PrognoserConfig:
     rate_hypotheses:
         The bank of rate hypotheses (:mod:`.hypotheses`), ``"exponential"`` law only: one
         rate prior per band of fault-to-failure spans, each with its prior weight, each tuned
-        by its own RLS and weighted by its predictive likelihood (:mod:`.mixture`); the RUL
+        by its own RLS and weighed as ``rate_weighting`` says (:mod:`.mixture`); the RUL
         distribution names the leading one. Empty: ``rate_prior_tail`` decides. Left out of
         the config document when empty.
     rate_weighting:

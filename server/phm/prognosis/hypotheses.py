@@ -6,8 +6,9 @@ the exponential law's rate r over that whole range is either wide (blurring the 
 faults in range) or narrow (losing the fast ones). The bank splits the envelope into bands of
 spans (for example 30-100, 100-300 and 300-1000 flights); each band is a hypothesis with a
 rate prior N(r_k, s_k^2) and a prior weight w0_k. Every band's
-RLS runs on the same measurements and its weight follows its predictive likelihood
-(:mod:`.mixture`); the RUL distribution is the weighted mixture, and the leading hypothesis
+RLS runs on the same measurements and its weight follows the band's evidence for them, or its
+RLS's predictive likelihood (``PrognoserConfig.rate_weighting``, :mod:`.mixture`); the RUL
+distribution is the weighted mixture, and the leading hypothesis
 with its weight is what an engineer reads beside the band ("fast fault, 0.8").
 
 Each band's prior comes from every design run, not only those inside it: a run's rate times
