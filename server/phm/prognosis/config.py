@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -27,7 +27,7 @@ __all__ = ["RATE_BASES", "RATE_WEIGHTINGS", "PrognoserConfig", "RateBasis", "Rat
 RateBasis = Literal["constant", "affine", "quadratic", "exponential"]
 #: how a bank of rate hypotheses is weighed (``PrognoserConfig.rate_weighting``)
 RateWeighting = Literal["predictive", "evidence"]
-RATE_WEIGHTINGS: tuple[str, ...] = ("predictive", "evidence")
+RATE_WEIGHTINGS: tuple[str, ...] = get_args(RateWeighting)
 
 #: number of RLS parameters of each growth-rate basis (:data:`.laws.LAWS`): ``dh/dk = theta .
 #: phi(h)``, or for ``"exponential"`` theta = (a, r) of the log-level line ``ln(h + c) = a + r k``
