@@ -151,30 +151,34 @@ class RateMixture:
         weights by their predictive likelihoods or, with :attr:`evidence`, by each band's
         evidence; returns the mixture and the new residual variance (the components' own,
         averaged with the new weights)."""
-        s2 = max(resid_var, 1e-300)
+        theta, cov, variances = rls_update_batch(step.theta, step.cov, resid_var, step.phi,
+                                                 step.y, step.forgetting, max_trace)
+        if self.evidence is None:
+            log_w = self._predictive_log_weights(step, resid_var, prior_log_weights)
+            mix = RateMixture(theta, cov, log_w)
+        else:
+            evidence = self.evidence.add(step.phi, step.y, step.forgetting, dk)
+            # read with the components' residual variance averaged with the weights they had
+            # (the new ones need it)
+            log_w = evidence.log_weights(prior_log_weights, float(self.weights @ variances))
+            mix = RateMixture(theta, cov, log_w, evidence)
+        return mix, float(mix.weights @ variances)
+
+    def _predictive_log_weights(self, step: RlsMeasurement, resid_var: float,
+                                prior_log_weights: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The weights times each component's predictive likelihood of ``step``'s
+        observation, forgotten at the RLS's rate towards the prior weights, normalised."""
         lam = step.forgetting
         # the predictive spread of each component, before its update
         spread = (lam + (step.phi @ step.cov) @ step.phi) / lam
         err = step.y - step.theta @ step.phi
         # math.log, not np.log: numpy's vectorised log can differ in the last bit, and the
         # weights are those of one RLS per component, bit for bit
-        var = s2 * spread
+        var = max(resid_var, 1e-300) * spread
         log_lik = -0.5 * (err * err / var + np.array([math.log(v) for v in var]))
-        theta, cov, variances = rls_update_batch(step.theta, step.cov, resid_var, step.phi,
-                                                 step.y, lam, max_trace)
-        evidence = self.evidence
-        if evidence is None:
-            log_w = lam * self.log_weights + (1.0 - lam) * prior_log_weights + log_lik
-            log_w -= log_w.max()
-            log_w -= math.log(np.exp(log_w).sum())
-            mix = RateMixture(theta, cov, log_w)
-            return mix, float(mix.weights @ variances)
-        evidence = evidence.add(step.phi, step.y, lam, dk)
-        # the residual variance the evidence is read with: the components' own, averaged
-        # with the weights they had (the new ones need it)
-        s2_new = float(self.weights @ variances)
-        mix = RateMixture(theta, cov, evidence.log_weights(prior_log_weights, s2_new), evidence)
-        return mix, float(mix.weights @ variances)
+        log_w = lam * self.log_weights + (1.0 - lam) * prior_log_weights + log_lik
+        log_w -= log_w.max()
+        return log_w - math.log(np.exp(log_w).sum())
 
     def to_dict(self) -> dict[str, Any]:
         out = {"theta": self.theta.tolist(), "cov": self.cov.tolist(),
