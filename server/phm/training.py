@@ -297,7 +297,8 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
     over the runs (mean 1 - R^2 of a per-run fit: scale-free, so shapes and clocks compare
     fairly); each run's slope there is its rate r. The prior is the runs' median r and their
     standard deviation; the rate bounds are the slowest and fastest run's mid-life rate
-    r (0.5 + c) widened by ``training.slow_rate_margin`` and ``fast_rate_margin``.
+    r (0.5 + c) widened by ``training.slow_rate_margin`` and ``fast_rate_margin``, and with a
+    bank of rate hypotheses every rate of its envelope (:func:`_envelope_bounds`).
     """
     betas = np.asarray(training.stress_betas)
     offsets = np.asarray(training.growth_offsets)
@@ -342,7 +343,24 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
             law["hypotheses"] = [h.to_dict() for h in fit_rate_hypotheses(
                 rates.tolist(), spans, band_names(training.rate_band_edges),
                 inflation=training.hypothesis_inflation)]
+            law["mid_rate_bounds"] = list(_envelope_bounds(bounds, rates * np.asarray(spans),
+                                                           c, training))
     return law
+
+
+def _envelope_bounds(bounds: tuple[float, float], rho: np.ndarray, c: float,
+                     training: TrainingConfig) -> tuple[float, float]:
+    """The mid-life rate ``bounds`` widened to every rate the bank's envelope admits: the
+    design runs' rho = r x span (the same for every run of a mode, :mod:`.prognosis.hypotheses`)
+    over the envelope's longest and shortest span, at mid-life (r (0.5 + c)), with the margins.
+    The runs' own bounds hold the design's spans only: a surface whose design runs were all
+    slow (the shipped design's two wingtip screw-wear runs) would otherwise clip every faster
+    fault's rate in propagation and prediction, its RUL then too long."""
+    edges = training.rate_band_edges
+    mid_rho = np.abs(rho * (0.5 + c))
+    low = float(mid_rho.min()) / max(edges) / training.slow_rate_margin
+    high = float(mid_rho.max()) / min(edges) * training.fast_rate_margin
+    return min(bounds[0], max(low, 1e-5)), max(bounds[1], high)
 
 
 def _increment_noise(runs: list[tuple[np.ndarray, np.ndarray]], jb: int, c: float,
