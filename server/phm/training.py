@@ -351,8 +351,9 @@ def _fit_exponential_law(campaign: Campaign, mode: str, climate: SeasonalClimate
 def _envelope_bounds(bounds: tuple[float, float], rho: np.ndarray, c: float,
                      training: TrainingConfig) -> tuple[float, float]:
     """The mid-life rate ``bounds`` widened to every rate the bank's envelope admits: the
-    design runs' rho = r x span (the same for every run of a mode, :mod:`.prognosis.hypotheses`)
-    over the envelope's longest and shortest span, at mid-life (r (0.5 + c)), with the margins.
+    design runs' rho = r x span (about the same for every run of a mode,
+    :mod:`.prognosis.hypotheses`) over the envelope's longest and shortest span, at mid-life
+    (r (0.5 + c)), with the margins.
     The runs' own bounds hold the design's spans only: a surface whose design runs were all
     slow (the shipped design's two wingtip screw-wear runs) would otherwise clip every faster
     fault's rate in propagation and prediction, its RUL then too long."""
