@@ -221,3 +221,20 @@ def test_an_injection_the_service_refuses_is_not_taken_for_an_earlier_one(  # ty
     monkeypatch.setattr("server.demo.DEMO_INJECTIONS", [("SIM01", "WT", "REWEAR", 9, None)])
     with pytest.raises(Unprocessable, match="winglet pair only"):
         prepare_demo(Settings(data_dir=tmp_path / "demo"), n_aircraft=2, seed=1)
+
+
+def test_the_shipped_models_rate_bounds_admit_every_band_of_its_bank() -> None:
+    """Each banked filter of the shipped model, the wingtip's screw wear included (its design
+    runs all slow: their own bounds stopped at 110-flight faults)."""
+    from server.phm.chain import PhmModel
+    from tests.rate_bounds import assert_bounds_admit_the_bank
+
+    model = PhmModel.from_dict(load_demo_model()["payload"])
+    banked = 0
+    for mode, spec in model.measurement.items():
+        for position in ("WL1", "WL2", "WT"):
+            cfg = spec.config_for(position)
+            if cfg.rate_hypotheses:
+                banked += 1
+                assert_bounds_admit_the_bank(cfg, f"{mode} {position}")
+    assert banked >= 10

@@ -11,6 +11,7 @@ import pytest
 from server.campaigns import load_campaign, train_from_directory
 from server.phm.chain import PhmModel, analyze_flight
 from server.phm.prognosis import PrognoserState
+from tests.rate_bounds import assert_bounds_admit_the_bank
 
 pytestmark = pytest.mark.slow
 
@@ -262,30 +263,3 @@ def test_training_with_rate_bands_gives_each_exponential_mode_a_bank_of_hypothes
             assert [h["name"] for h in law["hypotheses"]] == ["fast", "medium", "slow"]
     assert exponential > 0
 
-
-def assert_bounds_admit_the_bank(cfg, where: str) -> None:
-    """The filter's mid-life rate bounds admit every band's mean rate and the fastest band's
-    out to two standard deviations: a bound inside a band clips its faults' rates in
-    propagation and prediction (their RUL too long where the bound is the upper one)."""
-    lo, hi = cfg.rate_bounds
-    scale = abs(0.5 + cfg.growth_offset)
-    for h in cfg.rate_hypotheses:
-        assert lo <= abs(h.rate) * scale <= hi, (where, h.name, lo, hi)
-    fastest = cfg.rate_hypotheses[0]
-    assert (abs(fastest.rate) + 2 * fastest.rate_std) * scale <= hi, (where, hi)
-
-
-def test_the_shipped_models_rate_bounds_admit_every_band_of_its_bank() -> None:
-    """Each banked filter of the shipped model, the wingtip's screw wear included (its design
-    runs all slow: their own bounds stopped at 110-flight faults)."""
-    from server.demo_model import load_demo_model
-
-    model = PhmModel.from_dict(load_demo_model()["payload"])
-    banked = 0
-    for mode, spec in model.measurement.items():
-        for position in ("WL1", "WL2", "WT"):
-            cfg = spec.config_for(position)
-            if cfg.rate_hypotheses:
-                banked += 1
-                assert_bounds_admit_the_bank(cfg, f"{mode} {position}")
-    assert banked >= 10
