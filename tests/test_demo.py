@@ -34,6 +34,7 @@ from server.demo_model import (
 from server.errors import Unprocessable
 from server.models import Aircraft, Injection, ModelVersion
 from server.phm.chain import read_model_document
+from server.phm.prognosis.calibration import DEFAULT_WEIGHT_SPLIT
 from sim_worker.campaign import plan_campaign
 from sim_worker.cli import build_parser
 from sim_worker.service import Api, SimFleetRunner
@@ -113,6 +114,7 @@ def test_the_shipped_calibration_layers_come_from_calibration_runs_kept_apart() 
             assert replay["kind"] == "design" and replay["seed"] != shipped["design"]["seed"]
         bank = tuple(h.name for h in spec.prognoser.rate_hypotheses) if spec.prognoser else ()
         assert layer.hypotheses == bank, mode  # grouped by the leading hypothesis
+        assert layer.weight_split == DEFAULT_WEIGHT_SPLIT, mode  # and its weight
 
 
 # The same code on another CPU (SIMD and BLAS kernels chosen at run time) differs in the last

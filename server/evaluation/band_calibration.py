@@ -30,6 +30,7 @@ import numpy as np
 from server.phm.chain.model import _unwrap, read_model_document
 from server.phm.prognosis.calibration import (
     BAND_LEVELS,
+    DEFAULT_WEIGHT_SPLIT,
     CalibrationRecord,
     fit_band_calibration,
 )
@@ -59,9 +60,10 @@ def _record(flight: Mapping[str, Any]) -> CalibrationRecord | None:
     quantiles = {float(q): (math.inf if v is None else float(v)) for q, v in doc["quantiles"]}
     if not all(lv in quantiles for lv in _LEVELS):
         return None
+    lead = doc.get("hypothesis") or {}
     return CalibrationRecord(quantiles, float(doc.get("rate_ratio", math.nan)),
-                             float(flight["true_rul"]),
-                             (doc.get("hypothesis") or {}).get("name"))
+                             float(flight["true_rul"]), lead.get("name"),
+                             float(lead.get("weight", 1.0)))
 
 
 def calibration_records(traces: Iterable[Mapping[str, Any]], per_run: int
@@ -95,7 +97,8 @@ def calibration_records(traces: Iterable[Mapping[str, Any]], per_run: int
 
 def calibrate_model(model_doc: dict[str, Any], traces: Sequence[Mapping[str, Any]], *,
                     per_run: int = 20, edges: tuple[float, ...] = (0.5, 2.0),
-                    min_group: int = 30, replays: Sequence[Mapping[str, Any]] = ()
+                    min_group: int = 30, replays: Sequence[Mapping[str, Any]] = (),
+                    weight_split: float | None = None
                     ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The model document with each mode's layer fitted on ``traces``, and a report;
     ``replays`` (the campaigns replayed) go into each layer's notes."""
@@ -114,7 +117,8 @@ def calibrate_model(model_doc: dict[str, Any], traces: Sequence[Mapping[str, Any
         bank = prognoser.rate_hypotheses if prognoser is not None else ()
         layer = replace(fit_band_calibration(recs, edges=edges, min_group=min_group,
                                              n_runs=runs.get(mode, 0),
-                                             hypotheses=tuple(h.name for h in bank)),
+                                             hypotheses=tuple(h.name for h in bank),
+                                             weight_split=weight_split),
                         notes={"replays": [dict(r) for r in replays], "per_run": per_run})
         payload["measurement"][mode]["band_calibration"] = layer.to_dict()
         report[mode] = {"records": len(recs), "runs": runs.get(mode, 0), "fitted": True,
@@ -133,6 +137,9 @@ def add_calibrate_arguments(parser: argparse.ArgumentParser) -> argparse.Argumen
                         help="predictions per run (evenly spaced from alarm to failure)")
     parser.add_argument("--min-group", type=int, default=30,
                         help="fewest records for a group's own margins (else the mode's)")
+    parser.add_argument("--weight-split", type=float, default=DEFAULT_WEIGHT_SPLIT,
+                        help="with a bank: calibrate leads below this weight apart from the "
+                        f"confident ones (default {DEFAULT_WEIGHT_SPLIT:g}; 0: no split)")
     return parser
 
 
@@ -160,10 +167,13 @@ def _traces(paths: Sequence[str], model_doc: Mapping[str, Any]
 def run_calibrate(args: argparse.Namespace, settings: object = None) -> int:
     if args.per_run < 1 or args.min_group < 1:
         raise ValueError("--per-run and --min-group must be >= 1")
+    if not 0.0 <= args.weight_split <= 1.0:
+        raise ValueError("--weight-split must lie in [0, 1] (0: no split)")
     model_doc = json.loads(Path(args.model_json).read_text())
     traces, replays = _traces(args.evaluation, model_doc)
     doc, report = calibrate_model(model_doc, traces, per_run=args.per_run,
-                                  min_group=args.min_group, replays=replays)
+                                  min_group=args.min_group, replays=replays,
+                                  weight_split=args.weight_split or None)
     out = Path(args.out)
     tmp = out.with_suffix(".part")
     tmp.write_text(json.dumps(doc, sort_keys=True, separators=(",", ":")) + "\n")
@@ -176,6 +186,11 @@ def run_calibrate(args: argparse.Namespace, settings: object = None) -> int:
                                                             strict=True))
         print(f"{mode}: {r['records']} records from {r['runs']} runs; pooled "
               f"{_fmt(r['pooled'])}; by rate group (n: 50 %, 90 % as (lower, upper)) {groups}")
+        if r.get("weight_split") is not None:
+            halves = ", ".join(f"{n}: {_fmt(m)}" for n, m in zip(r["split_counts"],
+                                                                r["split_margins"], strict=True))
+            print(f"  leads below weight {r['weight_split']:g} apart (ambiguous, confident per "
+                  f"hypothesis): {halves}")
     print(f"calibrated model written to {out}")
     return 0
 

@@ -88,3 +88,29 @@ def test_calibrate_refuses_the_models_own_design_and_calibrated_replays(tmp_path
                  "--model-json", str(shipped), "--out", str(tmp_path / "z.json")]) != 0
     assert "already has a calibration layer" in capsys.readouterr().err
     assert not (tmp_path / "x.json").exists() and not (tmp_path / "y.json").exists()
+
+
+def test_calibrate_splits_each_lead_by_its_weight_when_asked(tmp_path):
+    """``--weight-split``: the replays' leads (here every other prediction ambiguous) are
+    calibrated apart, and the chain reads the split layer back."""
+    rng = np.random.default_rng(2)
+    traces = [_trace(rng, "DMD", int(rng.integers(30, 300)), 0.5) for _ in range(8)]
+    for trace in traces:
+        for k, f in enumerate(trace["flights"]):
+            if f["rul"]:
+                f["rul"]["hypothesis"] = {"name": "fast", "weight": 0.6 if k % 2 else 0.95}
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps(_uncalibrated()))
+    out = tmp_path / "calibrated.json"
+    args = ["calibrate", "--evaluation", str(_evaluation(tmp_path, traces)),
+            "--model-json", str(model), "--out", str(out)]
+    assert main([*args, "--weight-split", "1.5"]) != 0 and not out.exists()
+    assert main([*args, "--weight-split", "0"]) == 0  # 0: no split
+    layer = read_model_document(json.loads(out.read_text())).measurement["DMD"].band_calibration
+    assert layer is not None and layer.weight_split is None and layer.split_counts == ()
+    assert main(args) == 0  # the default splits at 0.8
+    layer = read_model_document(json.loads(out.read_text())).measurement["DMD"].band_calibration
+    assert layer is not None and layer.weight_split == 0.8
+    ambiguous, confident = layer.split_counts[:2]  # the fast hypothesis's two halves
+    assert ambiguous > 60 and confident > 60 and ambiguous + confident == 160
+    assert sum(layer.split_counts[2:]) == 0

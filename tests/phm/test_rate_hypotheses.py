@@ -179,6 +179,42 @@ def test_the_calibration_layer_groups_by_leading_hypothesis() -> None:
     assert type(layer).from_dict(layer.to_dict()) == layer
 
 
+def _record(rng: np.random.Generator, name: str, weight: float, bias: float
+            ) -> CalibrationRecord:
+    """A prediction led by ``name`` with ``weight``, its band 0.7-1.3 x a centre off the
+    truth by ``bias`` in log."""
+    y = float(rng.uniform(20, 200))
+    centre = y * math.exp(bias + 0.1 * rng.standard_normal())
+    return CalibrationRecord({0.05: 0.7 * centre, 0.25: 0.9 * centre, 0.5: centre,
+                              0.75: 1.1 * centre, 0.95: 1.3 * centre}, math.nan, y, name,
+                             weight)
+
+
+def test_the_layer_calibrates_an_ambiguous_lead_apart_from_a_confident_one() -> None:
+    """Optimistic ambiguous leads (a fast life still led by a slower band) get their own,
+    wider lower margin; a split group too small for its own takes its hypothesis's."""
+    rng = np.random.default_rng(5)
+    records = ([_record(rng, "medium", 0.55, 0.6) for _ in range(40)]
+               + [_record(rng, "medium", 0.97, 0.0) for _ in range(120)]
+               + [_record(rng, "fast", 0.6, 0.6) for _ in range(10)]
+               + [_record(rng, "fast", 0.99, 0.0) for _ in range(60)])
+    names = ("fast", "medium", "slow")
+    layer = fit_band_calibration(records, min_group=30, hypotheses=names, weight_split=0.8)
+    assert layer.split_counts == (10, 60, 40, 120, 0, 0)
+    ambiguous = layer.margins_for(math.nan, "medium", 0.55)
+    confident = layer.margins_for(math.nan, "medium", 0.97)
+    assert ambiguous[0] == confident[0] == 1
+    assert ambiguous[1][0.9][0] > confident[1][0.9][0] + 0.3  # the lower end moves down
+    assert ambiguous[2] < confident[2] - 0.3  # and the median with it
+    unsplit = fit_band_calibration(records, min_group=30, hypotheses=names)
+    assert layer.margins_for(math.nan, "fast", 0.6)[1] == unsplit.margins_for(math.nan,
+                                                                               "fast")[1]
+    assert type(layer).from_dict(layer.to_dict()) == layer
+    assert "weight_split" not in unsplit.to_dict()
+    with pytest.raises(ValueError, match="weight_split"):
+        fit_band_calibration(records, hypotheses=names, weight_split=1.5)
+
+
 EVIDENCE = replace(BANK, rate_weighting="evidence")
 
 

@@ -21,8 +21,11 @@ Groups use only what is known when the prediction is made: the fault mode, and e
 leading hypothesis of a bank of rate hypotheses (:mod:`.hypotheses`; ``RulDistribution.
 hypothesis``), or the filter's rate relative to the design prior
 (``RulDistribution.rate_ratio``) binned at ``edges``: a fault faster than the design runs is
-miscalibrated differently from one in range. A group with fewer than ``min_group`` scores uses
-the mode's pooled margin.
+miscalibrated differently from one in range. With ``weight_split`` each leading hypothesis's
+group is split again by the leader's weight: a lead below it (an ambiguous lead, where the
+lower ends miss most often: a fast life still led by a slower band) gets margins of its own,
+apart from the confident lead's. A group with fewer than ``min_group`` scores uses the next
+coarser one's margins: a split group its hypothesis's, a hypothesis's the mode's pooled.
 """
 
 from __future__ import annotations
@@ -36,32 +39,38 @@ import numpy as np
 
 from .predictor import RulDistribution
 
-__all__ = ["BAND_LEVELS", "BandCalibration", "CalibrationRecord", "fit_band_calibration",
-           "widen"]
+__all__ = ["BAND_LEVELS", "DEFAULT_WEIGHT_SPLIT", "BandCalibration", "CalibrationRecord",
+           "fit_band_calibration", "widen"]
 
 _FORMAT = "rul-band-calibration/2"
 #: per band coverage, the margins (Q_lo, Q_hi) of its lower and upper end [log(1 + RUL)]
 Margins = dict[float, tuple[float, float]]
 #: the central bands the layer calibrates: coverage -> (lower level, upper level)
 BAND_LEVELS = {0.5: (0.25, 0.75), 0.9: (0.05, 0.95)}
+#: [-] the leader's weight below which ``hmsm calibrate`` calibrates a lead apart (the
+#: dashboard's "fast fault, 0.8"; chosen on design seeds 7 and 8, docs/TUNING.md)
+DEFAULT_WEIGHT_SPLIT = 0.8
 
 
 @dataclass(frozen=True)
 class CalibrationRecord:
     """One replayed prediction: its band quantiles {level: RUL}, the filter's rate ratio, the
-    true RUL [flights] and the leading rate hypothesis (None without a bank)."""
+    true RUL [flights], the leading rate hypothesis (None without a bank) and its weight."""
 
     quantiles: Mapping[float, float]
     rate_ratio: float
     true_rul: float
     hypothesis: str | None = None
+    weight: float = 1.0
 
 
 @dataclass(frozen=True)
 class BandCalibration:
     """The layer of one fault mode: its groups (the rate hypotheses by name when
     ``hypotheses`` is set, else the rate-ratio bins of ``edges``, ascending), each group's
-    margins {coverage: (Q_lo, Q_hi)} (log units) and size, and the pooled margins."""
+    margins {coverage: (Q_lo, Q_hi)} (log units) and size, and the pooled margins; with
+    ``weight_split``, each hypothesis's ambiguous and confident lead's margins, sizes and
+    shifts too (``split_*``, two per hypothesis: ambiguous first)."""
 
     edges: tuple[float, ...]
     margins: tuple[Margins, ...]
@@ -75,6 +84,11 @@ class BandCalibration:
     n_runs: int = 0
     notes: dict[str, Any] = field(default_factory=dict)
     hypotheses: tuple[str, ...] = ()
+    #: [-] the leader's weight below which a lead is ambiguous (None: no split)
+    weight_split: float | None = None
+    split_margins: tuple[Margins, ...] = ()
+    split_counts: tuple[int, ...] = ()
+    split_shifts: tuple[float, ...] = ()
 
     @property
     def n_groups(self) -> int:
@@ -88,21 +102,35 @@ class BandCalibration:
             return -1
         return int(np.searchsorted(np.asarray(self.edges), rate_ratio, side="right"))
 
-    def margins_for(self, rate_ratio: float, hypothesis: str | None = None
-                    ) -> tuple[int, Margins, float]:
+    def split_of(self, group: int, weight: float) -> int:
+        """The split group of a prediction in hypothesis group ``group`` led with ``weight``
+        (-1: no split)."""
+        if self.weight_split is None or group < 0 or not self.hypotheses:
+            return -1
+        return 2 * group + int(weight >= self.weight_split)
+
+    def margins_for(self, rate_ratio: float, hypothesis: str | None = None,
+                    weight: float = 1.0) -> tuple[int, Margins, float]:
         """(group, margins, median shift) of a prediction; group -1 is the pooled fallback."""
         g = self.group_of(rate_ratio, hypothesis)
         if g < 0 or self.counts[g] < self.min_group:
             return -1, self.pooled, self.pooled_shift
+        s = self.split_of(g, weight)
+        if s >= 0 and self.split_counts[s] >= self.min_group:
+            return g, self.split_margins[s], self.split_shifts[s]
         return g, self.margins[g], self.shifts[g]
 
     def apply(self, dist: RulDistribution) -> RulDistribution:
-        group, margins, shift = self.margins_for(dist.rate_ratio, _leading(dist))
+        name, weight = _leading(dist)
+        group, margins, shift = self.margins_for(dist.rate_ratio, name, weight)
         out = widen(dist, margins, median_shift=shift)
-        return replace(out, adjustment={**(dist.adjustment or {}), "conformal_group": group,
-                                        "conformal_margins": {c: list(m) for c, m in
-                                                              margins.items()},
-                                        "median_shift": shift})
+        adjustment = {**(dist.adjustment or {}), "conformal_group": group,
+                      "conformal_margins": {c: list(m) for c, m in margins.items()},
+                      "median_shift": shift}
+        split = self.split_of(group, weight)
+        if split >= 0 and self.split_counts[split] >= self.min_group:
+            adjustment["conformal_lead"] = "confident" if split % 2 else "ambiguous"
+        return replace(out, adjustment=adjustment)
 
     def to_dict(self) -> dict[str, Any]:
         out = {"format": _FORMAT, "edges": list(self.edges),
@@ -113,6 +141,11 @@ class BandCalibration:
                "n_runs": self.n_runs, "notes": self.notes}
         if self.hypotheses:  # absent otherwise: documents read as before
             out["hypotheses"] = list(self.hypotheses)
+        if self.weight_split is not None:
+            out["weight_split"] = self.weight_split
+            out["split_margins"] = [_margins_out(m) for m in self.split_margins]
+            out["split_counts"] = list(self.split_counts)
+            out["split_shifts"] = list(self.split_shifts)
         return out
 
     @classmethod
@@ -131,9 +164,25 @@ class BandCalibration:
             raise ValueError("band calibration: one group per hypothesis, or edges ascending "
                              "with one group more; each group with its margins and a finite "
                              "shift")
-        return cls(edges, margins, counts, _margins_in(d["pooled"]), shifts,
-                   float(d["pooled_shift"]), int(d["min_group"]), int(d.get("n_records", 0)),
-                   int(d.get("n_runs", 0)), dict(d.get("notes") or {}), hypotheses)
+        layer = cls(edges, margins, counts, _margins_in(d["pooled"]), shifts,
+                    float(d["pooled_shift"]), int(d["min_group"]), int(d.get("n_records", 0)),
+                    int(d.get("n_runs", 0)), dict(d.get("notes") or {}), hypotheses)
+        return layer if d.get("weight_split") is None else _with_split(layer, d)
+
+
+def _with_split(layer: BandCalibration, d: Mapping[str, Any]) -> BandCalibration:
+    """``layer`` with the split groups of its document ``d`` (two per hypothesis)."""
+    split = float(d["weight_split"])
+    margins = tuple(_margins_in(m) for m in d["split_margins"])
+    counts = tuple(int(c) for c in d["split_counts"])
+    shifts = tuple(float(v) for v in d["split_shifts"])
+    if not layer.hypotheses or not 0.0 < split <= 1.0 \
+            or not len(margins) == len(counts) == len(shifts) == 2 * len(layer.hypotheses) \
+            or not all(math.isfinite(v) for v in shifts):
+        raise ValueError("band calibration: a weight split in (0, 1] needs a bank, and two "
+                         "groups per hypothesis, each with its margins and a finite shift")
+    return replace(layer, weight_split=split, split_margins=margins, split_counts=counts,
+                   split_shifts=shifts)
 
 
 def _margins_out(m: Margins) -> list[list[float]]:
@@ -176,11 +225,12 @@ def _margin(scores: np.ndarray, level: float) -> float:
 
 def fit_band_calibration(records: Iterable[CalibrationRecord], *,
                          edges: tuple[float, ...] = (0.5, 2.0), min_group: int = 30,
-                         n_runs: int = 0, hypotheses: tuple[str, ...] = ()
-                         ) -> BandCalibration:
+                         n_runs: int = 0, hypotheses: tuple[str, ...] = (),
+                         weight_split: float | None = None) -> BandCalibration:
     """The layer of one mode from its replayed predictions (each band's quantiles finite
     below, the truth finite), grouped by leading hypothesis when ``hypotheses`` names a
-    bank's, else by rate ratio at ``edges``."""
+    bank's (and split by the leader's weight at ``weight_split``), else by rate ratio at
+    ``edges``."""
     recs = [r for r in records if math.isfinite(r.true_rul) and r.true_rul >= 0]
     if not recs:
         raise ValueError("no replayed prediction to calibrate on")
@@ -193,14 +243,34 @@ def fit_band_calibration(records: Iterable[CalibrationRecord], *,
         g = layer.group_of(r.rate_ratio, r.hypothesis)
         if g >= 0:
             groups[g].append(r)
-    margins = tuple({c: _band_margins(g, c) for c in BAND_LEVELS} if g else dict(pooled)
-                    for g in groups)
-    shifts = tuple(_median_shift(g) if g else layer.pooled_shift for g in groups)
-    return replace(layer, margins=margins, counts=tuple(len(g) for g in groups), shifts=shifts)
+    layer = replace(layer, **_groups_fitted(groups, pooled, layer.pooled_shift))
+    if weight_split is None or not hypotheses:
+        return layer
+    if not 0.0 < weight_split <= 1.0:
+        raise ValueError(f"weight_split must lie in (0, 1], got {weight_split!r}")
+    halves: list[list[CalibrationRecord]] = [[] for _ in range(2 * layer.n_groups)]
+    for g, members in enumerate(groups):
+        for r in members:
+            halves[2 * g + int(r.weight >= weight_split)].append(r)
+    fitted = _groups_fitted(halves, pooled, layer.pooled_shift)
+    return replace(layer, weight_split=float(weight_split), split_margins=fitted["margins"],
+                   split_counts=fitted["counts"], split_shifts=fitted["shifts"])
 
 
-def _leading(dist: RulDistribution) -> str | None:
-    return None if dist.hypothesis is None else dist.hypothesis.get("name")
+def _groups_fitted(groups: Sequence[Sequence[CalibrationRecord]], pooled: Margins,
+                   pooled_shift: float) -> dict[str, Any]:
+    """Each group's margins, size and median shift (an empty group: the pooled)."""
+    return {"margins": tuple({c: _band_margins(g, c) for c in BAND_LEVELS} if g
+                             else dict(pooled) for g in groups),
+            "counts": tuple(len(g) for g in groups),
+            "shifts": tuple(_median_shift(g) if g else pooled_shift for g in groups)}
+
+
+def _leading(dist: RulDistribution) -> tuple[str | None, float]:
+    """The leading hypothesis's name and weight (None, 1 without a bank)."""
+    if dist.hypothesis is None:
+        return None, 1.0
+    return dist.hypothesis.get("name"), float(dist.hypothesis.get("weight", 1.0))
 
 
 def widen(dist: RulDistribution, margins: Margins, *, median_shift: float = 0.0
