@@ -48,7 +48,8 @@ Margins = dict[float, tuple[float, float]]
 #: the central bands the layer calibrates: coverage -> (lower level, upper level)
 BAND_LEVELS = {0.5: (0.25, 0.75), 0.9: (0.05, 0.95)}
 #: [-] the leader's weight below which ``hmsm calibrate`` calibrates a lead apart (the
-#: dashboard's "fast fault, 0.8"; chosen on design seeds 7 and 8, docs/TUNING.md)
+#: dashboard's "fast fault, 0.8", not tuned; the split itself chosen on design seeds 7 and 8,
+#: docs/TUNING.md)
 DEFAULT_WEIGHT_SPLIT = 0.8
 
 
