@@ -31,9 +31,12 @@ import numpy as np
 
 from server.evaluation.band_calibration import calibration_records
 from server.phm.prognosis.calibration import BandCalibration, fit_band_calibration
+from server.phm.prognosis.hypotheses import band_names
 from server.phm.prognosis.predictor import RulDistribution
+from server.phm.training import TrainingConfig
 
-HYPOTHESES = ("fast", "medium", "slow")
+#: the bank's hypotheses, as training names them
+HYPOTHESES = tuple(name for name, _, _ in band_names(TrainingConfig().rate_band_edges))
 
 
 def _evaluation(path: str) -> dict[str, Any]:

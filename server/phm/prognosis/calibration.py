@@ -113,24 +113,29 @@ class BandCalibration:
     def margins_for(self, rate_ratio: float, hypothesis: str | None = None,
                     weight: float = 1.0) -> tuple[int, Margins, float]:
         """(group, margins, median shift) of a prediction; group -1 is the pooled fallback."""
+        group, _, margins, shift = self._chosen(rate_ratio, hypothesis, weight)
+        return group, margins, shift
+
+    def _chosen(self, rate_ratio: float, hypothesis: str | None, weight: float
+                ) -> tuple[int, str | None, Margins, float]:
+        """(group, the lead's half when a split group's own margins apply, margins, shift)."""
         g = self.group_of(rate_ratio, hypothesis)
         if g < 0 or self.counts[g] < self.min_group:
-            return -1, self.pooled, self.pooled_shift
+            return -1, None, self.pooled, self.pooled_shift
         s = self.split_of(g, weight)
         if s >= 0 and self.split_counts[s] >= self.min_group:
-            return g, self.split_margins[s], self.split_shifts[s]
-        return g, self.margins[g], self.shifts[g]
+            return (g, "confident" if s % 2 else "ambiguous", self.split_margins[s],
+                    self.split_shifts[s])
+        return g, None, self.margins[g], self.shifts[g]
 
     def apply(self, dist: RulDistribution) -> RulDistribution:
-        name, weight = _leading(dist)
-        group, margins, shift = self.margins_for(dist.rate_ratio, name, weight)
+        group, lead, margins, shift = self._chosen(dist.rate_ratio, *_leading(dist))
         out = widen(dist, margins, median_shift=shift)
         adjustment = {**(dist.adjustment or {}), "conformal_group": group,
                       "conformal_margins": {c: list(m) for c, m in margins.items()},
                       "median_shift": shift}
-        split = self.split_of(group, weight)
-        if split >= 0 and self.split_counts[split] >= self.min_group:
-            adjustment["conformal_lead"] = "confident" if split % 2 else "ambiguous"
+        if lead is not None:
+            adjustment["conformal_lead"] = lead
         return replace(out, adjustment=adjustment)
 
     def to_dict(self) -> dict[str, Any]:
