@@ -101,7 +101,9 @@ def _training_info(report: Any) -> dict[str, Any]:
     if not isinstance(report, dict):
         return {}
     clf = report.get("classifier") or {}
-    return {"classifier_accuracy": clf.get("accuracy"), "measurement": report.get("measurement")}
+    detector = report.get("detector") or {}
+    return {"classifier_accuracy": clf.get("accuracy"), "measurement": report.get("measurement"),
+            "design_false_alarms": detector.get("design_false_alarms")}
 
 
 def _model_from_db(settings: Settings, model_id: int | None) -> tuple[PhmModel, dict[str, Any]]:
@@ -184,6 +186,7 @@ def run_evaluate(args: argparse.Namespace, settings: Settings, *,
     in place of the progress bar."""
     from server.campaigns import campaign_store, read_manifest
 
+    from .false_alarms import against_design
     from .runner import evaluate_campaign
 
     campaign = campaign_store(args.campaign)  # a directory or s3://bucket/prefix
@@ -217,6 +220,9 @@ def run_evaluate(args: argparse.Namespace, settings: Settings, *,
         if bar is not None:
             bar.close()
     result["model"] = {**(result.get("model") or {}), **source}
+    detection = result["detection"]
+    detection["per_unit_flight"] = against_design(detection["per_unit_flight"],
+                                                  source.get("design_false_alarms"))
     result["created_at"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
     result["wall_s"] = time.perf_counter() - t0
     result = _sanitise(result)

@@ -8,6 +8,11 @@ carries elsewhere. The rate is events per unit-flight at risk, with its exact (C
 90 % interval, set beside the detector's design rate; the events are split by cause and by the
 age of the unit's reference (flights since the unit was installed: its reference is its first
 valid flights) and by the features they were raised on.
+
+Two design rates stand beside it: the one the bands are set for (stated, ``design_rate``), and
+the one the design measured over its own long healthy lives with its interval (the training
+report's ``design_false_alarms``, :func:`~server.phm.detection_model.healthy_alarm_rate`); the
+verification's rate should fall inside the measured one's interval (:func:`against_design`).
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ from server.phm.detection import generic_feature
 from server.phm.metrics import event_rate
 from server.vocabulary import POSITIONS, alarming_positions, is_winglet
 
-__all__ = ["CAUSES", "AGE_BINS", "exposure_of", "summarise_false_alarms"]
+__all__ = ["CAUSES", "AGE_BINS", "against_design", "exposure_of", "summarise_false_alarms"]
 
 #: where a unit without a fault flies
 CAUSES: tuple[str, ...] = ("healthy cycle", "before onset", "partner drive", "other surface")
@@ -100,3 +105,20 @@ def summarise_false_alarms(traces: Sequence[Mapping[str, Any]],
                                    <= total["interval"][1]),
             "by_cause": by_cause, "events_by_reference_age": ages,
             "events_by_feature": dict(sorted(features.items())), "list": events}
+
+
+def against_design(per_unit_flight: Mapping[str, Any], measured: Mapping[str, Any] | None
+                   ) -> dict[str, Any]:
+    """``per_unit_flight`` (:func:`summarise_false_alarms`) with the design's measured rate
+    beside it (``design_measured``: events, unit-flights, rate, interval) and whether the
+    verification's rate falls inside that interval (``within_design_interval``; None without
+    a measured design rate or a verification rate)."""
+    out = dict(per_unit_flight)
+    if not measured or measured.get("interval") is None:
+        return out
+    keep = ("events", "unit_flights", "rate", "interval", "level")
+    out["design_measured"] = {k: measured[k] for k in keep if k in measured}
+    rate = per_unit_flight.get("rate")
+    lo, hi = measured["interval"]
+    out["within_design_interval"] = None if rate is None else bool(lo <= rate <= hi)
+    return out

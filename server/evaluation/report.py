@@ -184,6 +184,19 @@ def _rate_text(r: Mapping[str, Any]) -> str:
             f"[{lo:.1e}, {hi:.1e}]")
 
 
+def _beside_design(pu: Mapping[str, Any]) -> list[str]:
+    """The design's measured rate over its own long healthy lives, and whether this rate
+    falls inside its interval (no lines when the model carried none)."""
+    measured = pu.get("design_measured")
+    if not measured:
+        return []
+    inside = pu.get("within_design_interval")
+    verdict = ("" if inside is None else
+               f": this rate is {'inside' if inside else 'outside'} its interval")
+    return [f"The design's own long healthy lives (leave-one-aircraft-out): "
+            f"{_rate_text(measured)}{verdict}.", ""]
+
+
 def _per_unit_flight(det: Mapping[str, Any]) -> list[str]:
     """The false alarms per unit-flight of every unit without a fault, with their interval
     beside the detector's design rate, by cause and reference age."""
@@ -196,6 +209,7 @@ def _per_unit_flight(det: Mapping[str, Any]) -> list[str]:
               f"{'inside' if pu.get('design_rate_inside') else 'outside'} the interval")
     lines = ["", f"False alarms per unit-flight, every actuator without a fault: "
                  f"{_rate_text(pu)} ({pu['level']:.0%} exact interval){beside}.", "",
+             *_beside_design(pu),
              "| cause | alarm events | unit-flights | rate [90 % interval] |", "|---|---|---|---|"]
     for cause, r in pu["by_cause"].items():
         rate = "-" if r["rate"] is None else (f"{r['rate']:.1e} [{r['interval'][0]:.1e}, "

@@ -82,6 +82,19 @@ def test_every_verification_flight_is_analysed_and_scored_with_intervals(
     assert len((protocol_run / "evaluation" / "summary.json").read_bytes()) < 60_000
 
 
+def test_the_verification_rate_is_set_beside_the_design_measured_one(protocol_run: Path) -> None:
+    """The false-alarm rate per unit-flight stands beside the rate the trained model's design
+    measured over its own healthy lives, with whether it falls inside that interval."""
+    model = json.loads((protocol_run / "model.json").read_text())
+    design = model["training"]["detector"]["design_false_alarms"]
+    summary = json.loads((protocol_run / "evaluation" / "summary.json").read_text())
+    pu = summary["detection"]["per_unit_flight"]
+    assert pu["design_measured"]["unit_flights"] == design["unit_flights"] > 0
+    assert pu["design_measured"]["interval"] == design["interval"]
+    lo, hi = design["interval"]
+    assert pu["within_design_interval"] is (lo <= pu["rate"] <= hi)
+
+
 def test_a_finished_campaign_is_never_overwritten(protocol_run: Path) -> None:
     before = (protocol_run / "verification" / "phm_features.json").read_bytes()
     proc = subprocess.run(

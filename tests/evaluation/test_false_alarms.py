@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from server.evaluation.false_alarms import exposure_of, summarise_false_alarms
+from server.evaluation.false_alarms import against_design, exposure_of, summarise_false_alarms
+from server.evaluation.report import _per_unit_flight
+from server.phm.metrics import event_rate
 
 
 def _trace(mode: str, position: str | None, onset: int | None, n: int,
@@ -49,3 +51,19 @@ def test_the_summary_sets_the_rate_beside_the_design_rate() -> None:
     assert s["events_by_feature"] == {"F_DMD": 1} and s["list"][0]["features"] == ["WT.F_DMD"]
     none = summarise_false_alarms([dmd], 3e-5)
     assert none["events"] == 0 and none["interval"][0] == 0.0
+
+
+def test_the_verification_rate_is_set_inside_or_outside_the_design_measured_interval() -> None:
+    healthy = _trace("healthy", None, None, 400, {320: "WT"}, feature="F_DMD")
+    s = summarise_false_alarms([healthy], 3e-5)  # 1 event on 1,121 unit-flights: 8.9e-4
+    wide = {**event_rate(5, 10_676), "level": 0.9, "stated_rate": 3e-5}  # [1.8e-4, 9.8e-4]
+    inside = against_design(s, wide)
+    assert inside["within_design_interval"] is True
+    measured = inside["design_measured"]
+    assert measured["events"] == 5 and "stated_rate" not in measured
+    quiet = against_design(s, {**event_rate(1, 100_000), "level": 0.9})
+    assert quiet["within_design_interval"] is False
+    assert against_design(s, None) == s  # a model without its design's record: nothing added
+    text = "\n".join(_per_unit_flight({"per_unit_flight": inside}))
+    assert "long healthy lives (leave-one-aircraft-out): 5 on 10676 unit-flights" in text
+    assert "inside its interval" in text
