@@ -5,8 +5,9 @@ split by flight kind (nominal or under the test station's conditions, recording 
 
 DESIGN_DIR: the streamed ``shipped`` design of seed 1 (``hmsm campaign --kind design --scale
 shipped --seed 1``), the one MODEL_JSON was trained on. The residuals are the training's
-(leave-one-aircraft-out baselines, :func:`server.phm.detection_model.fit_detection`); for each
-stated rate the detector is fitted again on them with only ``false_alarm_rate`` changed, and
+(leave-one-aircraft-out baselines, :func:`server.phm.detection_model.out_of_fold_residuals`);
+for each stated rate the detector is fitted again on them with only ``false_alarm_rate``
+changed, and
 each aircraft's units are judged together as the chain judges them, each unit at risk until its
 first alarm (the training's ``design_false_alarms``). A flight's kind comes from the campaign's
 plan (``block_conditions``, ``recording_s``): the service itself is not told which flights ran
@@ -28,12 +29,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from server.campaigns import load_campaign  # noqa: E402
-from server.phm.baselines import FleetBaseline  # noqa: E402
 from server.phm.chain.model import read_model_document  # noqa: E402
 from server.phm.dataset import Campaign, is_healthy_flight  # noqa: E402
-from server.phm.detection import FaultDetector  # noqa: E402
+from server.phm.detection import FaultDetector, first_alarms  # noqa: E402
 from server.phm.detection.config import unit_of  # noqa: E402
 from server.phm.detection.sequences import judge_sequence  # noqa: E402
+from server.phm.detection_model import out_of_fold_residuals  # noqa: E402
 from server.phm.features import AIRCRAFT_FEATURES  # noqa: E402
 from server.phm.metrics import event_rate  # noqa: E402
 from sim_worker.campaign.planning import block_conditions, plan_campaign, recording_s  # noqa: E402
@@ -51,27 +52,11 @@ def _healthy_sequences(camp: Campaign) -> list[tuple[str, str, list[Any]]]:
     return out
 
 
-def _out_of_fold(seqs: list[tuple[str, str, list[Any]]], proto: FleetBaseline
-                 ) -> list[tuple[int, np.ndarray, np.ndarray]]:
-    """(sequence index, z, evidence) of every healthy sequence, each from a baseline fitted
-    without its aircraft."""
-    out = []
-    for tail in sorted({a for a, _, _ in seqs}):
-        train = [(a, r.features) for a, _, recs in seqs if a != tail for r in recs]
-        b = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence, within_units=proto.within_units,
-                          log_features=proto.log_features)
-        b.fit([f for _, f in train], [a for a, _ in train])
-        for h, (a, _, recs) in enumerate(seqs):
-            if a == tail:
-                feats = [r.features for r in recs]
-                out.append((h, b.zscore_matrix(feats), b.evidence_matrix(feats)))
-    return out
-
-
 def _score(det: FaultDetector, seqs: list[tuple[str, str, list[Any]]],
            oof: list[tuple[int, np.ndarray, np.ndarray]], kinds: dict[str, list[str]]
            ) -> dict[str, Any]:
+    """The rate by flight kind and the alarms, each unit at risk until its first alarm
+    (:func:`~server.phm.detection.first_alarms`, as the training's rate)."""
     names = [n for n in AIRCRAFT_FEATURES if n in det.feature_names_]
     cols = [AIRCRAFT_FEATURES.index(n) for n in names]
     at_risk: Counter[str] = Counter()
@@ -79,18 +64,19 @@ def _score(det: FaultDetector, seqs: list[tuple[str, str, list[Any]]],
     alarms = []
     for h, z, ev in oof:
         _, pid, recs = seqs[h]
-        judged = judge_sequence(det, z[:, cols], names, ev[:, cols])
-        for unit in dict.fromkeys(unit_of(n) for n in names):
-            uc = [k for k, n in enumerate(names) if unit_of(n) == unit]
-            rows = np.flatnonzero(judged.firing[:, uc].any(axis=1))
-            end = int(rows[0]) + 1 if rows.size else len(recs)
-            at_risk.update(kinds[pid][:end])
-            if rows.size:
-                r = int(rows[0])
-                hits[kinds[pid][r]] += 1
-                alarms.append({"pattern": pid, "unit": unit, "flight": recs[r].index,
-                               "kind": kinds[pid][r],
-                               "features": [names[k] for k in uc if judged.firing[r, k]]})
+        first = first_alarms(det, z[:, cols], names, ev[:, cols])
+        firing = None
+        for unit, row in first.items():
+            at_risk.update(kinds[pid][:len(recs) if row is None else row + 1])
+            if row is None:
+                continue
+            hits[kinds[pid][row]] += 1
+            if firing is None:  # which features: the judge again, only where a unit alarmed
+                firing = judge_sequence(det, z[:, cols], names, ev[:, cols]).firing
+            alarms.append({"pattern": pid, "unit": unit, "flight": recs[row].index,
+                           "kind": kinds[pid][row],
+                           "features": [n for k, n in enumerate(names)
+                                        if unit_of(n) == unit and firing[row, k]]})
     return {"stated_rate": det.false_alarm_rate,
             **event_rate(sum(hits.values()), sum(at_risk.values())),
             "by_kind": {k: event_rate(hits[k], at_risk[k]) for k in sorted(at_risk)},
@@ -116,7 +102,8 @@ def main(argv: list[str] | None = None) -> int:
         return f"{'station' if station else 'nominal'}, {recording_s(cfg, spec, index):g} s"
 
     kinds = {pid: [kind(pid, r.index) for r in recs] for _, pid, recs in seqs}
-    oof = _out_of_fold(seqs, model.baseline)
+    oof = out_of_fold_residuals([(a, [r.features for r in recs]) for a, _, recs in seqs],
+                                model.baseline)
     rows = []
     for rate in (float(x) for x in args.rates.split(",")):
         det = FaultDetector.from_config(replace(model.detector.config, false_alarm_rate=rate))

@@ -18,10 +18,10 @@ import numpy as np
 from .baselines import FleetBaseline
 from .dataset import Campaign, healthy_flights
 from .detection import UNITS, DetectionState, FaultDetector, first_alarms, new_states
-from .features import AIRCRAFT_FEATURES
+from .features import AIRCRAFT_FEATURES, FlightFeatures
 from .metrics import event_rate
 
-__all__ = ["DetectionModel", "fit_detection", "healthy_alarm_rate"]
+__all__ = ["DetectionModel", "fit_detection", "healthy_alarm_rate", "out_of_fold_residuals"]
 
 
 @dataclass
@@ -52,31 +52,40 @@ def fit_detection(design: Campaign, *, detector: FaultDetector | None = None,
                   baseline: FleetBaseline | None = None) -> DetectionModel:
     """Baselines on all healthy design flights; detector bands on out-of-fold residuals."""
     seqs = healthy_flights(design)
-    all_flights = [f for _, s in seqs for f in s]
-    tails_of = [a for a, s in seqs for _ in s]  # each flight's aircraft: its units
     proto = baseline or FleetBaseline()
-    final = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence, within_units=proto.within_units,
-                          log_features=proto.log_features).fit(all_flights, tails_of)
-    tails = sorted({a for a, _ in seqs})
-    oof: list[np.ndarray] = []
-    evidence: list[np.ndarray] = []
-    for tail in tails:
-        train = [f for a, s in seqs if a != tail for f in s]
-        if len(train) < 3:
-            continue
-        b = FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
-                          min_evidence=proto.min_evidence, within_units=proto.within_units,
-                          log_features=proto.log_features)
-        b.fit(train, [a for a, s in seqs if a != tail for _ in s])
-        oof += [b.zscore_matrix(s) for a, s in seqs if a == tail]
-        evidence += [b.evidence_matrix(s) for a, s in seqs if a == tail]
+    final = _unfitted_like(proto).fit([f for _, s in seqs for f in s],
+                                      [a for a, s in seqs for _ in s])
+    oof = out_of_fold_residuals(seqs, proto)
     det = detector or FaultDetector()
-    if not oof:
+    if oof:
+        sequences, evidence = [z for _, z, _ in oof], [e for _, _, e in oof]
+    else:
+        sequences = [final.zscore_matrix(s) for _, s in seqs]
         evidence = [final.evidence_matrix(s) for _, s in seqs]
-    sequences = oof if oof else [final.zscore_matrix(s) for _, s in seqs]
     det.fit(sequences, AIRCRAFT_FEATURES, evidence)
     return DetectionModel(final, det, healthy_alarm_rate(det, sequences, evidence=evidence))
+
+
+def out_of_fold_residuals(seqs: Sequence[tuple[str, Sequence[FlightFeatures]]],
+                          proto: FleetBaseline) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """``(index in seqs, z, evidence)`` of every healthy sequence ``(aircraft, flights)``, each
+    from a baseline with ``proto``'s settings fitted without its aircraft (aircraft in sorted
+    order; none whose others hold fewer than 3 flights)."""
+    out = []
+    for tail in sorted({a for a, _ in seqs}):
+        train = [(a, f) for a, s in seqs if a != tail for f in s]
+        if len(train) < 3:
+            continue
+        b = _unfitted_like(proto).fit([f for _, f in train], [a for a, _ in train])
+        out += [(h, b.zscore_matrix(s), b.evidence_matrix(s))
+                for h, (a, s) in enumerate(seqs) if a == tail]
+    return out
+
+
+def _unfitted_like(proto: FleetBaseline) -> FleetBaseline:
+    return FleetBaseline(proto.covariates, ridge=proto.ridge, outlier_k=proto.outlier_k,
+                         min_evidence=proto.min_evidence, within_units=proto.within_units,
+                         log_features=proto.log_features)
 
 
 def healthy_alarm_rate(detector: FaultDetector, sequences: Sequence[np.ndarray],
